@@ -1,0 +1,20 @@
+#pragma once
+/// \file The flexopt commands (info, simulate, modes) behind the command line.
+#include "flexopt/core/context.hpp"
+
+#include <string>
+
+namespace flexopt::app {
+
+struct Options {
+  std::string command;  ///< info | simulate | modes
+  std::string case_dir;
+  std::string out;      ///< output directory; empty: <case>/out
+  int count = 10;       ///< modes: number of modes
+  bool free = false;    ///< modes: ignore supports
+};
+
+/// Runs one command. Collective. Returns the process exit status; throws flexopt::Error.
+int run(const Context &ctx, const Options &options);
+
+} // namespace flexopt::app

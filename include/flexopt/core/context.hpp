@@ -1,0 +1,49 @@
+#pragma once
+/// \file Process-wide set-up: MPI, PETSc and SLEPc initialisation, and collective helpers.
+#include <mpi.h>
+
+#include <functional>
+#include <string>
+#include <vector>
+
+namespace flexopt {
+
+/// RAII owner of MPI/PETSc/SLEPc. Construct once in main with the PETSc part of the command
+/// line; destruction finalises SLEPc and PETSc (and MPI).
+class Context {
+public:
+  Context(int *argc, char ***argv, const char *help);
+  ~Context();
+  Context(const Context &) = delete;
+  Context &operator=(const Context &) = delete;
+
+  MPI_Comm comm() const { return comm_; }
+  int rank() const { return rank_; }
+  int size() const { return size_; }
+
+private:
+  MPI_Comm comm_;
+  int rank_ = 0;
+  int size_ = 1;
+};
+
+/// Runs `fn` on `root` only and makes any exception it throws collective: every rank of `comm`
+/// then throws a flexopt::Error with the same message. Collective.
+void run_on_root(MPI_Comm comm, int root, const std::function<void()> &fn);
+
+/// Rank index and size of a communicator.
+int comm_rank(MPI_Comm comm);
+int comm_size(MPI_Comm comm);
+
+/// Prints on rank 0 only (printf-style), flushing stdout.
+void print0(MPI_Comm comm, const char *format, ...) __attribute__((format(printf, 2, 3)));
+
+/// Wall-clock seconds since an arbitrary origin (MPI_Wtime).
+double wall_time();
+
+/// Inserts PETSc options from a string (the case's `solver:` entry) without overriding any
+/// option already given on the command line. Throws flexopt::Error naming `origin` if the
+/// string is malformed.
+void insert_default_petsc_options(const std::string &options, const std::string &origin);
+
+} // namespace flexopt

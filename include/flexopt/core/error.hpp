@@ -1,0 +1,37 @@
+#pragma once
+/// \file Errors: one exception type carrying a user-facing message.
+///
+/// flexopt code throws `flexopt::Error` at module boundaries. `main` turns it into one clear
+/// message and a non-zero exit on every rank. An error is *collective* when every rank of the
+/// communicator is known to throw it (e.g. a case-file error found by every rank); otherwise
+/// `main` aborts the communicator so that no rank is left waiting in a collective call.
+#include <petscsys.h>
+
+#include <stdexcept>
+#include <string>
+
+namespace flexopt {
+
+class Error : public std::runtime_error {
+public:
+  /// \param message   complete, user-facing text (names the file, key or step)
+  /// \param collective true if every rank raises the same error at the same point
+  explicit Error(const std::string &message, bool collective = false)
+      : std::runtime_error(message), collective_(collective) {}
+  bool collective() const { return collective_; }
+
+private:
+  bool collective_;
+};
+
+/// Throws flexopt::Error when a PETSc/SLEPc call fails; PETSc has already printed its trace.
+void throw_petsc_error(PetscErrorCode code, const char *call, const char *file, int line);
+
+} // namespace flexopt
+
+/// Wrap a PETSc or SLEPc call made from C++ code: a non-zero code becomes a flexopt::Error.
+#define FX_PETSC(call)                                                                             \
+  do {                                                                                             \
+    PetscErrorCode fx_ierr_ = (call);                                                              \
+    if (PetscUnlikely(fx_ierr_)) ::flexopt::throw_petsc_error(fx_ierr_, #call, __FILE__, __LINE__); \
+  } while (0)

@@ -1,0 +1,62 @@
+#pragma once
+/// \file Assembly of element kernels into PETSc objects on a DistributedMesh.
+///
+/// DOFs are node-major with block size 3: global DOF 3*g + k is component k of global node g.
+/// Matrices are MATAIJ (MPIAIJ on several ranks) with block size 3, preallocated exactly by a
+/// MATPREALLOCATOR pass over the element connectivity, and carry the local-to-global mapping
+/// of the mesh's local nodes so that element blocks are added with MatSetValuesBlockedLocal.
+#include "flexopt/fem/element.hpp"
+#include "flexopt/mesh/distributed_mesh.hpp"
+
+#include <petscmat.h>
+#include <petscvec.h>
+
+#include <array>
+#include <vector>
+
+namespace flexopt::fem {
+
+/// Creates an empty, exactly preallocated stiffness-pattern matrix. Collective.
+Mat create_matrix(const mesh::DistributedMesh &mesh);
+
+/// Creates a ghosted vector (block size 3) over the mesh's local nodes. Collective.
+Vec create_ghosted_vector(const mesh::DistributedMesh &mesh);
+
+/// Adds K = sum_e factor_e K_e into A (zeroed first). `modulus_factor` holds one factor per
+/// local element (the SIMP interpolation later), or is empty for 1. Collective.
+void assemble_stiffness(const mesh::DistributedMesh &mesh, const IsotropicMaterial &material,
+                        const std::vector<double> &modulus_factor, Mat A);
+
+/// Consistent mass matrix, M = sum_e factor_e M_e (factor empty: 1). Collective.
+void assemble_mass(const mesh::DistributedMesh &mesh, double density,
+                   const std::vector<double> &density_factor, Mat A);
+
+/// Adds the consistent load of a constant body force b [N/m^3] to f. Collective.
+void add_body_force(const mesh::DistributedMesh &mesh, const Eigen::Vector3d &b, Vec f);
+
+/// Adds the consistent load of a constant traction t [N/m^2] on the named surface to f.
+/// Collective. Throws (collectively) if the surface does not exist.
+void add_surface_traction(const mesh::DistributedMesh &mesh, const std::string &surface,
+                          const Eigen::Vector3d &t, const std::string &where, Vec f);
+
+/// Global DOF numbers (owned by this rank) of the given components of the nodes of `surface`.
+std::vector<PetscInt> surface_dofs(const mesh::DistributedMesh &mesh, const std::string &surface,
+                                   const std::array<bool, 3> &components, const std::string &where);
+
+/// Vector of the owned node coordinates (block size 3): used for the rigid-body near-null
+/// space of algebraic multigrid. Collective.
+Vec create_coordinate_vector(const mesh::DistributedMesh &mesh);
+
+/// Element-wise volume of the local elements [m^3].
+std::vector<double> element_volumes(const mesh::DistributedMesh &mesh);
+
+/// Von Mises stress at the centroid of each local element from a ghosted displacement vector
+/// whose ghost values are up to date. [Pa]
+std::vector<double> element_von_mises(const mesh::DistributedMesh &mesh,
+                                      const IsotropicMaterial &material,
+                                      const std::vector<double> &modulus_factor, Vec u_ghosted);
+
+/// Displacement of local element e from the local form of a ghosted vector.
+ElementVector gather_element(const mesh::DistributedMesh &mesh, PetscInt e, const PetscScalar *u_local);
+
+} // namespace flexopt::fem

@@ -1,0 +1,153 @@
+#pragma once
+/// \file Element kernels for 3D isotropic linear elasticity (Tet4, Tet10, Hex8 volumes; Tri3, Tri6,
+/// Quad4 faces).
+///
+/// Every function here is a pure function of element data: no PETSc, no MPI, no global state other
+/// than immutable, thread-safe function-local caches of quadrature rules and shape-function values.
+/// The kernels do not allocate on the heap (fixed-maximum-size Eigen types); the functions returning
+/// a `QuadratureRule` do, and are meant for set-up code and tests.
+///
+/// Units: the kernels are unit-agnostic but consistent; the documentation uses SI (coordinates [m],
+/// displacements [m], moduli and stresses [Pa], density [kg/m^3], forces [N]).
+/// Conventions: DOF order is node-major, [ux, uy, uz] per node. Voigt order is xx, yy, zz, yz, xz,
+/// xy; stresses use tensor components, strains use engineering shear (gamma_ij = 2 eps_ij).
+/// Node orderings are Gmsh's. The equations are written out in docs/theory-elements.md.
+/// Errors (bad input sizes, invalid material, degenerate or inverted elements) throw flexopt::Error.
+#include "flexopt/core/error.hpp"
+
+#include <Eigen/Dense>
+
+#include <vector>
+
+namespace flexopt::fem {
+
+/// Volume element types (isoparametric, Lagrange).
+enum class ElementType { Tet4, Tet10, Hex8 };
+/// Boundary face types: Tri3 (face of Tet4), Tri6 (face of Tet10), Quad4 (face of Hex8).
+enum class FaceType { Tri3, Tri6, Quad4 };
+
+/// Maximum number of nodes of a volume element (Tet10).
+constexpr int kMaxNodes = 10;
+/// Maximum number of DOFs of a volume element: three displacement components per node.
+constexpr int kMaxDofs = 3 * kMaxNodes;
+/// Maximum number of nodes of a face (room for a future Quad9).
+constexpr int kMaxFaceNodes = 9;
+
+/// Number of nodes of a volume element: 4, 10, 8.
+int nodes_per_element(ElementType type);
+/// Number of nodes of a face: 3, 6, 4.
+int nodes_per_face(FaceType type);
+/// "Tet4", "Tet10", "Hex8".
+const char *element_name(ElementType type);
+/// "Tri3", "Tri6", "Quad4".
+const char *face_name(FaceType type);
+/// Number of corner (vertex) nodes: 4 for tets, 8 for hex (used by the METIS dual graph). The corner
+/// nodes are always the first ones in the element's node list.
+int corner_nodes(ElementType type);
+
+/// Nodal coordinates of a volume element [m]: one row per node (nodes_per_element rows).
+using ElementCoords = Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor, kMaxNodes, 3>;
+/// Nodal coordinates of a face [m]: one row per face node (nodes_per_face rows).
+using FaceCoords = Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor, kMaxFaceNodes, 3>;
+/// Element matrix (3n x 3n), node-major DOF order.
+using ElementMatrix =
+    Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor, kMaxDofs, kMaxDofs>;
+/// Element vector (3n), node-major DOF order.
+using ElementVector = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxDofs, 1>;
+/// Symmetric tensor in Voigt notation, order xx, yy, zz, yz, xz, xy. Stresses [Pa] hold tensor
+/// components; strains hold engineering shear (gamma = 2 eps) so that sigma = D * eps.
+using Voigt = Eigen::Matrix<double, 6, 1>;
+
+/// Isotropic linear-elastic material.
+struct IsotropicMaterial {
+  double E;       ///< Young's modulus [Pa], > 0
+  double nu;      ///< Poisson's ratio [-], -1 < nu < 0.5
+  double density; ///< mass density [kg/m^3]
+  /// First Lame parameter lambda = E nu / ((1 + nu)(1 - 2 nu)) [Pa].
+  double lambda() const;
+  /// Shear modulus mu = E / (2 (1 + nu)) [Pa].
+  double mu() const;
+  /// 6x6 elasticity matrix D [Pa] such that sigma = D * eps (Voigt order above, engineering shear
+  /// strains): D = lambda m m^T + mu diag(2, 2, 2, 1, 1, 1), m = (1, 1, 1, 0, 0, 0).
+  Eigen::Matrix<double, 6, 6> elasticity() const;
+  /// Throws flexopt::Error unless E > 0, -1 < nu < 0.5 and density >= 0 (all finite).
+  void validate() const;
+};
+
+/// Quadrature rule on a reference element: sum_q weights[q] f(points[q]) approximates the integral
+/// of f over the reference element. All weights are positive.
+struct QuadratureRule {
+  std::vector<Eigen::Vector3d> points; ///< reference coordinates (third coordinate 0 on faces)
+  std::vector<double> weights;         ///< weights; they sum to the reference measure
+};
+
+/// Quadrature on the reference element: exact for polynomials of total degree <= `degree` (for
+/// Hex8: of degree <= `degree` in each coordinate direction). Tets: reference tet (0,0,0), (1,0,0),
+/// (0,1,0), (0,0,1), volume 1/6; degree <= 1 gives the 1-point centroid rule, degree 2 the symmetric
+/// 4-point rule, degree >= 3 a collapsed (Duffy) tensor Gauss-Legendre rule. Hex8: reference cube
+/// [-1,1]^3, tensor Gauss-Legendre with ceil((degree+1)/2) points per direction. Gauss-Legendre
+/// points are computed by Newton iteration on the Legendre polynomials. 0 <= degree <= 40.
+QuadratureRule volume_quadrature(ElementType type, int degree);
+/// Quadrature on the reference face: triangles (0,0), (1,0), (0,1) (area 1/2; centroid rule for
+/// degree <= 1, 3-point rule for degree 2, collapsed Gauss-Legendre above), quad [-1,1]^2 (tensor
+/// Gauss-Legendre, degree per direction). Points are 2D (third coordinate 0). 0 <= degree <= 40.
+QuadratureRule face_quadrature(FaceType type, int degree);
+
+/// Shape functions and their reference derivatives at reference point xi (any point; no range
+/// check). N has n entries, dN is n x 3 row-major: dN[i*3+k] = dN_i/dxi_k. Node ordering is Gmsh's
+/// (Tet10: nodes 4..9 on edges (0,1), (1,2), (2,0), (3,0), (3,2), (3,1); Hex8: Gmsh = VTK ordering,
+/// bottom face z=-1 counter-clockwise from (-1,-1,-1), then the top face). Either pointer may be
+/// null to skip that output.
+void shape_functions(ElementType type, const Eigen::Vector3d &xi, double *N, double *dN);
+/// Face shape functions at reference point xi: N has n entries, dN is n x 2 row-major. Gmsh node
+/// ordering (Tri6: nodes 3, 4, 5 on edges (0,1), (1,2), (2,0); Quad4 counter-clockwise from
+/// (-1,-1)). Either pointer may be null.
+void face_shape_functions(FaceType type, const Eigen::Vector2d &xi, double *N, double *dN);
+/// Reference coordinates of the element centroid: (1/4, 1/4, 1/4) for tets, (0, 0, 0) for Hex8.
+Eigen::Vector3d reference_centroid(ElementType type);
+
+/// Element stiffness K_e = modulus_factor * int_e B^T D B dV [N/m] (DOF order node-major), symmetric
+/// positive semi-definite with exactly the 6 rigid-body modes in its kernel. modulus_factor scales
+/// E (e.g. the SIMP interpolation factor). Quadrature: Tet4 1 point, Tet10 4 points (18 if its
+/// mid-edge nodes are displaced from the edge midpoints, so that the patch test still holds), Hex8
+/// 2x2x2. X has nodes_per_element(type) rows. Throws flexopt::Error("... degenerate or inverted
+/// element ...") if det J <= 1e-12 h^3 at a quadrature point (h: bounding-box diagonal).
+ElementMatrix element_stiffness(ElementType type, const ElementCoords &X,
+                                const IsotropicMaterial &mat, double modulus_factor = 1.0);
+/// Consistent mass M_e = density * int_e N^T N dV [kg] (3x3 identity blocks per node pair), exact
+/// for every element geometry of the type (affine or curved Tet10, any trilinear Hex8). Throws
+/// like element_stiffness for degenerate or inverted elements.
+ElementMatrix element_mass(ElementType type, const ElementCoords &X, double density);
+/// Element volume int_e dV = int det J dxi [m^3], computed exactly for every geometry of the type.
+/// Does not throw for inverted elements: the result is the signed integral of det J (negative for
+/// a fully inverted element), so that callers can use it as an orientation check.
+double element_volume(ElementType type, const ElementCoords &X);
+/// Consistent nodal load of a constant body force b [N/m^3]: f_(i,k) = b_k int_e N_i dV [N], exact
+/// for every geometry of the type. Throws like element_stiffness for degenerate or inverted
+/// elements.
+ElementVector element_body_force(ElementType type, const ElementCoords &X,
+                                 const Eigen::Vector3d &b);
+/// Stress (Voigt) [Pa] at reference point xi for the element displacement vector u_e [m]
+/// (node-major, 3n entries): sigma = modulus_factor * D * B(xi) u_e. Throws if det J <= 0 at xi.
+Voigt element_stress(ElementType type, const ElementCoords &X, const IsotropicMaterial &mat,
+                     double modulus_factor, const ElementVector &u_e, const Eigen::Vector3d &xi);
+/// von Mises equivalent stress [Pa] of a Voigt stress:
+/// sqrt(((sxx-syy)^2 + (syy-szz)^2 + (szz-sxx)^2) / 2 + 3 (syz^2 + sxz^2 + sxy^2)).
+double von_mises(const Voigt &sigma);
+/// Consistent nodal load [N] of a constant traction t [N/m^2] on a (possibly curved, quadratic)
+/// face in 3D: f_(i,k) = t_k int N_i dA, dA = |dx/dxi x dx/deta| dxi deta. Xf: one row per face
+/// node (Gmsh ordering). Exact for flat straight-sided Tri3/Tri6 and planar Quad4; curved Tri6 and
+/// warped Quad4 faces use a high-order rule (Tri6: degree 10, Quad4: 4x4 points).
+ElementVector face_traction_load(FaceType type, const FaceCoords &Xf, const Eigen::Vector3d &t);
+/// Face area int dA [m^2], with the same quadrature as face_traction_load (so that the nodal loads
+/// of a constant traction sum to t * face_area).
+double face_area(FaceType type, const FaceCoords &Xf);
+/// Inverse isoparametric map: finds xi with x(xi) = p by Newton's method from the reference
+/// centroid. Returns true (and xi) if Newton converged and p lies inside the element up to `tol`
+/// in reference coordinates (tets: xi_k >= -tol and xi_1 + xi_2 + xi_3 <= 1 + tol; Hex8:
+/// |xi_k| <= 1 + tol); false if p is outside or Newton does not converge (xi then holds the last
+/// iterate and must not be used).
+bool locate_point(ElementType type, const ElementCoords &X, const Eigen::Vector3d &p,
+                  Eigen::Vector3d &xi, double tol = 1e-8);
+
+} // namespace flexopt::fem

@@ -1,0 +1,62 @@
+#pragma once
+/// \file Linear elastostatics of one body: K u = f with supports, tractions and gravity.
+///
+/// The operator, load and solver are kept so that later users (topology optimization)
+/// re-assemble with new element modulus factors and solve again, reusing the preconditioner
+/// set-up for adjoint solves.
+#include "flexopt/fem/assembly.hpp"
+#include "flexopt/io/case.hpp"
+
+#include <petscksp.h>
+
+namespace flexopt::fem {
+
+class StaticProblem {
+public:
+  /// Loads the case's single body, assembles K and f and sets up the solver. Collective.
+  static std::unique_ptr<StaticProblem> create(MPI_Comm comm, const io::Case &c);
+  ~StaticProblem();
+
+  /// Re-assembles K with one modulus factor per local element (empty: all 1). Collective.
+  void assemble_operator(const std::vector<double> &modulus_factor);
+  /// Solves K u = f. Throws (collectively) if the linear solver does not converge. Collective.
+  void solve();
+
+  const mesh::DistributedMesh &mesh() const { return mesh_; }
+  const IsotropicMaterial &material() const { return material_; }
+  const std::vector<double> &modulus_factor() const { return factor_; }
+  Vec displacement() const { return u_; }   ///< ghosted; ghosts current after solve()
+  Vec load() const { return f_; }           ///< external load (unmodified by supports)
+  Mat stiffness() const { return K_; }      ///< with supports applied (identity-scaled rows)
+  KSP solver() const { return ksp_; }
+  const std::vector<PetscInt> &fixed_dofs() const { return fixed_; }
+  PetscInt global_dofs() const { return 3 * mesh_.global_nodes; }
+  int iterations() const { return iterations_; }
+  double compliance() const;                ///< f . u [J]
+  double max_displacement() const;          ///< max over nodes of |u| [m]
+
+private:
+  StaticProblem() = default;
+  mesh::DistributedMesh mesh_;
+  IsotropicMaterial material_{};
+  std::vector<double> factor_;
+  std::vector<PetscInt> fixed_;
+  Mat K_ = nullptr;
+  Vec f_ = nullptr, rhs_ = nullptr, u_ = nullptr;
+  KSP ksp_ = nullptr;
+  int iterations_ = 0;
+};
+
+/// Global DOFs of all supports of the case's body (owned by this rank, sorted, unique).
+std::vector<PetscInt> support_dofs(const mesh::DistributedMesh &mesh, const io::Case &c);
+
+/// Sets the default solver for an SPD elasticity operator: CG + GAMG with the rigid-body
+/// near-null space (built from the node coordinates), relative tolerance 1e-8
+/// (the compliance error is quadratic in it: CG is a Galerkin method in the energy norm). Options from the case's
+/// `solver:` string and the command line are applied afterwards (KSPSetFromOptions).
+void configure_elasticity_solver(KSP ksp, Mat A, const mesh::DistributedMesh &mesh);
+
+/// Throws a collective flexopt::Error naming `what` if the last KSPSolve diverged.
+void check_converged(KSP ksp, const std::string &what);
+
+} // namespace flexopt::fem

@@ -1,0 +1,96 @@
+#pragma once
+/// \file The case directory: case.yaml parsed and validated into plain specs.
+///
+/// Every rank parses case.yaml itself (it is small), so that a malformed case raises the same
+/// collective flexopt::Error on every rank: `case.yaml:LINE:COL: message`. See
+/// docs/case-format.md for every key.
+#include <array>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace flexopt::io {
+
+/// Position of a key in case.yaml, for messages that are raised later (e.g. a physical group
+/// named in the case that the mesh does not have). `str()` is "path/case.yaml:LINE:COL".
+struct Location {
+  std::string file;
+  int line = 0;
+  int column = 0;
+  std::string str() const;
+};
+
+struct MaterialSpec {
+  std::string name;
+  double E = 0;       ///< Young's modulus [Pa]
+  double nu = 0;      ///< Poisson's ratio
+  double density = 0; ///< [kg/m^3]
+};
+
+struct MeshSpec {
+  double size = 0;        ///< target element size [m] (.geo only); 0: the .geo's own sizes
+  int order = 1;          ///< 1: Tet4 (Hex8 if the .geo recombines), 2: Tet10
+  bool given = false;     ///< true if the `mesh:` key was present
+};
+
+struct BodySpec {
+  std::string name;
+  std::string model = "auto"; ///< rigid | ffrf | acf | auto
+  std::string geometry;       ///< path, resolved against the case directory
+  std::string geometry_key;   ///< as written in case.yaml
+  MeshSpec mesh;
+  std::string material;
+  std::vector<std::string> interfaces;
+  Location where;
+};
+
+/// Dirichlet support: the listed displacement components of every node of `surface` are zero.
+struct SupportSpec {
+  std::string body;
+  std::string surface;
+  std::array<bool, 3> fix{false, false, false};
+  Location where;
+};
+
+/// Constant surface traction [N/m^2] (force per current = reference area) on a surface.
+struct TractionSpec {
+  std::string body;
+  std::string surface;
+  std::array<double, 3> value{0, 0, 0};
+  Location where;
+};
+
+/// A point sensor: a quantity FE-interpolated at `point` (undeformed body coordinates).
+struct SensorSpec {
+  std::string name;
+  std::string body;
+  std::array<double, 3> point{0, 0, 0};
+  std::string quantity = "displacement";
+  Location where;
+};
+
+struct Case {
+  std::string directory; ///< the case directory as given
+  std::string file;      ///< path of case.yaml
+  std::string name;      ///< last component of the directory
+  std::string analysis;  ///< static | dynamic
+  std::vector<MaterialSpec> materials;
+  std::vector<BodySpec> bodies;
+  std::optional<std::array<double, 3>> gravity; ///< [m/s^2]
+  std::vector<SupportSpec> supports;
+  std::vector<TractionSpec> tractions;
+  std::vector<SensorSpec> sensors;
+  std::string solver;    ///< PETSc options applied before the command line's
+  int output_every = 1;
+
+  const MaterialSpec &material(const std::string &name) const;
+  const BodySpec &body(const std::string &name) const;
+};
+
+/// Reads and validates `<directory>/case.yaml`. Throws flexopt::Error (collective: call on
+/// every rank) with `case.yaml:LINE:COL: message` for unknown keys, wrong types, missing
+/// required keys, impossible values and dangling references (a body naming a missing
+/// material, a support naming a missing body, a missing geometry file, ...).
+Case load_case(const std::string &directory);
+
+} // namespace flexopt::io

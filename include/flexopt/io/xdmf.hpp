@@ -1,0 +1,51 @@
+#pragma once
+/// \file Parallel HDF5 + XDMF output that ParaView opens directly.
+///
+/// One HDF5 file holds the mesh once (/mesh/geometry, /mesh/topology) and one group per step
+/// (/step_K/<field>); the XDMF file describes a temporal collection of grids that all share
+/// the mesh. Both files are written under temporary names and renamed when complete, so an
+/// interrupted run never leaves a valid-looking result.
+#include <mpi.h>
+
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace flexopt::io {
+
+/// A distributed unstructured grid as the writer needs it. Each rank contributes a
+/// contiguous range of nodes and of cells.
+struct GridLayout {
+  MPI_Comm comm = MPI_COMM_NULL;
+  long long global_nodes = 0, node_start = 0, owned_nodes = 0;
+  std::vector<double> owned_coordinates; ///< 3 per owned node
+  long long global_cells = 0, cell_start = 0, local_cells = 0;
+  int nodes_per_cell = 0;
+  std::vector<long long> cell_nodes;     ///< global node numbers, XDMF/VTK node order
+  std::string topology_type;             ///< XDMF name: Tetrahedron, Tetrahedron_10, Hexahedron
+};
+
+class XdmfWriter {
+public:
+  /// Creates `<directory>/<basename>.h5` (under a temporary name) and writes the mesh. Collective.
+  XdmfWriter(const GridLayout &layout, const std::string &directory, const std::string &basename);
+  ~XdmfWriter();
+  XdmfWriter(const XdmfWriter &) = delete;
+  XdmfWriter &operator=(const XdmfWriter &) = delete;
+
+  /// Starts a new step of the temporal collection at `time` (seconds, or any increasing label).
+  void begin_step(double time);
+  /// A nodal vector field: 3 values per owned node. Collective.
+  void node_vector(const std::string &name, const double *owned_values);
+  /// A cell scalar field: one value per local cell. Collective.
+  void cell_scalar(const std::string &name, const double *local_values);
+  /// Closes the HDF5 file, writes the XDMF file, renames both to their final names. Collective.
+  /// Returns the path of the XDMF file.
+  std::string close();
+
+private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+} // namespace flexopt::io

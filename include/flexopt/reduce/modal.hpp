@@ -1,0 +1,31 @@
+#pragma once
+/// \file Natural frequencies and mode shapes: K phi = omega^2 M phi with SLEPc.
+#include <petscmat.h>
+
+#include <vector>
+
+namespace flexopt::reduce {
+
+struct ModalResult {
+  std::vector<double> eigenvalues; ///< omega^2 [rad^2/s^2], ascending (signed: round-off
+                                   ///< may make rigid-body values slightly negative)
+  std::vector<Vec> modes;          ///< full-size mode shapes (zero on fixed DOFs), M-orthonormal
+  int iterations = 0;              ///< Krylov-Schur restarts
+  ~ModalResult();
+  ModalResult() = default;
+  ModalResult(const ModalResult &) = delete;
+  ModalResult &operator=(const ModalResult &) = delete;
+};
+
+/// Lowest `count` eigenpairs of the generalized symmetric problem on the free DOFs (the
+/// complement of `fixed_dofs`, owned global DOF numbers). Shift-and-invert about `shift`
+/// [rad^2/s^2] with a direct factorization (MUMPS by default; options prefix none, so
+/// -eps_*, -st_* and -st_pc_* options apply). A negative shift keeps K - shift M
+/// non-singular for free bodies. Collective.
+void solve_modes(Mat K, Mat M, const std::vector<PetscInt> &fixed_dofs, int count, double shift,
+                 ModalResult &result);
+
+/// Frequency in Hz of an eigenvalue omega^2: sign(omega^2) sqrt(|omega^2|) / (2 pi).
+double frequency_hz(double eigenvalue);
+
+} // namespace flexopt::reduce

@@ -1,0 +1,37 @@
+#!/usr/bin/env bash
+# Install every package flexopt needs from Debian. Idempotent: packages already present are
+# left alone and apt-get update only runs when something is missing.
+set -euo pipefail
+
+PACKAGES=(
+  build-essential cmake pkg-config git
+  petsc-dev slepc-dev
+  libopenmpi-dev openmpi-bin
+  libmetis-dev
+  libhdf5-openmpi-dev
+  gmsh libgmsh-dev
+  libeigen3-dev
+  libgtest-dev libgmock-dev
+  libyaml-cpp-dev
+  libmuparser-dev
+  python3 python3-yaml
+)
+
+missing=()
+for p in "${PACKAGES[@]}"; do
+  if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then
+    missing+=("$p")
+  fi
+done
+
+if [ ${#missing[@]} -eq 0 ]; then
+  echo "install_deps: all ${#PACKAGES[@]} packages present"
+  exit 0
+fi
+
+SUDO=""
+if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
+echo "install_deps: installing ${missing[*]}"
+$SUDO apt-get update -qq
+DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
+echo "install_deps: done"

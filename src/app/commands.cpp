@@ -1,0 +1,252 @@
+#include "flexopt/app/commands.hpp"
+
+#include "flexopt/core/error.hpp"
+#include "flexopt/fem/probe.hpp"
+#include "flexopt/fem/static_problem.hpp"
+#include "flexopt/io/case.hpp"
+#include "flexopt/io/json.hpp"
+#include "flexopt/mesh/load.hpp"
+#include "flexopt/reduce/modal.hpp"
+
+#include <cmath>
+#include <filesystem>
+
+namespace fs = std::filesystem;
+
+namespace flexopt::app {
+
+namespace {
+
+/// Shift for the modal solve [rad^2/s^2]: negative so that K - shift M stays non-singular for
+/// a free body (its rigid-body modes have omega^2 = 0).
+constexpr double kModalShift = -1.0;
+
+std::string output_directory(const Context &ctx, const Options &o) {
+  const std::string dir = o.out.empty() ? (fs::path(o.case_dir) / "out").string() : o.out;
+  run_on_root(ctx.comm(), 0, [&] {
+    std::error_code ec;
+    fs::create_directories(dir, ec);
+    if (ec || !fs::is_directory(dir)) throw Error("cannot create output directory '" + dir + "'");
+    // A stale summary from an earlier run must not pass for this run's result.
+    fs::remove(fs::path(dir) / "summary.json", ec);
+  });
+  return dir;
+}
+
+io::Json base_summary(const Context &ctx, const Options &o, const io::Case &c) {
+  io::Json s = io::Json::object();
+  s["command"] = o.command;
+  s["case"] = c.name;
+  s["ranks"] = ctx.size();
+  return s;
+}
+
+void write_summary(const Context &ctx, const std::string &dir, io::Json &s, double t0) {
+  s["wall_s"] = wall_time() - t0;
+  run_on_root(ctx.comm(), 0, [&] { io::write_file_atomic((fs::path(dir) / "summary.json").string(), s.dump() + "\n"); });
+}
+
+io::Json rank_counts(const std::vector<PetscInt> &v) {
+  io::Json a = io::Json::array();
+  for (PetscInt x : v) a.push_back(static_cast<long long>(x));
+  return a;
+}
+
+fem::IsotropicMaterial material_of(const io::Case &c, const io::BodySpec &b) {
+  const auto &m = c.material(b.material);
+  return fem::IsotropicMaterial{m.E, m.nu, m.density};
+}
+
+/// Writes the owner rank of each local element as a cell field.
+std::vector<double> owner_field(const mesh::DistributedMesh &m) {
+  return std::vector<double>(static_cast<std::size_t>(m.local_elements()), static_cast<double>(comm_rank(m.comm)));
+}
+
+int run_info(const Context &ctx, const Options &o, const io::Case &c, double t0) {
+  const std::string dir = output_directory(ctx, o);
+  io::Json s = base_summary(ctx, o, c);
+  s["analysis"] = c.analysis;
+  print0(ctx.comm(), "case %s (%s), analysis: %s, %d rank(s)\n", c.name.c_str(), c.file.c_str(), c.analysis.c_str(),
+         ctx.size());
+  long long total_dofs = 0, total_elements = 0;
+  io::Json bodies = io::Json::array();
+  for (const auto &b : c.bodies) {
+    const double tb = wall_time();
+    mesh::DistributedMesh m = mesh::load_body_mesh(ctx.comm(), b);
+    const auto elems = mesh::elements_per_rank(m), nodes = mesh::nodes_per_rank(m);
+    const auto &mat = c.material(b.material);
+    print0(ctx.comm(), "body %s: model %s, geometry %s, material %s (E %g Pa, nu %g, density %g kg/m^3)\n",
+           b.name.c_str(), b.model.c_str(), b.geometry_key.c_str(), mat.name.c_str(), mat.E, mat.nu, mat.density);
+    print0(ctx.comm(), "  mesh: %lld %s elements, %lld nodes, %lld DOFs (meshed and distributed in %.2f s)\n",
+           static_cast<long long>(m.global_elements), fem::element_name(m.type), static_cast<long long>(m.global_nodes),
+           3LL * m.global_nodes, wall_time() - tb);
+    std::string vols, surfs;
+    for (const auto &kv : m.volume_groups) vols += " " + kv.first;
+    for (const auto &kv : m.surfaces) surfs += " " + kv.first;
+    print0(ctx.comm(), "  physical volumes:%s\n  physical surfaces:%s\n", vols.empty() ? " (none)" : vols.c_str(),
+           surfs.empty() ? " (none)" : surfs.c_str());
+    for (int r = 0; r < ctx.size(); ++r)
+      print0(ctx.comm(), "  rank %d: %lld elements, %lld owned nodes\n", r, static_cast<long long>(elems[static_cast<std::size_t>(r)]),
+             static_cast<long long>(nodes[static_cast<std::size_t>(r)]));
+    io::Json jb = io::Json::object();
+    jb["name"] = b.name;
+    jb["model"] = b.model;
+    jb["element_type"] = fem::element_name(m.type);
+    jb["elements"] = static_cast<long long>(m.global_elements);
+    jb["nodes"] = static_cast<long long>(m.global_nodes);
+    jb["dofs"] = 3LL * m.global_nodes;
+    jb["elements_per_rank"] = rank_counts(elems);
+    jb["nodes_per_rank"] = rank_counts(nodes);
+    bodies.push_back(jb);
+    total_dofs += 3LL * m.global_nodes;
+    total_elements += m.global_elements;
+  }
+  s["dofs"] = total_dofs;
+  s["elements"] = total_elements;
+  s["bodies"] = bodies;
+  write_summary(ctx, dir, s, t0);
+  return 0;
+}
+
+int run_static(const Context &ctx, const Options &o, const io::Case &c, double t0) {
+  if (c.analysis != "static")
+    throw Error(c.file + ": analysis '" + c.analysis +
+                    "' is not available yet in this version of flexopt (static only; `flexopt modes` "
+                    "works on any single body)",
+                true);
+  const std::string dir = output_directory(ctx, o);
+  const double t_setup = wall_time();
+  auto problem = fem::StaticProblem::create(ctx.comm(), c);
+  const auto &m = problem->mesh();
+  print0(ctx.comm(), "static: %lld %s elements, %lld DOFs on %d rank(s); set-up %.2f s\n",
+         static_cast<long long>(m.global_elements), fem::element_name(m.type), static_cast<long long>(problem->global_dofs()),
+         ctx.size(), wall_time() - t_setup);
+  const double t_solve = wall_time();
+  problem->solve();
+  const double solve_s = wall_time() - t_solve;
+  const double compliance = problem->compliance(), umax = problem->max_displacement();
+  print0(ctx.comm(), "static: solved in %.2f s, %d iterations; compliance %.10g J, max |u| %.6g m\n", solve_s,
+         problem->iterations(), compliance, umax);
+
+  io::Json s = base_summary(ctx, o, c);
+  s["analysis"] = "static";
+  s["element_type"] = fem::element_name(m.type);
+  s["dofs"] = static_cast<long long>(problem->global_dofs());
+  s["elements"] = static_cast<long long>(m.global_elements);
+  s["solver_iterations"] = problem->iterations();
+  s["solve_s"] = solve_s;
+  s["compliance"] = compliance;
+  s["max_displacement"] = umax;
+  io::Json sensors = io::Json::object();
+  for (const auto &sensor : c.sensors) {
+    auto u = fem::probe_vector(m, problem->displacement(), sensor.point, sensor.where.str() + ": sensor '" + sensor.name + "'");
+    if (sensor.quantity == "position")
+      for (int k = 0; k < 3; ++k) u[static_cast<std::size_t>(k)] += sensor.point[static_cast<std::size_t>(k)];
+    sensors[sensor.name]["quantity"] = sensor.quantity;
+    sensors[sensor.name]["point"] = std::vector<double>(sensor.point.begin(), sensor.point.end());
+    sensors[sensor.name]["value"] = std::vector<double>(u.begin(), u.end());
+    print0(ctx.comm(), "sensor %s (%s at %g %g %g): [%.10g, %.10g, %.10g]\n", sensor.name.c_str(), sensor.quantity.c_str(),
+           sensor.point[0], sensor.point[1], sensor.point[2], u[0], u[1], u[2]);
+  }
+  s["sensors"] = sensors;
+
+  io::XdmfWriter writer(mesh::grid_layout(m), dir, "static");
+  writer.begin_step(0.0);
+  const PetscScalar *u;
+  FX_PETSC(VecGetArrayRead(problem->displacement(), &u));
+  writer.node_vector("displacement", u);
+  FX_PETSC(VecRestoreArrayRead(problem->displacement(), &u));
+  const auto vm = fem::element_von_mises(m, problem->material(), problem->modulus_factor(), problem->displacement());
+  writer.cell_scalar("von_mises", vm.data());
+  const auto owner = owner_field(m);
+  writer.cell_scalar("rank", owner.data());
+  const std::string xdmf = writer.close();
+  s["output"] = xdmf;
+  write_summary(ctx, dir, s, t0);
+  print0(ctx.comm(), "wrote %s (open it in ParaView) and %s\n", xdmf.c_str(), (fs::path(dir) / "summary.json").c_str());
+  return 0;
+}
+
+int run_modes(const Context &ctx, const Options &o, const io::Case &c, double t0) {
+  if (c.bodies.size() != 1)
+    throw Error(c.file + ": modes: the case has " + std::to_string(c.bodies.size()) +
+                    " bodies; modal analysis takes a single-body case",
+                true);
+  const std::string dir = output_directory(ctx, o);
+  const io::BodySpec &body = c.bodies.front();
+  const double t_setup = wall_time();
+  mesh::DistributedMesh m = mesh::load_body_mesh(ctx.comm(), body);
+  const fem::IsotropicMaterial mat = material_of(c, body);
+  std::vector<PetscInt> fixed;
+  if (!o.free) fixed = fem::support_dofs(m, c);
+  PetscInt nfix = static_cast<PetscInt>(fixed.size()), total_fixed = 0;
+  MPI_Allreduce(&nfix, &total_fixed, 1, MPIU_INT, MPI_SUM, ctx.comm());
+  const PetscInt dofs = 3 * m.global_nodes;
+  if (o.count > dofs - total_fixed)
+    throw Error("modes: --count " + std::to_string(o.count) + " exceeds the " + std::to_string(dofs - total_fixed) +
+                    " free DOFs of the body",
+                true);
+  Mat K = fem::create_matrix(m), M;
+  FX_PETSC(MatDuplicate(K, MAT_DO_NOT_COPY_VALUES, &M));
+  fem::assemble_stiffness(m, mat, {}, K);
+  fem::assemble_mass(m, mat.density, {}, M);
+  print0(ctx.comm(), "modes: %lld %s elements, %lld DOFs (%lld fixed) on %d rank(s), %s; set-up %.2f s\n",
+         static_cast<long long>(m.global_elements), fem::element_name(m.type), static_cast<long long>(dofs),
+         static_cast<long long>(total_fixed), ctx.size(), total_fixed ? "supported" : "free-free", wall_time() - t_setup);
+  const double t_solve = wall_time();
+  reduce::ModalResult r;
+  reduce::solve_modes(K, M, fixed, o.count, kModalShift, r);
+  const double solve_s = wall_time() - t_solve;
+  print0(ctx.comm(), "modes: solved in %.2f s (%d iterations)\n", solve_s, r.iterations);
+
+  std::vector<double> freq;
+  io::XdmfWriter writer(mesh::grid_layout(m), dir, "modes");
+  for (std::size_t k = 0; k < r.eigenvalues.size(); ++k) {
+    freq.push_back(reduce::frequency_hz(r.eigenvalues[k]));
+    print0(ctx.comm(), "  mode %2zu: %14.6f Hz\n", k + 1, freq.back());
+    // Shapes are written scaled to a unit largest nodal displacement, sign fixed so that the
+    // largest component is positive: comparable across runs and ranks.
+    PetscReal vmax, vmin;
+    PetscInt imax, imin;
+    FX_PETSC(VecMax(r.modes[k], &imax, &vmax));
+    FX_PETSC(VecMin(r.modes[k], &imin, &vmin));
+    const double scale = (std::abs(vmax) >= std::abs(vmin)) ? vmax : vmin;
+    if (scale != 0.0) FX_PETSC(VecScale(r.modes[k], 1.0 / scale));
+    writer.begin_step(static_cast<double>(k + 1));
+    const PetscScalar *v;
+    FX_PETSC(VecGetArrayRead(r.modes[k], &v));
+    writer.node_vector("mode_shape", v);
+    FX_PETSC(VecRestoreArrayRead(r.modes[k], &v));
+  }
+  const std::string xdmf = writer.close();
+  FX_PETSC(MatDestroy(&K));
+  FX_PETSC(MatDestroy(&M));
+
+  io::Json s = base_summary(ctx, o, c);
+  s["element_type"] = fem::element_name(m.type);
+  s["dofs"] = static_cast<long long>(dofs);
+  s["elements"] = static_cast<long long>(m.global_elements);
+  s["supported"] = total_fixed > 0;
+  s["solver_iterations"] = r.iterations;
+  s["solve_s"] = solve_s;
+  s["eigenvalues"] = r.eigenvalues;
+  s["frequencies_hz"] = freq;
+  s["output"] = xdmf;
+  write_summary(ctx, dir, s, t0);
+  print0(ctx.comm(), "wrote %s (one mode per time step) and %s\n", xdmf.c_str(), (fs::path(dir) / "summary.json").c_str());
+  return 0;
+}
+
+} // namespace
+
+int run(const Context &ctx, const Options &o) {
+  const double t0 = wall_time();
+  io::Case c = io::load_case(o.case_dir);
+  if (!c.solver.empty()) insert_default_petsc_options(c.solver, c.file + ": solver");
+  if (o.command == "info") return run_info(ctx, o, c, t0);
+  if (o.command == "simulate") return run_static(ctx, o, c, t0);
+  if (o.command == "modes") return run_modes(ctx, o, c, t0);
+  throw Error("unknown command '" + o.command + "'", true);
+}
+
+} // namespace flexopt::app

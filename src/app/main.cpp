@@ -1,0 +1,136 @@
+/// flexopt — MPI-parallel adjoint topology optimization of flexible mechanisms.
+///
+/// Sample runs:
+///   mpirun -n 2 build/flexopt info cases/cantilever
+///   mpirun -n 2 build/flexopt simulate cases/cantilever -ksp_monitor
+///   mpirun -n 2 build/flexopt modes cases/beam_modes --count 6 --free
+#include "flexopt/app/commands.hpp"
+#include "flexopt/core/context.hpp"
+#include "flexopt/core/error.hpp"
+
+#include <cstdio>
+#include <cstring>
+#include <string>
+#include <vector>
+
+namespace {
+
+const char *kUsage =
+    "usage: flexopt <command> CASE [options] [PETSc options]\n"
+    "\n"
+    "commands:\n"
+    "  info      the scene as understood: bodies, elements, DOFs, partition (no solve)\n"
+    "  simulate  run the case's analysis (static: K u = f) and write out/static.xdmf\n"
+    "  modes     lowest natural frequencies and mode shapes (SLEPc), out/modes.xdmf\n"
+    "\n"
+    "options:\n"
+    "  --out DIR    output directory (default CASE/out)\n"
+    "  --count N    modes: number of modes (default 10)\n"
+    "  --free       modes: ignore the case's supports (free-free body)\n"
+    "  --help       this text, or a command's: flexopt <command> --help\n"
+    "\n"
+    "PETSc and SLEPc options (-ksp_monitor, -log_view, -eps_view, ...) pass through; the\n"
+    "case's `solver:` string is applied first, so the command line overrides it.\n";
+
+const char *command_help(const std::string &cmd) {
+  if (cmd == "info")
+    return "usage: flexopt info CASE [--out DIR]\n"
+           "Loads the case and meshes its bodies, prints bodies, element type and counts, DOFs,\n"
+           "physical groups and the partition (elements and nodes per rank); writes\n"
+           "out/summary.json. Nothing is solved.\n";
+  if (cmd == "simulate")
+    return "usage: flexopt simulate CASE [--out DIR] [PETSc options]\n"
+           "analysis: static — solves K u = f for the single body with its supports, tractions\n"
+           "and gravity. Writes out/static.xdmf + .h5 (nodal displacement, element von Mises\n"
+           "stress, element owner rank) and out/summary.json (compliance, max_displacement,\n"
+           "sensors). Default solver: CG + GAMG with the rigid-body near-null space.\n";
+  if (cmd == "modes")
+    return "usage: flexopt modes CASE [--count N] [--free] [--out DIR] [PETSc/SLEPc options]\n"
+           "Lowest N (default 10) natural frequencies of the body, K phi = omega^2 M phi, by\n"
+           "SLEPc shift-and-invert with a MUMPS factorization. With --free the supports are\n"
+           "ignored and the six rigid-body modes come first. Writes out/modes.xdmf (one mode\n"
+           "per step) and out/summary.json (frequencies_hz).\n";
+  return nullptr;
+}
+
+} // namespace
+
+int main(int argc, char **argv) {
+  // Our own arguments are taken out before PETSc sees the command line.
+  flexopt::app::Options opts;
+  std::vector<char *> petsc_argv{argv[0]};
+  bool want_help = false;
+  std::string arg_error;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    auto value = [&](const char *name) -> std::string {
+      if (i + 1 >= argc) {
+        arg_error = std::string(name) + " needs a value";
+        return {};
+      }
+      return argv[++i];
+    };
+    if (a == "--help" || a == "-h" || a == "help") want_help = true;
+    else if (a == "--out") opts.out = value("--out");
+    else if (a == "--count") {
+      std::string v = value("--count");
+      try {
+        std::size_t pos = 0;
+        opts.count = std::stoi(v, &pos);
+        if (pos != v.size() || opts.count < 1) throw std::invalid_argument(v);
+      } catch (...) {
+        if (arg_error.empty()) arg_error = "--count needs a positive integer, got '" + v + "'";
+      }
+    } else if (a == "--free") opts.free = true;
+    else if (a.rfind("--", 0) == 0) arg_error = "unknown option '" + a + "'";
+    else if (a[0] == '-') {
+      petsc_argv.push_back(argv[i]);
+      // A PETSc option's value (if any) follows it and does not start with a letter dash.
+      if (i + 1 < argc && (argv[i + 1][0] != '-' || (argv[i + 1][1] >= '0' && argv[i + 1][1] <= '9') ||
+                           argv[i + 1][1] == '.'))
+        petsc_argv.push_back(argv[++i]);
+    } else if (opts.command.empty()) opts.command = a;
+    else if (opts.case_dir.empty()) opts.case_dir = a;
+    else arg_error = "unexpected argument '" + a + "'";
+  }
+
+  if (want_help || opts.command.empty()) {
+    const char *h = opts.command.empty() ? nullptr : command_help(opts.command);
+    std::fputs(h ? h : kUsage, opts.command.empty() && !want_help ? stderr : stdout);
+    return want_help ? 0 : 2;
+  }
+  if (!command_help(opts.command)) arg_error = "unknown command '" + opts.command + "'";
+  else if (opts.case_dir.empty()) arg_error = "missing CASE directory";
+  if (!arg_error.empty()) {
+    std::fprintf(stderr, "flexopt: %s (see flexopt --help)\n", arg_error.c_str());
+    return 2;
+  }
+
+  int pargc = static_cast<int>(petsc_argv.size());
+  petsc_argv.push_back(nullptr);
+  char **pargv = petsc_argv.data();
+  int status = 0;
+  try {
+    flexopt::Context ctx(&pargc, &pargv, nullptr);
+    try {
+      status = flexopt::app::run(ctx, opts);
+    } catch (const flexopt::Error &e) {
+      if (e.collective()) {
+        if (ctx.rank() == 0) std::fprintf(stderr, "flexopt: error: %s\n", e.what());
+        status = 1;
+      } else {
+        std::fprintf(stderr, "flexopt: error on rank %d: %s\n", ctx.rank(), e.what());
+        std::fflush(stderr);
+        MPI_Abort(ctx.comm(), 1);
+      }
+    } catch (const std::exception &e) {
+      std::fprintf(stderr, "flexopt: internal error on rank %d: %s\n", ctx.rank(), e.what());
+      std::fflush(stderr);
+      MPI_Abort(ctx.comm(), 1);
+    }
+  } catch (const std::exception &e) {
+    std::fprintf(stderr, "flexopt: error: %s\n", e.what());
+    return 1;
+  }
+  return status;
+}

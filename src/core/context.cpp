@@ -1,0 +1,88 @@
+#include "flexopt/core/context.hpp"
+
+#include "flexopt/core/error.hpp"
+
+#include <slepcsys.h>
+
+#include <cstdarg>
+#include <cstdio>
+#include <sstream>
+
+namespace flexopt {
+
+Context::Context(int *argc, char ***argv, const char *help) {
+  PetscErrorCode ierr = SlepcInitialize(argc, argv, nullptr, help);
+  if (ierr) throw Error("could not initialise PETSc/SLEPc");
+  comm_ = PETSC_COMM_WORLD;
+  MPI_Comm_rank(comm_, &rank_);
+  MPI_Comm_size(comm_, &size_);
+}
+
+Context::~Context() { SlepcFinalize(); }
+
+int comm_rank(MPI_Comm comm) {
+  int r = 0;
+  MPI_Comm_rank(comm, &r);
+  return r;
+}
+
+int comm_size(MPI_Comm comm) {
+  int s = 1;
+  MPI_Comm_size(comm, &s);
+  return s;
+}
+
+void run_on_root(MPI_Comm comm, int root, const std::function<void()> &fn) {
+  std::string message;
+  int failed = 0;
+  if (comm_rank(comm) == root) {
+    try {
+      fn();
+    } catch (const std::exception &e) {
+      failed = 1;
+      message = e.what();
+    }
+  }
+  MPI_Bcast(&failed, 1, MPI_INT, root, comm);
+  if (!failed) return;
+  int len = static_cast<int>(message.size());
+  MPI_Bcast(&len, 1, MPI_INT, root, comm);
+  message.resize(static_cast<std::size_t>(len));
+  MPI_Bcast(message.data(), len, MPI_CHAR, root, comm);
+  throw Error(message, /*collective=*/true);
+}
+
+void print0(MPI_Comm comm, const char *format, ...) {
+  if (comm_rank(comm) != 0) return;
+  va_list args;
+  va_start(args, format);
+  std::vprintf(format, args);
+  va_end(args);
+  std::fflush(stdout);
+}
+
+double wall_time() { return MPI_Wtime(); }
+
+void insert_default_petsc_options(const std::string &options, const std::string &origin) {
+  std::istringstream in(options);
+  std::vector<std::string> tokens;
+  for (std::string t; in >> t;) tokens.push_back(t);
+  for (std::size_t i = 0; i < tokens.size();) {
+    const std::string &name = tokens[i];
+    if (name.size() < 2 || name[0] != '-' || (name[1] >= '0' && name[1] <= '9'))
+      throw Error(origin + ": PETSc option string: expected an option name starting with '-', got '" +
+                      name + "'",
+                  true);
+    std::string value;
+    bool has_value = i + 1 < tokens.size() && !(tokens[i + 1][0] == '-' && tokens[i + 1].size() > 1 &&
+                                                !(tokens[i + 1][1] >= '0' && tokens[i + 1][1] <= '9') &&
+                                                tokens[i + 1][1] != '.');
+    if (has_value) value = tokens[i + 1];
+    PetscBool set = PETSC_FALSE;
+    FX_PETSC(PetscOptionsHasName(nullptr, nullptr, name.c_str(), &set));
+    if (!set) FX_PETSC(PetscOptionsSetValue(nullptr, name.c_str(), has_value ? value.c_str() : nullptr));
+    i += has_value ? 2 : 1;
+  }
+}
+
+} // namespace flexopt

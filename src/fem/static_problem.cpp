@@ -1,0 +1,146 @@
+#include "flexopt/fem/static_problem.hpp"
+
+#include "flexopt/core/error.hpp"
+#include "flexopt/mesh/load.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace flexopt::fem {
+
+std::vector<PetscInt> support_dofs(const mesh::DistributedMesh &mesh, const io::Case &c) {
+  std::vector<PetscInt> dofs;
+  for (const auto &s : c.supports) {
+    auto d = surface_dofs(mesh, s.surface, s.fix, s.where.str() + ": supports");
+    dofs.insert(dofs.end(), d.begin(), d.end());
+  }
+  std::sort(dofs.begin(), dofs.end());
+  dofs.erase(std::unique(dofs.begin(), dofs.end()), dofs.end());
+  return dofs;
+}
+
+void configure_elasticity_solver(KSP ksp, Mat A, const mesh::DistributedMesh &mesh) {
+  Vec coords = create_coordinate_vector(mesh);
+  MatNullSpace near_null;
+  FX_PETSC(MatNullSpaceCreateRigidBody(coords, &near_null));
+  FX_PETSC(MatSetNearNullSpace(A, near_null));
+  FX_PETSC(MatNullSpaceDestroy(&near_null));
+  FX_PETSC(VecDestroy(&coords));
+  FX_PETSC(MatSetOption(A, MAT_SPD, PETSC_TRUE));
+  FX_PETSC(KSPSetOperators(ksp, A, A));
+  FX_PETSC(KSPSetType(ksp, KSPCG));
+  PC pc;
+  FX_PETSC(KSPGetPC(ksp, &pc));
+  FX_PETSC(PCSetType(pc, PCGAMG));
+  FX_PETSC(KSPSetTolerances(ksp, 1e-8, 1e-50, PETSC_DEFAULT, 1000));
+  FX_PETSC(KSPSetFromOptions(ksp));
+}
+
+void check_converged(KSP ksp, const std::string &what) {
+  KSPConvergedReason reason;
+  FX_PETSC(KSPGetConvergedReason(ksp, &reason));
+  if (reason < 0) {
+    PetscInt its = 0;
+    FX_PETSC(KSPGetIterationNumber(ksp, &its));
+    throw Error(what + ": the linear solver did not converge (" + KSPConvergedReasons[reason] + " after " +
+                    std::to_string(its) +
+                    " iterations). Is the body supported against rigid motion? Try "
+                    "-ksp_monitor_true_residual, or a direct solver: -ksp_type preonly -pc_type lu "
+                    "-pc_factor_mat_solver_type mumps",
+                true);
+  }
+}
+
+std::unique_ptr<StaticProblem> StaticProblem::create(MPI_Comm comm, const io::Case &c) {
+  std::unique_ptr<StaticProblem> p(new StaticProblem());
+  const io::BodySpec &body = c.bodies.front();
+  const io::MaterialSpec &mat = c.material(body.material);
+  p->material_ = IsotropicMaterial{mat.E, mat.nu, mat.density};
+  p->mesh_ = mesh::load_body_mesh(comm, body);
+  const mesh::DistributedMesh &m = p->mesh_;
+
+  p->fixed_ = support_dofs(m, c);
+  PetscInt n_fixed = static_cast<PetscInt>(p->fixed_.size()), total_fixed = 0;
+  MPI_Allreduce(&n_fixed, &total_fixed, 1, MPIU_INT, MPI_SUM, comm);
+  if (total_fixed == 0)
+    throw Error(c.file + ": a static analysis needs supports (the body is free to move as a rigid body)", true);
+
+  p->K_ = create_matrix(m);
+  p->f_ = create_ghosted_vector(m);
+  FX_PETSC(VecDuplicate(p->f_, &p->u_));
+  FX_PETSC(VecDuplicate(p->f_, &p->rhs_));
+  FX_PETSC(VecZeroEntries(p->f_));
+  if (c.gravity) {
+    const auto &g = *c.gravity;
+    add_body_force(m, mat.density * Eigen::Vector3d(g[0], g[1], g[2]), p->f_);
+  }
+  for (const auto &t : c.tractions)
+    add_surface_traction(m, t.surface, Eigen::Vector3d(t.value[0], t.value[1], t.value[2]),
+                         t.where.str() + ": tractions", p->f_);
+
+  FX_PETSC(KSPCreate(comm, &p->ksp_));
+  FX_PETSC(KSPSetOptionsPrefix(p->ksp_, ""));
+  p->assemble_operator({});
+  configure_elasticity_solver(p->ksp_, p->K_, m);
+  return p;
+}
+
+StaticProblem::~StaticProblem() {
+  KSPDestroy(&ksp_);
+  MatDestroy(&K_);
+  VecDestroy(&f_);
+  VecDestroy(&rhs_);
+  VecDestroy(&u_);
+}
+
+void StaticProblem::assemble_operator(const std::vector<double> &modulus_factor) {
+  factor_ = modulus_factor;
+  assemble_stiffness(mesh_, material_, factor_, K_);
+  // Supports: rows and columns of fixed DOFs replaced by a scaled identity (keeps K symmetric
+  // and its diagonal scale, which matters for multigrid smoothers).
+  PetscReal diag_sum = 0;
+  Vec d;
+  FX_PETSC(MatCreateVecs(K_, &d, nullptr));
+  FX_PETSC(MatGetDiagonal(K_, d));
+  FX_PETSC(VecSum(d, &diag_sum));
+  PetscInt n = 0;
+  FX_PETSC(VecGetSize(d, &n));
+  FX_PETSC(VecDestroy(&d));
+  const PetscScalar scale = diag_sum / static_cast<PetscReal>(n);
+  FX_PETSC(MatZeroRowsColumns(K_, static_cast<PetscInt>(fixed_.size()), fixed_.data(), scale, nullptr, nullptr));
+}
+
+void StaticProblem::solve() {
+  FX_PETSC(VecCopy(f_, rhs_));
+  std::vector<PetscScalar> zeros(fixed_.size(), 0.0);
+  FX_PETSC(VecSetValues(rhs_, static_cast<PetscInt>(fixed_.size()), fixed_.data(), zeros.data(), INSERT_VALUES));
+  FX_PETSC(VecAssemblyBegin(rhs_));
+  FX_PETSC(VecAssemblyEnd(rhs_));
+  FX_PETSC(KSPSolve(ksp_, rhs_, u_));
+  check_converged(ksp_, "static solve");
+  PetscInt its = 0;
+  FX_PETSC(KSPGetIterationNumber(ksp_, &its));
+  iterations_ = static_cast<int>(its);
+  FX_PETSC(VecGhostUpdateBegin(u_, INSERT_VALUES, SCATTER_FORWARD));
+  FX_PETSC(VecGhostUpdateEnd(u_, INSERT_VALUES, SCATTER_FORWARD));
+}
+
+double StaticProblem::compliance() const {
+  PetscScalar c = 0;
+  FX_PETSC(VecDot(f_, u_, &c));
+  return c;
+}
+
+double StaticProblem::max_displacement() const {
+  const PetscScalar *u;
+  FX_PETSC(VecGetArrayRead(u_, &u));
+  double local = 0;
+  for (PetscInt i = 0; i < mesh_.owned_nodes; ++i)
+    local = std::max(local, std::sqrt(u[3 * i] * u[3 * i] + u[3 * i + 1] * u[3 * i + 1] + u[3 * i + 2] * u[3 * i + 2]));
+  FX_PETSC(VecRestoreArrayRead(u_, &u));
+  double global = 0;
+  MPI_Allreduce(&local, &global, 1, MPI_DOUBLE, MPI_MAX, mesh_.comm);
+  return global;
+}
+
+} // namespace flexopt::fem

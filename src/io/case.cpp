@@ -1,0 +1,361 @@
+#include "flexopt/io/case.hpp"
+
+#include "flexopt/core/error.hpp"
+
+#include <yaml-cpp/yaml.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <set>
+
+namespace fs = std::filesystem;
+
+namespace flexopt::io {
+
+std::string Location::str() const {
+  return file + ":" + std::to_string(line) + ":" + std::to_string(column);
+}
+
+const MaterialSpec &Case::material(const std::string &n) const {
+  for (const auto &m : materials)
+    if (m.name == n) return m;
+  throw Error("no material '" + n + "' in " + file, true);
+}
+
+const BodySpec &Case::body(const std::string &n) const {
+  for (const auto &b : bodies)
+    if (b.name == n) return b;
+  throw Error("no body '" + n + "' in " + file, true);
+}
+
+namespace {
+
+/// Keys of CASE_FORMAT.md that belong to later stages (mechanisms, optimization): recognised so
+/// that the message says they are not available yet rather than "unknown".
+const std::set<std::string> kNotYetSupported = {"ground",     "joints",    "drivers",  "time",
+                                                 "design",     "objective", "constraints",
+                                                 "optimizer",  "adjoint"};
+
+/// Validating reader over one YAML document: every failure names file, line and column.
+class Reader {
+public:
+  explicit Reader(std::string file) : file_(std::move(file)) {}
+
+  Location where(const YAML::Node &n) const {
+    const YAML::Mark m = n.Mark();
+    return Location{file_, m.line + 1, m.column + 1};
+  }
+
+  [[noreturn]] void fail(const YAML::Node &n, const std::string &message) const {
+    throw Error(where(n).str() + ": " + message, true);
+  }
+
+  void require_map(const YAML::Node &n, const std::string &path) const {
+    if (!n.IsMap()) fail(n, path + ": expected a mapping ({key: value, ...})");
+  }
+
+  void require_sequence(const YAML::Node &n, const std::string &path) const {
+    if (!n.IsSequence()) fail(n, path + ": expected a list ([...] or '- ' items)");
+  }
+
+  /// Rejects keys outside `allowed`.
+  void check_keys(const YAML::Node &n, const std::string &path,
+                  std::initializer_list<const char *> allowed) const {
+    for (const auto &kv : n) {
+      const std::string key = kv.first.as<std::string>();
+      bool ok = std::any_of(allowed.begin(), allowed.end(), [&](const char *a) { return key == a; });
+      if (!ok) {
+        std::string list;
+        for (const char *a : allowed) list += std::string(list.empty() ? "" : ", ") + a;
+        fail(kv.first, "unknown key '" + (path.empty() ? key : path + "." + key) +
+                           "' (allowed here: " + list + ")");
+      }
+    }
+  }
+
+  YAML::Node require(const YAML::Node &parent, const char *key, const std::string &path) const {
+    YAML::Node n = parent[key];
+    if (!n) fail(parent, "missing required key '" + (path.empty() ? "" : path + ".") + key + "'");
+    return n;
+  }
+
+  double number(const YAML::Node &n, const std::string &path) const {
+    if (!n.IsScalar()) fail(n, path + ": expected a number");
+    try {
+      double v = n.as<double>();
+      if (!std::isfinite(v)) fail(n, path + ": expected a finite number");
+      return v;
+    } catch (const YAML::BadConversion &) {
+      fail(n, path + ": expected a number, got '" + n.Scalar() + "'");
+    }
+  }
+
+  int integer(const YAML::Node &n, const std::string &path) const {
+    double v = number(n, path);
+    if (v != std::floor(v) || std::abs(v) > 1e9) fail(n, path + ": expected an integer");
+    return static_cast<int>(v);
+  }
+
+  bool boolean(const YAML::Node &n, const std::string &path) const {
+    if (!n.IsScalar()) fail(n, path + ": expected true or false");
+    try {
+      return n.as<bool>();
+    } catch (const YAML::BadConversion &) {
+      fail(n, path + ": expected true or false, got '" + n.Scalar() + "'");
+    }
+  }
+
+  std::string string(const YAML::Node &n, const std::string &path) const {
+    if (!n.IsScalar()) fail(n, path + ": expected a string");
+    return n.Scalar();
+  }
+
+  std::string choice(const YAML::Node &n, const std::string &path,
+                     std::initializer_list<const char *> options) const {
+    std::string s = string(n, path);
+    for (const char *o : options)
+      if (s == o) return s;
+    std::string list;
+    for (const char *o : options) list += std::string(list.empty() ? "" : " | ") + o;
+    fail(n, path + ": '" + s + "' is not one of " + list);
+  }
+
+  std::array<double, 3> vector3(const YAML::Node &n, const std::string &path) const {
+    if (!n.IsSequence() || n.size() != 3) fail(n, path + ": expected a list of 3 numbers [x, y, z]");
+    return {number(n[0], path + "[0]"), number(n[1], path + "[1]"), number(n[2], path + "[2]")};
+  }
+
+  std::vector<std::string> string_list(const YAML::Node &n, const std::string &path) const {
+    require_sequence(n, path);
+    std::vector<std::string> out;
+    for (std::size_t i = 0; i < n.size(); ++i)
+      out.push_back(string(n[i], path + "[" + std::to_string(i) + "]"));
+    return out;
+  }
+
+private:
+  std::string file_;
+};
+
+void read_materials(const Reader &r, const YAML::Node &node, Case &c) {
+  r.require_map(node, "materials");
+  for (const auto &kv : node) {
+    MaterialSpec m;
+    m.name = kv.first.as<std::string>();
+    const std::string path = "materials." + m.name;
+    const YAML::Node &v = kv.second;
+    r.require_map(v, path);
+    r.check_keys(v, path, {"E", "nu", "density"});
+    m.E = r.number(r.require(v, "E", path), path + ".E");
+    m.nu = r.number(r.require(v, "nu", path), path + ".nu");
+    m.density = r.number(r.require(v, "density", path), path + ".density");
+    if (!(m.E > 0)) r.fail(v["E"], path + ".E: Young's modulus must be positive");
+    if (!(m.nu > -1.0 && m.nu < 0.5))
+      r.fail(v["nu"], path + ".nu: Poisson's ratio must satisfy -1 < nu < 0.5 (got " +
+                          v["nu"].Scalar() + "; nu = 0.5 is incompressible, which the displacement "
+                                             "formulation cannot represent)");
+    if (!(m.density > 0)) r.fail(v["density"], path + ".density: must be positive");
+    c.materials.push_back(m);
+  }
+  if (c.materials.empty()) r.fail(node, "materials: at least one material is required");
+}
+
+void read_bodies(const Reader &r, const YAML::Node &node, const fs::path &dir, Case &c) {
+  r.require_sequence(node, "bodies");
+  if (node.size() == 0) r.fail(node, "bodies: at least one body is required");
+  for (std::size_t i = 0; i < node.size(); ++i) {
+    const YAML::Node &v = node[i];
+    const std::string path = "bodies[" + std::to_string(i) + "]";
+    r.require_map(v, path);
+    r.check_keys(v, path,
+                 {"name", "model", "geometry", "mesh", "material", "interfaces", "reduction",
+                  "damping", "initial"});
+    for (const char *later : {"reduction", "damping", "initial"})
+      if (v[later])
+        r.fail(v[later], path + "." + later +
+                             ": not supported yet by this version of flexopt (mechanisms and "
+                             "flexible bodies come with the dynamic analysis)");
+    BodySpec b;
+    b.where = r.where(v);
+    b.name = r.string(r.require(v, "name", path), path + ".name");
+    for (const auto &other : c.bodies)
+      if (other.name == b.name) r.fail(v["name"], path + ".name: duplicate body name '" + b.name + "'");
+    if (v["model"]) b.model = r.choice(v["model"], path + ".model", {"rigid", "ffrf", "acf", "auto"});
+    b.geometry_key = r.string(r.require(v, "geometry", path), path + ".geometry");
+    b.geometry = (dir / b.geometry_key).string();
+    const std::string ext = fs::path(b.geometry).extension().string();
+    if (ext != ".geo" && ext != ".msh")
+      r.fail(v["geometry"], path + ".geometry: '" + b.geometry_key +
+                                "' must be a Gmsh .geo (meshed at run time) or .msh (v4) file");
+    if (!fs::is_regular_file(b.geometry))
+      r.fail(v["geometry"], path + ".geometry: file '" + b.geometry + "' does not exist");
+    if (v["mesh"]) {
+      const YAML::Node &m = v["mesh"];
+      const std::string mp = path + ".mesh";
+      r.require_map(m, mp);
+      r.check_keys(m, mp, {"size", "order"});
+      b.mesh.given = true;
+      if (ext == ".msh")
+        r.fail(m, mp + ": only applies to a .geo geometry; a .msh file is used as it is");
+      if (m["size"]) {
+        b.mesh.size = r.number(m["size"], mp + ".size");
+        if (!(b.mesh.size > 0)) r.fail(m["size"], mp + ".size: element size must be positive");
+      }
+      if (m["order"]) {
+        b.mesh.order = r.integer(m["order"], mp + ".order");
+        if (b.mesh.order != 1 && b.mesh.order != 2)
+          r.fail(m["order"], mp + ".order: must be 1 (Tet4/Hex8) or 2 (Tet10)");
+      }
+    }
+    b.material = r.string(r.require(v, "material", path), path + ".material");
+    bool found = std::any_of(c.materials.begin(), c.materials.end(),
+                             [&](const MaterialSpec &m) { return m.name == b.material; });
+    if (!found) r.fail(v["material"], path + ".material: no material named '" + b.material + "'");
+    if (v["interfaces"]) b.interfaces = r.string_list(v["interfaces"], path + ".interfaces");
+    c.bodies.push_back(b);
+  }
+}
+
+bool has_body(const Case &c, const std::string &name) {
+  return std::any_of(c.bodies.begin(), c.bodies.end(),
+                     [&](const BodySpec &b) { return b.name == name; });
+}
+
+void read_supports(const Reader &r, const YAML::Node &node, Case &c) {
+  r.require_sequence(node, "supports");
+  for (std::size_t i = 0; i < node.size(); ++i) {
+    const YAML::Node &v = node[i];
+    const std::string path = "supports[" + std::to_string(i) + "]";
+    r.require_map(v, path);
+    r.check_keys(v, path, {"body", "surface", "fix"});
+    SupportSpec s;
+    s.where = r.where(v);
+    s.body = r.string(r.require(v, "body", path), path + ".body");
+    if (!has_body(c, s.body)) r.fail(v["body"], path + ".body: no body named '" + s.body + "'");
+    s.surface = r.string(r.require(v, "surface", path), path + ".surface");
+    auto fix = r.string_list(r.require(v, "fix", path), path + ".fix");
+    if (fix.empty()) r.fail(v["fix"], path + ".fix: name at least one of x, y, z");
+    for (std::size_t k = 0; k < fix.size(); ++k) {
+      const std::string &f = fix[k];
+      if (f == "x") s.fix[0] = true;
+      else if (f == "y") s.fix[1] = true;
+      else if (f == "z") s.fix[2] = true;
+      else r.fail(v["fix"][k], path + ".fix: '" + f + "' is not one of x, y, z");
+    }
+    c.supports.push_back(s);
+  }
+}
+
+void read_tractions(const Reader &r, const YAML::Node &node, Case &c) {
+  r.require_sequence(node, "tractions");
+  for (std::size_t i = 0; i < node.size(); ++i) {
+    const YAML::Node &v = node[i];
+    const std::string path = "tractions[" + std::to_string(i) + "]";
+    r.require_map(v, path);
+    r.check_keys(v, path, {"body", "surface", "value"});
+    TractionSpec t;
+    t.where = r.where(v);
+    t.body = r.string(r.require(v, "body", path), path + ".body");
+    if (!has_body(c, t.body)) r.fail(v["body"], path + ".body: no body named '" + t.body + "'");
+    t.surface = r.string(r.require(v, "surface", path), path + ".surface");
+    t.value = r.vector3(r.require(v, "value", path), path + ".value");
+    c.tractions.push_back(t);
+  }
+}
+
+void read_sensors(const Reader &r, const YAML::Node &node, Case &c) {
+  r.require_sequence(node, "sensors");
+  for (std::size_t i = 0; i < node.size(); ++i) {
+    const YAML::Node &v = node[i];
+    const std::string path = "sensors[" + std::to_string(i) + "]";
+    r.require_map(v, path);
+    r.check_keys(v, path, {"name", "body", "point", "quantity"});
+    SensorSpec s;
+    s.where = r.where(v);
+    s.name = r.string(r.require(v, "name", path), path + ".name");
+    for (const auto &other : c.sensors)
+      if (other.name == s.name) r.fail(v["name"], path + ".name: duplicate sensor name '" + s.name + "'");
+    s.body = r.string(r.require(v, "body", path), path + ".body");
+    if (!has_body(c, s.body)) r.fail(v["body"], path + ".body: no body named '" + s.body + "'");
+    s.point = r.vector3(r.require(v, "point", path), path + ".point");
+    if (v["quantity"])
+      s.quantity = r.choice(v["quantity"], path + ".quantity",
+                            {"displacement", "position", "elastic_displacement", "rotation_angle"});
+    c.sensors.push_back(s);
+  }
+}
+
+} // namespace
+
+Case load_case(const std::string &directory) {
+  Case c;
+  c.directory = directory;
+  fs::path dir(directory);
+  if (!fs::is_directory(dir)) throw Error("case directory '" + directory + "' does not exist", true);
+  c.name = fs::absolute(dir).lexically_normal().filename().string();
+  if (c.name.empty()) c.name = fs::absolute(dir).lexically_normal().parent_path().filename().string();
+  c.file = (dir / "case.yaml").string();
+  if (!fs::is_regular_file(c.file)) throw Error(c.file + ": file not found (a case directory holds case.yaml)", true);
+
+  YAML::Node root;
+  try {
+    root = YAML::LoadFile(c.file);
+  } catch (const YAML::ParserException &e) {
+    throw Error(c.file + ":" + std::to_string(e.mark.line + 1) + ":" + std::to_string(e.mark.column + 1) +
+                    ": YAML syntax error: " + e.msg,
+                true);
+  }
+  Reader r(c.file);
+  if (!root.IsMap()) throw Error(c.file + ":1:1: expected a mapping of keys (analysis, materials, bodies, ...)", true);
+
+  for (const auto &kv : root) {
+    const std::string key = kv.first.as<std::string>();
+    if (kNotYetSupported.count(key))
+      r.fail(kv.first, "key '" + key +
+                           "' is part of the case format but not supported yet by this version of "
+                           "flexopt (static and modal analysis only)");
+  }
+  r.check_keys(root, "",
+               {"analysis", "materials", "bodies", "loads", "supports", "tractions", "sensors",
+                "output", "solver"});
+
+  c.analysis = r.choice(r.require(root, "analysis", ""), "analysis", {"static", "dynamic"});
+  read_materials(r, r.require(root, "materials", ""), c);
+  read_bodies(r, r.require(root, "bodies", ""), dir, c);
+
+  if (root["loads"]) {
+    const YAML::Node &l = root["loads"];
+    r.require_map(l, "loads");
+    r.check_keys(l, "loads", {"gravity", "forces"});
+    if (l["forces"]) r.fail(l["forces"], "loads.forces: interface forces are not supported yet (dynamic analysis)");
+    if (l["gravity"]) c.gravity = r.vector3(l["gravity"], "loads.gravity");
+  }
+  if (root["supports"]) read_supports(r, root["supports"], c);
+  if (root["tractions"]) read_tractions(r, root["tractions"], c);
+  if (root["sensors"]) read_sensors(r, root["sensors"], c);
+  if (root["output"]) {
+    const YAML::Node &o = root["output"];
+    r.require_map(o, "output");
+    r.check_keys(o, "output", {"every"});
+    if (o["every"]) {
+      c.output_every = r.integer(o["every"], "output.every");
+      if (c.output_every < 1) r.fail(o["every"], "output.every: must be >= 1");
+    }
+  }
+  if (root["solver"]) c.solver = r.string(root["solver"], "solver");
+
+  if (c.analysis == "static") {
+    if (c.bodies.size() != 1)
+      r.fail(root["bodies"], "bodies: a static analysis takes exactly one body (got " +
+                                 std::to_string(c.bodies.size()) + ")");
+    for (const auto &s : c.sensors)
+      if (s.quantity != "displacement" && s.quantity != "position")
+        throw Error(s.where.str() + ": sensors: quantity '" + s.quantity +
+                        "' needs a dynamic analysis; a static one has displacement and position",
+                    true);
+  }
+  return c;
+}
+
+} // namespace flexopt::io
