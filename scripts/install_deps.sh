@@ -14,7 +14,7 @@ PACKAGES=(
   libgtest-dev libgmock-dev
   libyaml-cpp-dev
   libmuparser-dev
-  python3 python3-yaml
+  python3 python3-yaml python3-numpy python3-scipy python3-h5py
 )
 
 missing=()

@@ -356,12 +356,17 @@ int kernel_degree(ElementType type, const ElementCoords &X, double h, Integrand 
   throw Error("flexopt::fem: invalid element type or integrand");
 }
 
-/// Jacobian J(i,k) = dx_i / dxi_k = sum_a X(a,i) dN(a,k) for a generic node count.
+/// Jacobian J(i,k) = dx_i / dxi_k = sum_a (X(a,i) - X(0,i)) dN(a,k) for a generic node count.
+/// Since sum_a dN_a = 0, subtracting node 0 changes nothing mathematically, but the differences of
+/// nearby coordinates are exact (Sterbenz), so an element far from the origin relative to its size
+/// keeps full relative accuracy in J instead of losing |x| / h digits to cancellation.
 Eigen::Matrix3d jacobian(const ElementCoords &X, const double *dN) {
   Eigen::Matrix3d J = Eigen::Matrix3d::Zero();
-  for (int a = 0; a < X.rows(); ++a)
-    for (int i = 0; i < 3; ++i)
-      for (int k = 0; k < 3; ++k) J(i, k) += X(a, i) * dN[a * 3 + k];
+  for (int a = 1; a < X.rows(); ++a)
+    for (int i = 0; i < 3; ++i) {
+      const double xa = X(a, i) - X(0, i);
+      for (int k = 0; k < 3; ++k) J(i, k) += xa * dN[a * 3 + k];
+    }
   return J;
 }
 
@@ -384,7 +389,7 @@ template <int NN>
 void stiffness_impl(ElementType type, const ShapeTable &tab, const ElementCoords &X, double lambda,
                     double mu, double det_min, ElementMatrix &K) {
   constexpr int kNd = 3 * NN;
-  const Eigen::Matrix<double, NN, 3> Xn = X;
+  const Eigen::Matrix<double, NN, 3> Xn = X.rowwise() - X.row(0); // see jacobian()
   Eigen::Matrix<double, kNd, kNd> A = Eigen::Matrix<double, kNd, kNd>::Zero();
   Eigen::Matrix<double, NN, 3, Eigen::RowMajor> G;
   for (int q = 0; q < tab.num_points; ++q) {
@@ -427,10 +432,12 @@ double integrate_shape(ElementType type, const ShapeTable &tab, const ElementCoo
 
 /// Surface element |dx/dxi x dx/deta| at a face quadrature point.
 double surface_jacobian(const FaceCoords &Xf, const double *dN) {
+  // Coordinates relative to node 0 for accuracy, as in jacobian().
   Eigen::Vector3d t1 = Eigen::Vector3d::Zero(), t2 = Eigen::Vector3d::Zero();
-  for (int a = 0; a < Xf.rows(); ++a) {
-    t1 += dN[a * 2] * Xf.row(a).transpose();
-    t2 += dN[a * 2 + 1] * Xf.row(a).transpose();
+  for (int a = 1; a < Xf.rows(); ++a) {
+    const Eigen::Vector3d xa = (Xf.row(a) - Xf.row(0)).transpose();
+    t1 += dN[a * 2] * xa;
+    t2 += dN[a * 2 + 1] * xa;
   }
   return t1.cross(t2).norm();
 }
@@ -753,7 +760,7 @@ Voigt element_stress(ElementType type, const ElementCoords &X, const IsotropicMa
   Voigt sigma;
   for (int i = 0; i < 3; ++i) sigma[i] = lambda * trace + 2.0 * mu * H(i, i);
   sigma[3] = mu * (H(1, 2) + H(2, 1));
-  sigma[4] = mu * (H(0, 2) + H(2, 0));
+  sigma[4] = mu * (H(0, 2) + H(2, 1));
   sigma[5] = mu * (H(0, 1) + H(1, 0));
   return sigma;
 }
@@ -793,15 +800,17 @@ bool locate_point(ElementType type, const ElementCoords &X, const Eigen::Vector3
   // Beyond this the iterate has left any sensible neighbourhood of the element.
   constexpr double kDivergence = 1e3;
   xi = reference_centroid(type);
+  const Eigen::Vector3d p_rel = p - X.row(0).transpose();
   double N[kMaxNodes], dN[kMaxNodes * 3];
   bool converged = false;
   for (int it = 0; it < kMaxIterations && !converged; ++it) {
     shape_functions(type, xi, N, dN);
+    // x(xi) - p evaluated relative to node 0 (sum_a N_a = 1), as in jacobian().
     Eigen::Vector3d x = Eigen::Vector3d::Zero();
-    for (int a = 0; a < n; ++a) x += N[a] * X.row(a).transpose();
+    for (int a = 1; a < n; ++a) x += N[a] * (X.row(a) - X.row(0)).transpose();
     const Eigen::Matrix3d J = jacobian(X, dN);
     if (!(std::abs(J.determinant()) > 0.0)) return false;
-    const Eigen::Vector3d step = J.partialPivLu().solve(p - x);
+    const Eigen::Vector3d step = J.partialPivLu().solve(p_rel - x);
     if (!step.allFinite()) return false;
     xi += step;
     converged = step.lpNorm<Eigen::Infinity>() <= kStepTol;

@@ -1,0 +1,108 @@
+#!/usr/bin/python3
+"""Regression check of a case directory against its reference.yaml.
+
+Runs flexopt on the case (2 MPI ranks by default) for every run that reference.yaml lists,
+reads the run's summary.json and compares each check:
+
+    source: "where the reference values come from"
+    runs:                                   # or a single run: command/args/checks at top level
+      - command: simulate                   # flexopt command
+        args: [--count, "6"]                # optional extra arguments
+        checks:
+          - {path: sensors.tip.value[1], value: -7.634e-3, rel_tol: 0.02, source: "..."}
+          - {path: compliance, value: 37.9, abs_tol: 0.5}
+          - {path: frequencies_hz[0:6], max_abs: 0.2}      # every selected |value| <= max_abs
+
+Usage: check_case.py CASE_DIR [--flexopt build/flexopt] [--ranks 2] [--out DIR]
+Exit status 0 if every check passes.
+"""
+import argparse
+import json
+import os
+import re
+import subprocess
+import sys
+
+import yaml
+
+
+def select(summary, path):
+    """Returns the value at a dotted path with [i] or [a:b] indices."""
+    value = summary
+    for part in path.split("."):
+        m = re.fullmatch(r"([A-Za-z_][A-Za-z0-9_]*)((?:\[[0-9:]+\])*)", part)
+        if not m:
+            raise KeyError(f"bad path component '{part}'")
+        value = value[m.group(1)]
+        for idx in re.findall(r"\[([0-9:]+)\]", m.group(2)):
+            if ":" in idx:
+                a, b = idx.split(":")
+                value = value[int(a) if a else None:int(b) if b else None]
+            else:
+                value = value[int(idx)]
+    return value
+
+
+def check_one(summary, check):
+    path = check["path"]
+    try:
+        got = select(summary, path)
+    except (KeyError, IndexError, TypeError) as e:
+        return False, f"{path}: not in summary.json ({e})"
+    values = got if isinstance(got, list) else [got]
+    if "max_abs" in check:
+        worst = max(abs(v) for v in values)
+        ok = worst <= check["max_abs"]
+        return ok, f"{path}: max |value| {worst:.6g} <= {check['max_abs']:.6g}"
+    ref = check["value"]
+    if isinstance(got, list):
+        return False, f"{path}: selects a list; compare single values"
+    err = abs(got - ref)
+    if "rel_tol" in check:
+        rel = err / abs(ref) if ref != 0 else float("inf")
+        return rel <= check["rel_tol"], f"{path}: {got:.10g} vs {ref:.10g}, rel err {rel:.3g} <= {check['rel_tol']:.3g}"
+    if "abs_tol" in check:
+        return err <= check["abs_tol"], f"{path}: {got:.10g} vs {ref:.10g}, abs err {err:.3g} <= {check['abs_tol']:.3g}"
+    return False, f"{path}: check needs rel_tol, abs_tol or max_abs"
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("case")
+    here = os.path.dirname(os.path.abspath(__file__))
+    ap.add_argument("--flexopt", default=os.path.join(here, "..", "build", "flexopt"))
+    ap.add_argument("--ranks", type=int, default=2)
+    ap.add_argument("--out", default=None, help="output directory (default: CASE/out)")
+    args = ap.parse_args()
+
+    with open(os.path.join(args.case, "reference.yaml")) as f:
+        ref = yaml.safe_load(f)
+    runs = ref.get("runs") or [{"command": ref["command"], "args": ref.get("args", []), "checks": ref["checks"]}]
+    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
+               OMPI_MCA_rmaps_base_oversubscribe="1")
+    failures = 0
+    print(f"case {args.case}: reference from {ref.get('source', '(no source given)')}")
+    for i, run in enumerate(runs):
+        out = args.out or os.path.join(args.case, "out")
+        out = os.path.join(out, f"check_{i}")
+        cmd = ["mpirun", "-n", str(args.ranks), args.flexopt, run["command"], args.case, "--out", out]
+        cmd += [str(a) for a in run.get("args", [])]
+        print("$ " + " ".join(cmd), flush=True)
+        proc = subprocess.run(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        sys.stdout.write(proc.stdout)
+        if proc.returncode != 0:
+            print(f"FAIL: flexopt exited with {proc.returncode}")
+            failures += 1
+            continue
+        with open(os.path.join(out, "summary.json")) as f:
+            summary = json.load(f)
+        for check in run["checks"]:
+            ok, text = check_one(summary, check)
+            print(("ok    " if ok else "FAIL  ") + text)
+            failures += 0 if ok else 1
+    print(f"{args.case}: {'all checks passed' if failures == 0 else str(failures) + ' check(s) failed'}")
+    return 0 if failures == 0 else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,181 @@
+// Parallel mesh distribution and assembly, checked against exact facts on any number of
+// ranks: the partition covers every element once, ghost coordinates agree with their owners,
+// K annihilates rigid-body motion, M integrates the mass exactly, tractions integrate to
+// force = traction x area, and a linear field is probed exactly.
+#include "flexopt/core/context.hpp"
+#include "flexopt/core/error.hpp"
+#include "flexopt/fem/assembly.hpp"
+#include "flexopt/fem/probe.hpp"
+#include "flexopt/mesh/distributed_mesh.hpp"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+
+using namespace flexopt;
+
+namespace {
+
+// Beam of meshes/beam.geo: L x h x b.
+constexpr double kL = 1.0, kH = 0.05, kB = 0.1;
+
+struct MeshCase {
+  int order;
+  double size;
+};
+
+mesh::DistributedMesh load(MeshCase mc, mesh::MeshData *root_copy = nullptr) {
+  mesh::MeshData data;
+  const std::string geo = std::string(FLEXOPT_SOURCE_DIR) + "/meshes/beam.geo";
+  run_on_root(PETSC_COMM_WORLD, 0, [&] { data = mesh::read_gmsh(geo, mesh::MeshOptions{mc.size, mc.order}); });
+  if (root_copy) *root_copy = data;
+  return mesh::distribute_mesh(PETSC_COMM_WORLD, comm_rank(PETSC_COMM_WORLD) == 0 ? &data : nullptr);
+}
+
+class Parallel : public ::testing::TestWithParam<MeshCase> {};
+
+} // namespace
+
+TEST_P(Parallel, PartitionCoversEveryElementOnce) {
+  mesh::MeshData root;
+  auto m = load(GetParam(), &root);
+  const int size = comm_size(m.comm), rank = comm_rank(m.comm);
+  int n = static_cast<int>(m.element_tags.size());
+  std::vector<int> counts(static_cast<std::size_t>(size)), displs(static_cast<std::size_t>(size), 0);
+  MPI_Gather(&n, 1, MPI_INT, counts.data(), 1, MPI_INT, 0, m.comm);
+  std::vector<unsigned long> mine(m.element_tags.begin(), m.element_tags.end()), all;
+  if (rank == 0) {
+    for (int p = 1; p < size; ++p) displs[static_cast<std::size_t>(p)] = displs[static_cast<std::size_t>(p - 1)] + counts[static_cast<std::size_t>(p - 1)];
+    all.resize(static_cast<std::size_t>(displs.back() + counts.back()));
+  }
+  MPI_Gatherv(mine.data(), n, MPI_UNSIGNED_LONG, all.data(), counts.data(), displs.data(), MPI_UNSIGNED_LONG, 0, m.comm);
+  if (rank == 0) {
+    std::sort(all.begin(), all.end());
+    EXPECT_EQ(std::adjacent_find(all.begin(), all.end()), all.end()) << "an element is on two ranks";
+    std::vector<unsigned long> expected(root.element_tags.begin(), root.element_tags.end());
+    std::sort(expected.begin(), expected.end());
+    EXPECT_EQ(all, expected);
+    EXPECT_EQ(static_cast<long long>(all.size()), static_cast<long long>(m.global_elements));
+    for (int p = 0; p < size; ++p) EXPECT_GT(counts[static_cast<std::size_t>(p)], 0) << "rank " << p << " got no elements";
+  }
+  // Owned node ranges are contiguous and cover all nodes.
+  PetscInt owned = m.owned_nodes, total = 0, start = 0;
+  MPI_Allreduce(&owned, &total, 1, MPIU_INT, MPI_SUM, m.comm);
+  MPI_Exscan(&owned, &start, 1, MPIU_INT, MPI_SUM, m.comm);
+  if (rank == 0) start = 0;
+  EXPECT_EQ(total, m.global_nodes);
+  EXPECT_EQ(start, m.node_start);
+}
+
+TEST_P(Parallel, GhostCoordinatesMatchOwners) {
+  auto m = load(GetParam());
+  Vec x = fem::create_ghosted_vector(m);
+  PetscScalar *a;
+  VecGetArray(x, &a);
+  for (PetscInt i = 0; i < 3 * m.owned_nodes; ++i) a[i] = m.coordinates[static_cast<std::size_t>(i)];
+  VecRestoreArray(x, &a);
+  VecGhostUpdateBegin(x, INSERT_VALUES, SCATTER_FORWARD);
+  VecGhostUpdateEnd(x, INSERT_VALUES, SCATTER_FORWARD);
+  Vec local;
+  VecGhostGetLocalForm(x, &local);
+  const PetscScalar *l;
+  VecGetArrayRead(local, &l);
+  for (PetscInt i = 0; i < 3 * m.local_nodes(); ++i) ASSERT_EQ(l[i], m.coordinates[static_cast<std::size_t>(i)]);
+  VecRestoreArrayRead(local, &l);
+  VecGhostRestoreLocalForm(x, &local);
+  VecDestroy(&x);
+}
+
+TEST_P(Parallel, StiffnessAnnihilatesRigidBodyMotion) {
+  auto m = load(GetParam());
+  Mat K = fem::create_matrix(m);
+  fem::assemble_stiffness(m, fem::IsotropicMaterial{2.1e11, 0.3, 7850}, {}, K);
+  Vec coords = fem::create_coordinate_vector(m);
+  MatNullSpace ns;
+  MatNullSpaceCreateRigidBody(coords, &ns);
+  PetscBool has_const;
+  PetscInt n;
+  const Vec *vecs;
+  MatNullSpaceGetVecs(ns, &has_const, &n, &vecs);
+  ASSERT_EQ(n, 6);
+  PetscReal knorm;
+  MatNorm(K, NORM_INFINITY, &knorm);
+  Vec r;
+  VecDuplicate(coords, &r);
+  for (PetscInt k = 0; k < n; ++k) {
+    MatMult(K, vecs[k], r);
+    PetscReal rn, vn;
+    VecNorm(r, NORM_INFINITY, &rn);
+    VecNorm(vecs[k], NORM_INFINITY, &vn);
+    // Round-off of summing O(50) entries of size ||K|| per row.
+    EXPECT_LT(rn, 1e-12 * knorm * vn) << "rigid mode " << k;
+  }
+  VecDestroy(&r);
+  MatNullSpaceDestroy(&ns);
+  VecDestroy(&coords);
+  MatDestroy(&K);
+}
+
+TEST_P(Parallel, MassMatrixIntegratesTotalMass) {
+  auto m = load(GetParam());
+  const double rho = 7850;
+  Mat M = fem::create_matrix(m);
+  fem::assemble_mass(m, rho, {}, M);
+  Vec ex, Mex;
+  MatCreateVecs(M, &ex, &Mex);
+  for (int dir = 0; dir < 3; ++dir) {
+    VecZeroEntries(ex);
+    VecStrideSet(ex, dir, 1.0);
+    MatMult(M, ex, Mex);
+    PetscScalar mass;
+    VecDot(ex, Mex, &mass);
+    EXPECT_NEAR(mass, rho * kL * kH * kB, 1e-12 * rho * kL * kH * kB) << "direction " << dir;
+  }
+  VecDestroy(&ex);
+  VecDestroy(&Mex);
+  MatDestroy(&M);
+}
+
+TEST_P(Parallel, TractionIntegratesToForce) {
+  auto m = load(GetParam());
+  Vec f = fem::create_ghosted_vector(m);
+  VecZeroEntries(f);
+  const Eigen::Vector3d t(1.0e6, -2.0e6, 3.0e5);
+  fem::add_surface_traction(m, "tip", t, "test", f);
+  for (int dir = 0; dir < 3; ++dir) {
+    Vec comp;
+    PetscScalar sum;
+    VecCreateMPI(m.comm, m.owned_nodes, PETSC_DETERMINE, &comp);
+    VecStrideGather(f, dir, comp, INSERT_VALUES);
+    VecSum(comp, &sum);
+    EXPECT_NEAR(sum, t[dir] * kH * kB, 1e-12 * std::abs(t[dir] * kH * kB)) << "direction " << dir;
+    VecDestroy(&comp);
+  }
+  VecDestroy(&f);
+}
+
+TEST_P(Parallel, ProbeInterpolatesLinearFieldExactly) {
+  auto m = load(GetParam());
+  Vec u = fem::create_ghosted_vector(m);
+  Vec local;
+  VecGhostGetLocalForm(u, &local);
+  PetscScalar *a;
+  VecGetArray(local, &a);
+  auto field = [](const double *x, int k) { return 0.1 * (k + 1) * x[0] - 0.2 * x[1] + 0.3 * k * x[2] + 0.01 * k; };
+  for (PetscInt i = 0; i < m.local_nodes(); ++i)
+    for (int k = 0; k < 3; ++k) a[3 * i + k] = field(&m.coordinates[static_cast<std::size_t>(3 * i)], k);
+  VecRestoreArray(local, &a);
+  VecGhostRestoreLocalForm(u, &local);
+  for (const std::array<double, 3> p : {std::array<double, 3>{0.37, 0.011, 0.093}, {1.0, 0.025, 0.05}, {0.0, 0.0, 0.0}}) {
+    auto v = fem::probe_vector(m, u, p, "test probe");
+    for (int k = 0; k < 3; ++k) EXPECT_NEAR(v[static_cast<std::size_t>(k)], field(p.data(), k), 1e-12);
+  }
+  EXPECT_THROW(fem::probe_vector(m, u, {2.0, 0.0, 0.0}, "outside"), Error);
+  VecDestroy(&u);
+}
+
+INSTANTIATE_TEST_SUITE_P(Meshes, Parallel,
+                         ::testing::Values(MeshCase{1, 0.04}, MeshCase{2, 0.04}),
+                         [](const auto &info) { return info.param.order == 1 ? std::string("Tet4") : std::string("Tet10"); });
