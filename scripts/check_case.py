@@ -66,6 +66,33 @@ def check_one(summary, check):
     return False, f"{path}: check needs rel_tol, abs_tol or max_abs"
 
 
+def verify_xdmf(path):
+    """Checks that every HDF5 dataset an XDMF file names exists with the stated dimensions,
+    and that topology indices address existing nodes: what ParaView needs to open it."""
+    import xml.etree.ElementTree as ET
+    import h5py
+    problems = []
+    base = os.path.dirname(path)
+    root = ET.parse(path).getroot()
+    grids = root.findall(".//Grid[@GridType='Uniform']")
+    if not grids:
+        problems.append("no grids")
+    for item in root.iter("DataItem"):
+        fname, dset = item.text.strip().split(":", 1)
+        dims = tuple(int(d) for d in item.get("Dimensions").split())
+        with h5py.File(os.path.join(base, fname), "r") as h5:
+            if dset not in h5:
+                problems.append(f"{dset} missing in {fname}")
+                continue
+            if h5[dset].shape != dims:
+                problems.append(f"{dset}: shape {h5[dset].shape} but XDMF says {dims}")
+    with h5py.File(os.path.join(base, os.path.basename(path)[:-5] + ".h5"), "r") as h5:
+        topo, geom = h5["/mesh/topology"][...], h5["/mesh/geometry"][...]
+        if topo.min() < 0 or topo.max() >= geom.shape[0]:
+            problems.append("topology addresses nodes outside the geometry")
+    return problems
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("case")
@@ -96,6 +123,11 @@ def main():
             continue
         with open(os.path.join(out, "summary.json")) as f:
             summary = json.load(f)
+        if "output" in summary:
+            problems = verify_xdmf(summary["output"])
+            print(("ok    " if not problems else "FAIL  ") + f"{summary['output']}: XDMF/HDF5 consistent"
+                  + ("" if not problems else ": " + "; ".join(problems)))
+            failures += len(problems)
         for check in run["checks"]:
             ok, text = check_one(summary, check)
             print(("ok    " if ok else "FAIL  ") + text)

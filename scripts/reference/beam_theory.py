@@ -54,13 +54,15 @@ KAPPAS = {  # name -> value; the first one is the primary value
 }
 PRIMARY = "cowper"
 
-# bending direction -> (second moment of area, "height" in that direction)
+# bending direction -> second moment of area
 SECTIONS = {
     "y": B * H**3 / 12.0,   # bending in y: about z
     "z": H * B**3 / 12.0,   # bending in z: about y
 }
 
 N_MODES = 3
+N_ORDER = 6                # bending modes per direction used for the mode ordering
+F_ORDER = 1000.0           # Hz, ordering printed below this frequency
 MESHES = (50, 100, 200, 400)
 TOL_FREQ = 1e-6            # required relative agreement of the two Timoshenko methods
 TWO_PI = 2.0 * math.pi
@@ -103,9 +105,10 @@ def eb_char_roots(kind, n):
 
 # ----------------------------------------------------------------------------- exact Timoshenko
 class Timoshenko:
-    """Timoshenko beam  kGA (w'' - psi') + rho A w^2 w = 0,
-                        EI psi'' + kGA (w' - psi) + rho I w^2 psi = 0,
-    moment M = EI psi', shear force V = kGA (w' - psi)."""
+    """Timoshenko beam, harmonic motion at angular frequency om:
+        kGA (w'' - psi') + rho A om^2 w = 0,
+        EI psi'' + kGA (w' - psi) + rho I om^2 psi = 0,
+    w: deflection, psi: rotation of the section, moment M = EI psi', shear V = kGA (w' - psi)."""
 
     def __init__(self, I, kappa, area=A):
         self.EI = E * I
@@ -144,26 +147,29 @@ class Timoshenko:
         return 1.0, x
 
     def basis(self, q, om, x):
-        """Two real solutions belonging to the root q, as rows (w, w', psi, psi') at x.
+        """Two real solutions belonging to the root q, as rows (w, psi, psi', w' - psi) at x.
         For exp(+-s x) the amplitude ratio is Psi/W = (kGA s^2 + rho A om^2)/(kGA s); with
-        g = q + rho A om^2 / kGA the pair
-            (1) w = C,     psi = g S
-            (2) w = q S,   psi = g C
+        m = rho A om^2 / kGA and g = q + m the pair
+            (1) w = C,     psi = g S,   w' - psi = -m S
+            (2) w = q S,   psi = g C,   w' - psi = -m C
         solves the equations (C' = q S, S' = C) and stays independent and finite for every
-        q, including q -> 0 at the cut-off, so one formula covers both regimes."""
+        q, including q -> 0 at the cut-off, so one formula covers both regimes. The shear
+        strain is written as -m S (-m C) instead of the difference w' - psi, which would
+        cancel for slender beams (m << |q|)."""
         C, S = self.cs(q, x)
-        g = q + self.rA * om**2 / self.kGA
-        return np.array([[C, q * S, g * S, g * C],          # (w, w', psi, psi') of solution 1
-                         [q * S, q * C, g * C, g * q * S]])  # of solution 2
+        m = self.rA * om**2 / self.kGA
+        g = q + m
+        return np.array([[C, g * S, g * C, -m * S],          # (w, psi, psi', gamma) of solution 1
+                         [q * S, g * C, g * q * S, -m * C]])  # of solution 2
 
     def bc_rows(self, q1, q2, om, x, kind):
         """Two boundary-condition rows at x for the 4 coefficients."""
         cols = np.vstack([self.basis(q1, om, x), self.basis(q2, om, x)]).T  # 4 x 4: quantity x coeff
-        w, dw, psi, dpsi = cols
+        w, psi, dpsi, gamma = cols
         if kind == "clamped":
             return [w, psi]
         # free: M = EI psi' = 0, V = kGA (w' - psi) = 0 (the constants EI, kGA dropped)
-        return [dpsi, dw - psi]
+        return [dpsi, gamma]
 
     def det(self, om, bcs):
         q1, q2 = self.char_q(om)
@@ -201,7 +207,7 @@ def element_matrices(le, EI, kGA, rA, rI):
         w = a0 + a1 x + a2 x^2 + a3 x^3,  psi = a1 + 6 e a3 + 2 a2 x + 3 a3 x^2,  e = EI / kGA,
     so the stiffness is exact (nodally exact statics). kGA = inf (e = 0) gives the Hermite
     Euler-Bernoulli element. Consistent mass: rho A w^2 + rho I psi^2 (rI = 0: no rotary inertia).
-    Returns K, M and the closed-form IIE stiffness for a cross-check."""
+    Returns K, M; K is checked against the closed-form IIE stiffness (phi = 12 e / le^2)."""
     e = 0.0 if math.isinf(kGA) else EI / kGA
 
     def wp(x):  # rows: w, w', psi, psi' as linear functions of (a0..a3)
@@ -302,23 +308,35 @@ def fe_frequencies(n_el, EI, kGA, rA, rI, bcs, n):
     return np.sqrt(lam)
 
 
-def richardson(values, meshes, p):
-    """Richardson extrapolation of the two finest meshes (refinement ratio r) with order p;
-    also the same from the previous pair, whose difference is an error estimate."""
-    r = meshes[-1] / meshes[-2]
-    fine = values[-1] + (values[-1] - values[-2]) / (r**p - 1.0)
-    prev = values[-2] + (values[-2] - values[-3]) / (r**p - 1.0)
-    return fine, prev
+def richardson(values, orders):
+    """Repeated Richardson extrapolation for meshes refined by 2: eliminates error terms
+    h^p for p in orders, one per level (values: coarse to fine, len(orders) + 1 of them)."""
+    v = [np.asarray(x, dtype=float) for x in values]
+    for p in orders:
+        v = [v[i + 1] + (v[i + 1] - v[i]) / (2.0**p - 1.0) for i in range(len(v) - 1)]
+    assert len(v) == 1
+    return v[0]
 
 
-def fe_converged(EI, kGA, rA, rI, bcs, n, meshes=MESHES, p=4):
-    vals = np.array([fe_frequencies(m, EI, kGA, rA, rI, bcs, n) for m in meshes])
-    # observed order from the two coarsest differences (still far above round-off)
+# Leading error terms of the FE frequencies: the Hermite (Euler-Bernoulli) element converges
+# as h^4, h^6; the IIE Timoshenko element only as h^2, h^4 (its shear strain is constant per
+# element); the linear rod element as h^2, h^4. The observed order is checked below.
+ORDERS_EB = (4, 6)
+ORDERS_TIMO = (2, 4)
+
+
+def fe_converged(EI, kGA, rA, rI, bcs, n, meshes=MESHES, orders=ORDERS_TIMO):
+    """FE frequencies on the meshes (each twice the previous), extrapolated from the three
+    finest ones. Returns (extrapolated, error estimate = max rel. change of the last
+    extrapolation level, observed order from the three coarsest meshes)."""
+    vals = [fe_frequencies(m, EI, kGA, rA, rI, bcs, n) for m in meshes]
     d1 = np.abs(vals[1] - vals[0])
     d2 = np.abs(vals[2] - vals[1])
-    order = np.log2(d1 / np.maximum(d2, 1e-300)) / math.log2(meshes[1] / meshes[0])
-    fine, prev = richardson(vals, meshes, p)
-    return fine, np.max(np.abs(fine - prev) / fine), order, vals
+    order = np.log2(d1 / d2)
+    assert np.all(np.abs(order - orders[0]) < 0.1), ("unexpected FE convergence order", order)
+    best = richardson(vals[-3:], orders)
+    one = richardson(vals[-2:], orders[:1])
+    return best, np.max(np.abs(best - one) / best), np.min(order)
 
 
 # ----------------------------------------------------------------------------- statics
@@ -382,10 +400,8 @@ def rod_frequency(stiff, inertia, bcs):
     """(closed form Hz, FE+Richardson Hz) of the first rod mode; clamped-free 1/(4L), free-free 1/(2L)."""
     c = math.sqrt(stiff / inertia)
     exact = c / (4.0 * L) if bcs == "clamped-free" else c / (2.0 * L)
-    meshes = (100, 200, 400)
-    vals = [rod_fe_frequency(m, stiff, inertia, bcs) / TWO_PI for m in meshes]
-    fine, _ = richardson(np.array(vals), meshes, 2)
-    return exact, fine
+    vals = [rod_fe_frequency(m, stiff, inertia, bcs) / TWO_PI for m in (100, 200, 400)]
+    return exact, float(richardson(vals, (2, 4)))
 
 
 # ----------------------------------------------------------------------------- self-test
@@ -393,7 +409,7 @@ def selftest_above_cutoff():
     """Deep beam (L/h = 2, y-bending, Cowper): several clamped-free and free-free modes lie
     above omega_c, exercising the oscillatory-oscillatory regime of the exact determinant;
     compared with the FE model. Returns (n modes above cut-off, max relative difference)."""
-    h = 1.0
+    h = 0.5
     I = B * h**3 / 12.0
     area = B * h
     kappa = KAPPAS[PRIMARY]
@@ -404,7 +420,7 @@ def selftest_above_cutoff():
     for bcs in (("clamped", "free"), ("free", "free")):
         om_eb1 = 3.5 * math.sqrt(E * I / (RHO * area * L**4))
         exact = tb.frequencies(bcs, 8, om_eb1)
-        fe, _, _, _ = fe_converged(E * I, tb.kGA, RHO * area, RHO * I, bcs, 8, meshes=(100, 200, 400))
+        fe, _, _ = fe_converged(E * I, tb.kGA, RHO * area, RHO * I, bcs, 8, meshes=(100, 200, 400))
         worst = max(worst, np.max(np.abs(exact - fe) / exact))
         n_above += int(np.sum(exact > om_c))
     return n_above, worst
@@ -425,7 +441,7 @@ def main():
     J, n_terms = torsion_J_series(B, H)
     J_fd = {n: torsion_J_fd(B, H, n) for n in (40, 80, 160)}
     J_fd_r = J_fd[160] + (J_fd[160] - J_fd[80]) / 3.0      # Richardson, O(h^2)
-    assert rel(J, J_fd_r) < 1e-5, (J, J_fd_r)
+    assert rel(J, J_fd_r) < 1e-6, (J, J_fd_r)
     Ip = B * H * (B**2 + H**2) / 12.0
 
     say("Beam L = %g m, h = %g m (y), b = %g m (z), E = %g Pa, nu = %g, rho = %g kg/m^3, G = %.7g Pa"
@@ -461,14 +477,15 @@ def main():
     freqs = {}  # (bcs, dir) -> dict(model -> array Hz)
     bc_sets = {"clamped-free": ("clamped", "free"), "free-free": ("free", "free")}
     say("")
-    say("2. Bending natural frequencies [Hz] (free-free: the 2 rigid-body modes per direction are 0 and omitted)")
+    say("2. Bending natural frequencies [Hz] (free-free: the 2 rigid-body modes per direction are 0 Hz,"
+        " checked in the FE model, and omitted)")
     for bc_name, bcs in bc_sets.items():
         bl = np.array(eb_char_roots(bc_name, N_MODES))
         for d in ("y", "z"):
             I = SECTIONS[d]
             scale = math.sqrt(E * I / (RHO * A * L**4))
             eb = bl**2 * scale / TWO_PI
-            eb_fe, eb_err, eb_ord, _ = fe_converged(E * I, math.inf, RHO * A, 0.0, bcs, N_MODES)
+            eb_fe, eb_err, eb_ord = fe_converged(E * I, math.inf, RHO * A, 0.0, bcs, N_MODES, orders=ORDERS_EB)
             eb_fe /= TWO_PI
             assert np.all(np.abs(eb - eb_fe) / eb < TOL_FREQ), (eb, eb_fe)
             entry = {"beta_L": bl, "euler_bernoulli": eb, "eb_fe": eb_fe}
@@ -476,14 +493,14 @@ def main():
             say("   %s, bending in %s (I = %.5g m^4), beta*L = %s"
                 % (bc_name, d, I, ", ".join("%.9f" % x for x in bl)))
             say("   %-22s %14s %14s %14s   %s" % ("model", "mode 1", "mode 2", "mode 3", "check"))
-            say("   %-22s %14.7f %14.7f %14.7f   FE(Hermite)+Richardson max rel.diff %.1e, FE order %.2f"
-                % ("Euler-Bernoulli", *eb, np.max(np.abs(eb - eb_fe) / eb), np.min(eb_ord)))
+            say("   %-22s %14.7f %14.7f %14.7f   vs Hermite FE + Richardson h^4,h^6: max rel.diff %.1e "
+                "(observed order %.2f)" % ("Euler-Bernoulli", *eb, np.max(np.abs(eb - eb_fe) / eb), eb_ord))
             for name, kappa in KAPPAS.items():
                 tb = Timoshenko(I, kappa)
                 om_c = tb.cutoff()
                 ex = tb.frequencies(bcs, N_MODES, bl[0]**2 * scale)
                 assert np.all(ex < om_c), "mode above the Timoshenko cut-off"
-                fe, fe_err, fe_ord, _ = fe_converged(E * I, tb.kGA, tb.rA, tb.rI, bcs, N_MODES)
+                fe, fe_err, fe_ord = fe_converged(E * I, tb.kGA, tb.rA, tb.rI, bcs, N_MODES)
                 diff = np.max(np.abs(ex - fe) / ex)
                 assert diff < TOL_FREQ, (bc_name, d, name, ex, fe)
                 worst_timo = max(worst_timo, diff)
@@ -492,8 +509,13 @@ def main():
                 entry["cutoff_" + name] = om_c / TWO_PI
                 say("   %-22s %14.7f %14.7f %14.7f   exact det vs FE+Richardson max rel.diff %.1e"
                     % ("Timoshenko k=" + name, *(ex / TWO_PI), diff))
-                say("   %-22s %14.7f %14.7f %14.7f   (FE 400 el. + Richardson p=4, est. err %.0e, obs. order %.2f)"
-                    % ("  FE", *(fe / TWO_PI), fe_err, np.min(fe_ord)))
+                say("   %-22s %14.7f %14.7f %14.7f   (FE 100/200/400 el. + Richardson h^2,h^4; est. err %.0e; "
+                    "observed order %.2f)" % ("  FE", *(fe / TWO_PI), fe_err, fe_ord))
+                if name == PRIMARY:
+                    # more modes (exact method only) for the mode ordering below
+                    more = tb.frequencies(bcs, N_ORDER, bl[0]**2 * scale)
+                    assert np.allclose(more[:N_MODES], ex, rtol=1e-12)
+                    entry["ordering"] = more / TWO_PI
             say("   cut-off f_c = sqrt(kGA/(rho I))/2pi = %.1f Hz (Cowper): all modes below it "
                 "(one hyperbolic + one trigonometric root pair)" % entry["cutoff_" + PRIMARY])
             freqs[(bc_name, d)] = entry
@@ -516,24 +538,34 @@ def main():
     for bc_name, n_rigid in (("clamped-free", 0), ("free-free", 6)):
         modes = []
         for d in ("y", "z"):
-            for i, f in enumerate(freqs[(bc_name, d)]["timoshenko_" + PRIMARY]):
+            more = freqs[(bc_name, d)]["ordering"]
+            assert more[-1] > F_ORDER, "compute more bending modes for the ordering"
+            for i, f in enumerate(more):
                 modes.append((f, "bending in %s, mode %d" % (d, i + 1)))
         for what in ("torsion", "axial"):
             modes.append((rods[(bc_name, what)], "%s, mode 1" % what))
         modes.sort()
         say("")
-        say("Mode ordering below 1000 Hz, %s (Timoshenko, Cowper)%s:" % (
-            bc_name, "; a 3D free-free model first has 6 rigid-body modes ~ 0 Hz (indices 1-6)"
+        say("Mode ordering below %g Hz, %s (bending: Timoshenko, Cowper)%s:" % (
+            F_ORDER, bc_name, "; a 3D free-free model first has 6 rigid-body modes ~ 0 Hz (indices 1-6)"
             if n_rigid else ""))
         k = n_rigid
         for f, label in modes:
-            if f < 1000.0:
+            if f < F_ORDER:
                 k += 1
                 say("   %2d  %10.3f Hz  %s" % (k, f, label))
-        nxt = [m for m in modes if m[0] >= 1000.0]
-        if nxt:
-            say("   next: %.1f Hz (%s); higher bending modes (mode 4+) are not computed here"
-                % nxt[0])
+        nxt = [m for m in modes if m[0] >= F_ORDER][:2]
+        say("   next: " + "; ".join("%.1f Hz (%s)" % m for m in nxt))
+
+    # the exact determinant in the Euler-Bernoulli limit (kGA -> inf, rho I -> 0)
+    worst_eb = 0.0
+    for bc_name, bcs in bc_sets.items():
+        tb = Timoshenko(Iy, 1e8)
+        tb.rI *= 1e-12
+        eb = freqs[(bc_name, "y")]["euler_bernoulli"]
+        lim = tb.frequencies(bcs, N_MODES, TWO_PI * eb[0]) / TWO_PI
+        worst_eb = max(worst_eb, np.max(np.abs(lim - eb) / eb))
+    assert worst_eb < 1e-6, worst_eb
 
     say("")
     n_above, worst_self = selftest_above_cutoff()
@@ -542,6 +574,8 @@ def main():
         "(required < %.0e)" % (worst_timo, TOL_FREQ))
     say("Self-test of the above-cut-off branch (deep beam L/h = 2, 8 modes clamped-free + free-free, "
         "%d above f_c): max rel. diff %.1e" % (n_above, worst_self))
+    say("Exact determinant in the Euler-Bernoulli limit (kappa = 1e8, rho I * 1e-12) vs beta*L roots: "
+        "max rel. diff %.1e" % worst_eb)
 
     if args.yaml:
         print(yaml_snippet(res, freqs, rods))

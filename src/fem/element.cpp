@@ -133,7 +133,9 @@ void check_degree(int degree, const char *where) {
 }
 
 /// Points per direction for a tensor Gauss rule of degree `degree` per direction.
-int gauss_points_for_degree(int degree) { return degree / 2 + 1; }
+int gauss_points_for_degree(int degree) {
+  return degree / 2 + 1;
+}
 
 QuadratureRule tet_rule(int degree) {
   QuadratureRule rule;
@@ -190,7 +192,8 @@ QuadratureRule tri_rule(int degree) {
     return rule;
   }
   if (degree == 2) {
-    rule.points = {{1.0 / 6.0, 1.0 / 6.0, 0.0}, {2.0 / 3.0, 1.0 / 6.0, 0.0}, {1.0 / 6.0, 2.0 / 3.0, 0.0}};
+    rule.points = {
+        {1.0 / 6.0, 1.0 / 6.0, 0.0}, {2.0 / 3.0, 1.0 / 6.0, 0.0}, {1.0 / 6.0, 2.0 / 3.0, 0.0}};
     rule.weights.assign(3, 1.0 / 6.0);
     return rule;
   }
@@ -502,9 +505,13 @@ int corner_nodes(ElementType type) {
 // -----------------------------------------------------------------------------------------------
 // Material
 
-double IsotropicMaterial::lambda() const { return E * nu / ((1.0 + nu) * (1.0 - 2.0 * nu)); }
+double IsotropicMaterial::lambda() const {
+  return E * nu / ((1.0 + nu) * (1.0 - 2.0 * nu));
+}
 
-double IsotropicMaterial::mu() const { return E / (2.0 * (1.0 + nu)); }
+double IsotropicMaterial::mu() const {
+  return E / (2.0 * (1.0 + nu));
+}
 
 Eigen::Matrix<double, 6, 6> IsotropicMaterial::elasticity() const {
   const double l = lambda(), m = mu();
@@ -580,7 +587,8 @@ void shape_functions(ElementType type, const Eigen::Vector3d &xi, double *N, dou
       const int p = kTet10Edges[e][0], r = kTet10Edges[e][1];
       if (N) N[4 + e] = 4.0 * L[p] * L[r];
       if (dN)
-        for (int k = 0; k < 3; ++k) dN[(4 + e) * 3 + k] = 4.0 * (L[r] * kDL[p][k] + L[p] * kDL[r][k]);
+        for (int k = 0; k < 3; ++k)
+          dN[(4 + e) * 3 + k] = 4.0 * (L[r] * kDL[p][k] + L[p] * kDL[r][k]);
     }
     return;
   }
@@ -628,7 +636,8 @@ void face_shape_functions(FaceType type, const Eigen::Vector2d &xi, double *N, d
       const int p = kEdges[e][0], r = kEdges[e][1];
       if (N) N[3 + e] = 4.0 * L[p] * L[r];
       if (dN)
-        for (int k = 0; k < 2; ++k) dN[(3 + e) * 2 + k] = 4.0 * (L[r] * kDL[p][k] + L[p] * kDL[r][k]);
+        for (int k = 0; k < 2; ++k)
+          dN[(3 + e) * 2 + k] = 4.0 * (L[r] * kDL[p][k] + L[p] * kDL[r][k]);
     }
     return;
   }
@@ -738,8 +747,7 @@ Voigt element_stress(ElementType type, const ElementCoords &X, const IsotropicMa
   const int n = nodes_per_element(type);
   if (u_e.size() != 3 * n)
     throw Error(std::string("element_stress: ") + element_name(type) + " needs " +
-                std::to_string(3 * n) + " displacement entries, got " +
-                std::to_string(u_e.size()));
+                std::to_string(3 * n) + " displacement entries, got " + std::to_string(u_e.size()));
   mat.validate();
   double dN[kMaxNodes * 3];
   shape_functions(type, xi, nullptr, dN);
@@ -750,8 +758,7 @@ Voigt element_stress(ElementType type, const ElementCoords &X, const IsotropicMa
   // Displacement gradient H(i,j) = du_i/dx_j = sum_a u_(a,i) dN_a/dx_j.
   Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
   for (int a = 0; a < n; ++a) {
-    const Eigen::RowVector3d g =
-        Eigen::Map<const Eigen::RowVector3d>(&dN[a * 3]) * Jinv; // dN_a/dx
+    const Eigen::RowVector3d g = Eigen::Map<const Eigen::RowVector3d>(&dN[a * 3]) * Jinv; // dN_a/dx
     H += u_e.segment<3>(3 * a) * g;
   }
   const double lambda = modulus_factor * mat.lambda();
@@ -760,7 +767,7 @@ Voigt element_stress(ElementType type, const ElementCoords &X, const IsotropicMa
   Voigt sigma;
   for (int i = 0; i < 3; ++i) sigma[i] = lambda * trace + 2.0 * mu * H(i, i);
   sigma[3] = mu * (H(1, 2) + H(2, 1));
-  sigma[4] = mu * (H(0, 2) + H(2, 1));
+  sigma[4] = mu * (H(0, 2) + H(2, 0));
   sigma[5] = mu * (H(0, 1) + H(1, 0));
   return sigma;
 }

@@ -4,16 +4,14 @@
 // "1e-13" relative tolerances of exact identities come from.
 #include "flexopt/fem/element.hpp"
 
-#include <gtest/gtest.h>
-
 #include <Eigen/Eigenvalues>
 #include <Eigen/Sparse>
 #include <Eigen/SparseCholesky>
-
 #include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <gtest/gtest.h>
 #include <random>
 #include <string>
 #include <vector>
@@ -34,7 +32,9 @@ double factorial(int n) {
 }
 
 /// Integral over [-1, 1] of x^a.
-double cube_moment_1d(int a) { return a % 2 == 1 ? 0.0 : 2.0 / (a + 1); }
+double cube_moment_1d(int a) {
+  return a % 2 == 1 ? 0.0 : 2.0 / (a + 1);
+}
 
 /// Reference node coordinates in Gmsh ordering, typed from the Gmsh documentation.
 ElementCoords reference_nodes(ElementType type) {
@@ -74,7 +74,8 @@ Eigen::MatrixXd reference_face_nodes(FaceType type) {
 /// Random reference point strictly inside the element (margin 0.02 from the boundary).
 Vector3d random_inside(ElementType type, std::mt19937 &rng) {
   std::uniform_real_distribution<double> u(0.0, 1.0);
-  if (type == ElementType::Hex8) return Vector3d(u(rng), u(rng), u(rng)) * 1.9 - Vector3d::Ones() * 0.95;
+  if (type == ElementType::Hex8)
+    return Vector3d(u(rng), u(rng), u(rng)) * 1.9 - Vector3d::Ones() * 0.95;
   while (true) {
     Vector3d xi(u(rng), u(rng), u(rng));
     if (xi.minCoeff() > 0.02 && xi.sum() < 0.98) return xi;
@@ -125,13 +126,13 @@ std::vector<TestElement> test_elements() {
   out.push_back({"Tet10 straight", ElementType::Tet10, tet10});
 
   ElementCoords curved = tet10;
-  const double offsets[6][3] = {{0.03, -0.05, 0.02},  {-0.04, 0.02, 0.05}, {0.02, 0.04, -0.03},
+  const double offsets[6][3] = {{0.03, -0.05, 0.02}, {-0.04, 0.02, 0.05},  {0.02, 0.04, -0.03},
                                 {-0.05, 0.01, 0.03}, {0.03, -0.02, -0.04}, {0.01, 0.05, 0.02}};
   for (int e = 0; e < 6; ++e) curved.row(4 + e) += Eigen::RowVector3d(offsets[e]);
   out.push_back({"Tet10 curved", ElementType::Tet10, curved});
 
   ElementCoords hex = reference_nodes(ElementType::Hex8);
-  const double hex_offsets[8][3] = {{0.10, -0.05, 0.08}, {-0.12, 0.07, 0.00}, {0.05, 0.15, -0.10},
+  const double hex_offsets[8][3] = {{0.10, -0.05, 0.08},  {-0.12, 0.07, 0.00}, {0.05, 0.15, -0.10},
                                     {-0.08, -0.06, 0.12}, {0.00, 0.10, -0.07}, {0.14, -0.09, 0.05},
                                     {-0.10, 0.04, 0.15},  {0.07, -0.12, -0.05}};
   for (int a = 0; a < 8; ++a) {
@@ -219,7 +220,8 @@ TEST(Quadrature, TetRulesIntegrateMonomialsExactly) {
             const Vector3d &p = rule.points[q];
             sum += rule.weights[q] * std::pow(p[0], a) * std::pow(p[1], b) * std::pow(p[2], c);
           }
-          const double exact = factorial(a) * factorial(b) * factorial(c) / factorial(a + b + c + 3);
+          const double exact =
+              factorial(a) * factorial(b) * factorial(c) / factorial(a + b + c + 3);
           EXPECT_NEAR(sum, exact, 1e-14 * exact)
               << "degree " << degree << " monomial " << a << " " << b << " " << c;
         }
@@ -555,9 +557,9 @@ TEST(Stress, LinearDisplacementGivesExactConstantStress) {
 struct Mesh {
   ElementType type;
   std::vector<Vector3d> nodes;
-  std::vector<bool> on_boundary;                   // per node
+  std::vector<bool> on_boundary;                    // per node
   std::vector<std::array<int, kMaxNodes>> elements; // Gmsh node ordering
-  std::vector<std::array<int, 2>> mid_edge;        // per node: edge end vertices, or {-1, -1}
+  std::vector<std::array<int, 2>> mid_edge;         // per node: edge end vertices, or {-1, -1}
 };
 
 /// Unit cube with n^3 cells: Hex8 cells, or each cell split into the 6 Kuhn tets along its main
@@ -740,8 +742,7 @@ TEST(PatchTest, LinearFieldIsReproducedOnDistortedPatches) {
     Eigen::VectorXd u0 = u;
     for (std::size_t i = 0; i < mesh.nodes.size(); ++i)
       if (!mesh.on_boundary[i]) u0.segment<3>(3 * i).setZero();
-    const Eigen::VectorXd uh =
-        solve_dirichlet(mesh, K, Eigen::VectorXd::Zero(u.size()), u0);
+    const Eigen::VectorXd uh = solve_dirichlet(mesh, K, Eigen::VectorXd::Zero(u.size()), u0);
     EXPECT_LT((uh - u).cwiseAbs().maxCoeff(), 1e-10 * u.cwiseAbs().maxCoeff()) << pc.name;
   }
 }
@@ -753,10 +754,9 @@ TEST(Mass, TotalMassVolumeAndPositiveDefiniteness) {
   const double rho = 7850.0;
   // Tet with known volume |det[x1-x0, x2-x0, x3-x0]| / 6.
   const ElementCoords tet4 = test_elements()[0].X;
-  const Eigen::Matrix3d edges =
-      (Eigen::Matrix3d() << tet4.row(1) - tet4.row(0), tet4.row(2) - tet4.row(0),
-       tet4.row(3) - tet4.row(0))
-          .finished();
+  const Eigen::Matrix3d edges = (Eigen::Matrix3d() << tet4.row(1) - tet4.row(0),
+                                 tet4.row(2) - tet4.row(0), tet4.row(3) - tet4.row(0))
+                                    .finished();
   const double tet_volume = std::abs(edges.determinant()) / 6.0;
   // Parallelepiped hex x = x0 + sum_k (xi_k + 1)/2 a_k: volume |det[a1 a2 a3]|.
   Eigen::Matrix3d spans;
@@ -764,9 +764,9 @@ TEST(Mass, TotalMassVolumeAndPositiveDefiniteness) {
   ElementCoords para(8, 3);
   const ElementCoords ref = reference_nodes(ElementType::Hex8);
   for (int a = 0; a < 8; ++a)
-    para.row(a) = (Vector3d(0.5, -1.0, 2.0) + spans * (0.5 * (ref.row(a).transpose() +
-                                                              Vector3d::Ones())))
-                      .transpose();
+    para.row(a) =
+        (Vector3d(0.5, -1.0, 2.0) + spans * (0.5 * (ref.row(a).transpose() + Vector3d::Ones())))
+            .transpose();
   const double para_volume = std::abs(spans.determinant());
 
   struct Case {
@@ -775,10 +775,10 @@ TEST(Mass, TotalMassVolumeAndPositiveDefiniteness) {
     ElementCoords X;
     double volume;
   };
-  std::vector<Case> cases = {{"Tet4", ElementType::Tet4, tet4, tet_volume},
-                             {"Tet10 straight", ElementType::Tet10, test_elements()[1].X,
-                              tet_volume},
-                             {"Hex8 parallelepiped", ElementType::Hex8, para, para_volume}};
+  std::vector<Case> cases = {
+      {"Tet4", ElementType::Tet4, tet4, tet_volume},
+      {"Tet10 straight", ElementType::Tet10, test_elements()[1].X, tet_volume},
+      {"Hex8 parallelepiped", ElementType::Hex8, para, para_volume}};
   // Curved/non-affine elements: compare with an independent high-degree integration of det J
   // (det J is a polynomial of degree 3 (curved Tet10) or 2 per direction (Hex8), so degree 8
   // rules are exact).
@@ -825,7 +825,8 @@ TEST(Mass, ExactForCurvedAndNonAffineElements) {
     for (std::size_t q = 0; q < rule.points.size(); ++q) {
       Eigen::Matrix<double, kMaxNodes, 1> N;
       shape_functions(el.type, rule.points[q], N.data(), nullptr);
-      const double wdet = rule.weights[q] * map_jacobian(el.type, el.X, rule.points[q]).determinant();
+      const double wdet =
+          rule.weights[q] * map_jacobian(el.type, el.X, rule.points[q]).determinant();
       m += wdet * N.head(n) * N.head(n).transpose();
       fn += wdet * N.head(n);
     }
@@ -835,7 +836,8 @@ TEST(Mass, ExactForCurvedAndNonAffineElements) {
       for (int c = 0; c < n; ++c)
         EXPECT_NEAR(M(3 * a + 2, 3 * c + 2), 2.5 * m(a, c), 1e-13 * 2.5 * m.cwiseAbs().maxCoeff())
             << el.name << " " << a << " " << c;
-      EXPECT_LT((f.segment<3>(3 * a) - fn[a] * b).norm(), 1e-13 * b.norm() * fn.cwiseAbs().maxCoeff())
+      EXPECT_LT((f.segment<3>(3 * a) - fn[a] * b).norm(),
+                1e-13 * b.norm() * fn.cwiseAbs().maxCoeff())
           << el.name << " " << a;
     }
   }
@@ -889,7 +891,8 @@ TEST(FaceLoad, FlatFacesHaveExactAreaAndLoads) {
   const FaceCoords tri6 =
       face_coords({p0, p1, p2, 0.5 * (p0 + p1), 0.5 * (p1 + p2), 0.5 * (p2 + p0)});
   // A planar non-parallelogram quad (trapezoid in the plane spanned by e1, e2): shoelace area.
-  const Vector3d o(1.0, 2.0, 3.0), e1 = Vector3d(1, 1, 0).normalized(), e2 = Vector3d(-1, 1, 2).normalized();
+  const Vector3d o(1.0, 2.0, 3.0), e1 = Vector3d(1, 1, 0).normalized(),
+                                   e2 = Vector3d(-1, 1, 2).normalized();
   const double q[4][2] = {{0, 0}, {2.0, 0.1}, {1.6, 1.2}, {0.3, 0.9}};
   double quad_area = 0.0;
   for (int i = 0; i < 4; ++i)
@@ -1044,7 +1047,8 @@ ErrorNorms solve_manufactured(ElementType type, int n) {
     for (std::size_t q = 0; q < rule.points.size(); ++q) {
       shape_functions(type, rule.points[q], N, nullptr);
       const double wdet = rule.weights[q] * map_jacobian(type, X, rule.points[q]).determinant();
-      const Vector3d b = exact.body_force(map_point(type, X, rule.points[q]), mat.lambda(), mat.mu());
+      const Vector3d b =
+          exact.body_force(map_point(type, X, rule.points[q]), mat.lambda(), mat.mu());
       for (int a = 0; a < nn; ++a) f.segment<3>(3 * mesh.elements[e][a]) += wdet * N[a] * b;
     }
   }
@@ -1087,8 +1091,8 @@ TEST(Convergence, ManufacturedSolutionOrders) {
     const double seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     for (int i = 0; i < 3; ++i) {
-      std::printf("[convergence] %-5s n=%d  L2 error %.4e  nodal max error %.4e", element_name(c.type),
-                  sizes[i], err[i].l2, err[i].nodal_max);
+      std::printf("[convergence] %-5s n=%d  L2 error %.4e  nodal max error %.4e",
+                  element_name(c.type), sizes[i], err[i].l2, err[i].nodal_max);
       if (i > 0)
         std::printf("  L2 order %.3f  nodal order %.3f", std::log2(err[i - 1].l2 / err[i].l2),
                     std::log2(err[i - 1].nodal_max / err[i].nodal_max));

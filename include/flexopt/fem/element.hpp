@@ -4,19 +4,19 @@
 ///
 /// Every function here is a pure function of element data: no PETSc, no MPI, no global state other
 /// than immutable, thread-safe function-local caches of quadrature rules and shape-function values.
-/// The kernels do not allocate on the heap (fixed-maximum-size Eigen types); the functions returning
-/// a `QuadratureRule` do, and are meant for set-up code and tests.
+/// The kernels do not allocate on the heap (fixed-maximum-size Eigen types); the functions
+/// returning a `QuadratureRule` do, and are meant for set-up code and tests.
 ///
 /// Units: the kernels are unit-agnostic but consistent; the documentation uses SI (coordinates [m],
 /// displacements [m], moduli and stresses [Pa], density [kg/m^3], forces [N]).
 /// Conventions: DOF order is node-major, [ux, uy, uz] per node. Voigt order is xx, yy, zz, yz, xz,
 /// xy; stresses use tensor components, strains use engineering shear (gamma_ij = 2 eps_ij).
 /// Node orderings are Gmsh's. The equations are written out in docs/theory-elements.md.
-/// Errors (bad input sizes, invalid material, degenerate or inverted elements) throw flexopt::Error.
+/// Errors (bad input sizes, invalid material, degenerate or inverted elements) throw
+/// flexopt::Error.
 #include "flexopt/core/error.hpp"
 
 #include <Eigen/Dense>
-
 #include <vector>
 
 namespace flexopt::fem {
@@ -41,8 +41,8 @@ int nodes_per_face(FaceType type);
 const char *element_name(ElementType type);
 /// "Tri3", "Tri6", "Quad4".
 const char *face_name(FaceType type);
-/// Number of corner (vertex) nodes: 4 for tets, 8 for hex (used by the METIS dual graph). The corner
-/// nodes are always the first ones in the element's node list.
+/// Number of corner (vertex) nodes: 4 for tets, 8 for hex (used by the METIS dual graph). The
+/// corner nodes are always the first ones in the element's node list.
 int corner_nodes(ElementType type);
 
 /// Nodal coordinates of a volume element [m]: one row per node (nodes_per_element rows).
@@ -83,8 +83,9 @@ struct QuadratureRule {
 
 /// Quadrature on the reference element: exact for polynomials of total degree <= `degree` (for
 /// Hex8: of degree <= `degree` in each coordinate direction). Tets: reference tet (0,0,0), (1,0,0),
-/// (0,1,0), (0,0,1), volume 1/6; degree <= 1 gives the 1-point centroid rule, degree 2 the symmetric
-/// 4-point rule, degree >= 3 a collapsed (Duffy) tensor Gauss-Legendre rule. Hex8: reference cube
+/// (0,1,0), (0,0,1), volume 1/6; degree <= 1 gives the 1-point centroid rule, degree 2 the
+/// symmetric 4-point rule, degree >= 3 a collapsed (Duffy) tensor Gauss-Legendre rule. Hex8:
+/// reference cube
 /// [-1,1]^3, tensor Gauss-Legendre with ceil((degree+1)/2) points per direction. Gauss-Legendre
 /// points are computed by Newton iteration on the Legendre polynomials. 0 <= degree <= 40.
 QuadratureRule volume_quadrature(ElementType type, int degree);
@@ -106,12 +107,13 @@ void face_shape_functions(FaceType type, const Eigen::Vector2d &xi, double *N, d
 /// Reference coordinates of the element centroid: (1/4, 1/4, 1/4) for tets, (0, 0, 0) for Hex8.
 Eigen::Vector3d reference_centroid(ElementType type);
 
-/// Element stiffness K_e = modulus_factor * int_e B^T D B dV [N/m] (DOF order node-major), symmetric
-/// positive semi-definite with exactly the 6 rigid-body modes in its kernel. modulus_factor scales
-/// E (e.g. the SIMP interpolation factor). Quadrature: Tet4 1 point, Tet10 4 points (18 if its
-/// mid-edge nodes are displaced from the edge midpoints, so that the patch test still holds), Hex8
-/// 2x2x2. X has nodes_per_element(type) rows. Throws flexopt::Error("... degenerate or inverted
-/// element ...") if det J <= 1e-12 h^3 at a quadrature point (h: bounding-box diagonal).
+/// Element stiffness K_e = modulus_factor * int_e B^T D B dV [N/m] (DOF order node-major),
+/// symmetric positive semi-definite with exactly the 6 rigid-body modes in its kernel.
+/// modulus_factor scales E (e.g. the SIMP interpolation factor). Quadrature: Tet4 1 point, Tet10 4
+/// points (18 if its mid-edge nodes are displaced from the edge midpoints, so that the patch test
+/// still holds), Hex8 2x2x2. X has nodes_per_element(type) rows. Throws flexopt::Error("...
+/// degenerate or inverted element ...") if det J <= 1e-12 h^3 at a quadrature point (h:
+/// bounding-box diagonal).
 ElementMatrix element_stiffness(ElementType type, const ElementCoords &X,
                                 const IsotropicMaterial &mat, double modulus_factor = 1.0);
 /// Consistent mass M_e = density * int_e N^T N dV [kg] (3x3 identity blocks per node pair), exact
