@@ -125,8 +125,9 @@ int run_static(const Context &ctx, const Options &o, const io::Case &c, double t
   problem->solve();
   const double solve_s = wall_time() - t_solve;
   const double compliance = problem->compliance(), umax = problem->max_displacement();
-  print0(ctx.comm(), "static: solved in %.2f s, %d iterations; compliance %.10g J, max |u| %.6g m\n", solve_s,
-         problem->iterations(), compliance, umax);
+  print0(ctx.comm(),
+         "static: solved in %.2f s (preconditioner %.2f s, %d iterations %.2f s); compliance %.10g J, max |u| %.6g m\n",
+         solve_s, problem->timings().setup, problem->iterations(), problem->timings().solve, compliance, umax);
 
   io::Json s = base_summary(ctx, o, c);
   s["analysis"] = "static";
@@ -135,6 +136,13 @@ int run_static(const Context &ctx, const Options &o, const io::Case &c, double t
   s["elements"] = static_cast<long long>(m.global_elements);
   s["solver_iterations"] = problem->iterations();
   s["solve_s"] = solve_s;
+  const auto &tm = problem->timings();
+  io::Json timings = io::Json::object();
+  timings["mesh_s"] = tm.mesh;
+  timings["assemble_s"] = tm.assemble;
+  timings["pc_setup_s"] = tm.setup;
+  timings["ksp_solve_s"] = tm.solve;
+  s["timings"] = timings;
   s["compliance"] = compliance;
   s["max_displacement"] = umax;
   io::Json sensors = io::Json::object();

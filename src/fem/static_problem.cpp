@@ -1,5 +1,6 @@
 #include "flexopt/fem/static_problem.hpp"
 
+#include "flexopt/core/context.hpp"
 #include "flexopt/core/error.hpp"
 #include "flexopt/mesh/load.hpp"
 
@@ -56,7 +57,10 @@ std::unique_ptr<StaticProblem> StaticProblem::create(MPI_Comm comm, const io::Ca
   const io::BodySpec &body = c.bodies.front();
   const io::MaterialSpec &mat = c.material(body.material);
   p->material_ = IsotropicMaterial{mat.E, mat.nu, mat.density};
+  double t = wall_time();
   p->mesh_ = mesh::load_body_mesh(comm, body);
+  p->timings_.mesh = wall_time() - t;
+  t = wall_time();
   const mesh::DistributedMesh &m = p->mesh_;
 
   p->fixed_ = support_dofs(m, c);
@@ -81,6 +85,7 @@ std::unique_ptr<StaticProblem> StaticProblem::create(MPI_Comm comm, const io::Ca
   FX_PETSC(KSPCreate(comm, &p->ksp_));
   FX_PETSC(KSPSetOptionsPrefix(p->ksp_, ""));
   p->assemble_operator({});
+  p->timings_.assemble = wall_time() - t;
   configure_elasticity_solver(p->ksp_, p->K_, m);
   return p;
 }
@@ -116,7 +121,13 @@ void StaticProblem::solve() {
   FX_PETSC(VecSetValues(rhs_, static_cast<PetscInt>(fixed_.size()), fixed_.data(), zeros.data(), INSERT_VALUES));
   FX_PETSC(VecAssemblyBegin(rhs_));
   FX_PETSC(VecAssemblyEnd(rhs_));
+  double t = wall_time();
+  FX_PETSC(KSPSetUp(ksp_));
+  FX_PETSC(KSPSetUpOnBlocks(ksp_));
+  timings_.setup = wall_time() - t;
+  t = wall_time();
   FX_PETSC(KSPSolve(ksp_, rhs_, u_));
+  timings_.solve = wall_time() - t;
   check_converged(ksp_, "static solve");
   PetscInt its = 0;
   FX_PETSC(KSPGetIterationNumber(ksp_, &its));

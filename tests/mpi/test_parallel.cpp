@@ -24,11 +24,12 @@ constexpr double kL = 1.0, kH = 0.05, kB = 0.1;
 struct MeshCase {
   int order;
   double size;
+  const char *geometry = "beam.geo";
 };
 
 mesh::DistributedMesh load(MeshCase mc, mesh::MeshData *root_copy = nullptr) {
   mesh::MeshData data;
-  const std::string geo = std::string(FLEXOPT_SOURCE_DIR) + "/meshes/beam.geo";
+  const std::string geo = std::string(FLEXOPT_SOURCE_DIR) + "/meshes/" + mc.geometry;
   run_on_root(PETSC_COMM_WORLD, 0, [&] { data = mesh::read_gmsh(geo, mesh::MeshOptions{mc.size, mc.order}); });
   if (root_copy) *root_copy = data;
   return mesh::distribute_mesh(PETSC_COMM_WORLD, comm_rank(PETSC_COMM_WORLD) == 0 ? &data : nullptr);
@@ -177,5 +178,8 @@ TEST_P(Parallel, ProbeInterpolatesLinearFieldExactly) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Meshes, Parallel,
-                         ::testing::Values(MeshCase{1, 0.04}, MeshCase{2, 0.04}),
-                         [](const auto &info) { return info.param.order == 1 ? std::string("Tet4") : std::string("Tet10"); });
+                         ::testing::Values(MeshCase{1, 0.04}, MeshCase{2, 0.04}, MeshCase{1, 0.0, "beam_hex.geo"}),
+                         [](const auto &info) {
+                           if (std::string(info.param.geometry) == "beam_hex.geo") return std::string("Hex8");
+                           return info.param.order == 1 ? std::string("Tet4") : std::string("Tet10");
+                         });

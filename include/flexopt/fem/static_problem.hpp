@@ -32,6 +32,12 @@ public:
   const std::vector<PetscInt> &fixed_dofs() const { return fixed_; }
   PetscInt global_dofs() const { return 3 * mesh_.global_nodes; }
   int iterations() const { return iterations_; }
+  /// Wall-clock seconds of the phases: mesh (read + distribute), assemble (K and f),
+  /// setup (preconditioner / factorization), solve (Krylov iterations or triangular solves).
+  struct Timings {
+    double mesh = 0, assemble = 0, setup = 0, solve = 0;
+  };
+  const Timings &timings() const { return timings_; }
   double compliance() const;                ///< f . u [J]
   double max_displacement() const;          ///< max over nodes of |u| [m]
 
@@ -45,6 +51,7 @@ private:
   Vec f_ = nullptr, rhs_ = nullptr, u_ = nullptr;
   KSP ksp_ = nullptr;
   int iterations_ = 0;
+  Timings timings_;
 };
 
 /// Global DOFs of all supports of the case's body (owned by this rank, sorted, unique).
