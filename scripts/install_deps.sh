@@ -15,6 +15,7 @@ PACKAGES=(
   libyaml-cpp-dev
   libmuparser-dev
   python3 python3-yaml python3-numpy python3-scipy python3-h5py
+  python3-paraview   # tests open the XDMF output with ParaView's own reader
 )
 
 missing=()
