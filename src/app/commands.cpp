@@ -118,9 +118,8 @@ int run_static(const Context &ctx, const Options &o, const io::Case &c, double t
   const double t_setup = wall_time();
   auto problem = fem::StaticProblem::create(ctx.comm(), c);
   const auto &m = problem->mesh();
-  print0(ctx.comm(), "static: %lld %s elements, %lld DOFs on %d rank(s); set-up %.2f s\n",
-         static_cast<long long>(m.global_elements), fem::element_name(m.type), static_cast<long long>(problem->global_dofs()),
-         ctx.size(), wall_time() - t_setup);
+  print0(ctx.comm(), "static: %lld DOFs on %d rank(s), K and f assembled in %.2f s (set-up %.2f s)\n",
+         static_cast<long long>(problem->global_dofs()), ctx.size(), problem->timings().assemble, wall_time() - t_setup);
   const double t_solve = wall_time();
   problem->solve();
   const double solve_s = wall_time() - t_solve;
@@ -198,9 +197,9 @@ int run_modes(const Context &ctx, const Options &o, const io::Case &c, double t0
   FX_PETSC(MatDuplicate(K, MAT_DO_NOT_COPY_VALUES, &M));
   fem::assemble_stiffness(m, mat, {}, K);
   fem::assemble_mass(m, mat.density, {}, M);
-  print0(ctx.comm(), "modes: %lld %s elements, %lld DOFs (%lld fixed) on %d rank(s), %s; set-up %.2f s\n",
-         static_cast<long long>(m.global_elements), fem::element_name(m.type), static_cast<long long>(dofs),
-         static_cast<long long>(total_fixed), ctx.size(), total_fixed ? "supported" : "free-free", wall_time() - t_setup);
+  print0(ctx.comm(), "modes: %lld DOFs (%lld fixed) on %d rank(s), %s; K and M assembled (set-up %.2f s)\n",
+         static_cast<long long>(dofs), static_cast<long long>(total_fixed), ctx.size(),
+         total_fixed ? "supported" : "free-free", wall_time() - t_setup);
   const double t_solve = wall_time();
   reduce::ModalResult r;
   reduce::solve_modes(K, M, fixed, o.count, kModalShift, r);

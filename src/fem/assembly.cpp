@@ -1,7 +1,10 @@
 #include "flexopt/fem/assembly.hpp"
 
+#include "flexopt/core/context.hpp"
 #include "flexopt/core/error.hpp"
+#include "flexopt/core/log.hpp"
 
+#include <algorithm>
 #include <sstream>
 
 namespace flexopt::fem {
@@ -26,30 +29,104 @@ std::string element_context(const mesh::DistributedMesh &mesh, PetscInt e, const
 
 } // namespace
 
-Mat create_matrix(const mesh::DistributedMesh &mesh) {
-  const PetscInt n = 3 * mesh.owned_nodes;
-  const int npe = mesh.nodes_per_element();
-  Mat pre;
-  FX_PETSC(MatCreate(mesh.comm, &pre));
-  FX_PETSC(MatSetType(pre, MATPREALLOCATOR));
-  FX_PETSC(MatSetSizes(pre, n, n, PETSC_DETERMINE, PETSC_DETERMINE));
-  FX_PETSC(MatSetBlockSize(pre, 3));
-  FX_PETSC(MatSetUp(pre));
-  set_local_to_global(mesh, pre);
-  std::vector<PetscScalar> zeros(static_cast<std::size_t>(9 * npe * npe), 0.0);
-  for (PetscInt e = 0; e < mesh.local_elements(); ++e)
-    FX_PETSC(MatSetValuesBlockedLocal(pre, npe, &mesh.connectivity[static_cast<std::size_t>(e * npe)], npe,
-                                      &mesh.connectivity[static_cast<std::size_t>(e * npe)], zeros.data(), INSERT_VALUES));
-  FX_PETSC(MatAssemblyBegin(pre, MAT_FINAL_ASSEMBLY));
-  FX_PETSC(MatAssemblyEnd(pre, MAT_FINAL_ASSEMBLY));
+namespace {
 
+/// Exact block sparsity of the stiffness pattern: for every owned node, the sorted global
+/// numbers of the nodes it shares an element with. Rows of shared nodes also get columns
+/// from elements on other ranks: every rank sends the adjacency of its ghost nodes to their
+/// owners. Collective.
+std::vector<std::vector<PetscInt>> node_graph(const mesh::DistributedMesh &mesh) {
+  const PetscInt n_local = mesh.local_nodes(), n_owned = mesh.owned_nodes;
+  const int npe = mesh.nodes_per_element();
+  const PetscInt n_elem = mesh.local_elements();
+  // Node -> elements (CSR).
+  std::vector<PetscInt> start(static_cast<std::size_t>(n_local + 1), 0), elems;
+  for (PetscInt k = 0; k < n_elem * npe; ++k) ++start[static_cast<std::size_t>(mesh.connectivity[static_cast<std::size_t>(k)] + 1)];
+  for (PetscInt i = 0; i < n_local; ++i) start[static_cast<std::size_t>(i + 1)] += start[static_cast<std::size_t>(i)];
+  elems.resize(static_cast<std::size_t>(start.back()));
+  {
+    std::vector<PetscInt> next(start.begin(), start.end() - 1);
+    for (PetscInt e = 0; e < n_elem; ++e)
+      for (int a = 0; a < npe; ++a)
+        elems[static_cast<std::size_t>(next[static_cast<std::size_t>(mesh.connectivity[static_cast<std::size_t>(e * npe + a)])]++)] = e;
+  }
+  // Global column lists of every local node's row, from local elements only.
+  std::vector<PetscInt> marker(static_cast<std::size_t>(n_local), -1);
+  std::vector<std::vector<PetscInt>> columns(static_cast<std::size_t>(n_local));
+  for (PetscInt i = 0; i < n_local; ++i) {
+    auto &cols = columns[static_cast<std::size_t>(i)];
+    for (PetscInt k = start[static_cast<std::size_t>(i)]; k < start[static_cast<std::size_t>(i + 1)]; ++k) {
+      const PetscInt e = elems[static_cast<std::size_t>(k)];
+      for (int a = 0; a < npe; ++a) {
+        const PetscInt j = mesh.connectivity[static_cast<std::size_t>(e * npe + a)];
+        if (marker[static_cast<std::size_t>(j)] == i) continue;
+        marker[static_cast<std::size_t>(j)] = i;
+        cols.push_back(mesh.local_to_global(j));
+      }
+    }
+  }
+  // Ghost rows go to their owners as [row, count, columns...].
+  const int size = comm_size(mesh.comm);
+  std::vector<PetscInt> ranges(static_cast<std::size_t>(size) + 1, 0);
+  MPI_Allgather(&mesh.node_start, 1, MPIU_INT, ranges.data(), 1, MPIU_INT, mesh.comm);
+  ranges[static_cast<std::size_t>(size)] = mesh.global_nodes;
+  std::vector<std::vector<PetscInt>> outgoing(static_cast<std::size_t>(size));
+  for (PetscInt i = n_owned; i < n_local; ++i) {
+    const PetscInt g = mesh.local_to_global(i);
+    const int owner = static_cast<int>(std::upper_bound(ranges.begin(), ranges.end(), g) - ranges.begin()) - 1;
+    auto &buf = outgoing[static_cast<std::size_t>(owner)];
+    const auto &cols = columns[static_cast<std::size_t>(i)];
+    buf.push_back(g);
+    buf.push_back(static_cast<PetscInt>(cols.size()));
+    buf.insert(buf.end(), cols.begin(), cols.end());
+  }
+  std::vector<int> send_counts(static_cast<std::size_t>(size)), recv_counts(static_cast<std::size_t>(size));
+  for (int p = 0; p < size; ++p) send_counts[static_cast<std::size_t>(p)] = static_cast<int>(outgoing[static_cast<std::size_t>(p)].size());
+  MPI_Alltoall(send_counts.data(), 1, MPI_INT, recv_counts.data(), 1, MPI_INT, mesh.comm);
+  std::vector<int> send_displs(static_cast<std::size_t>(size), 0), recv_displs(static_cast<std::size_t>(size), 0);
+  for (int p = 1; p < size; ++p) {
+    send_displs[static_cast<std::size_t>(p)] = send_displs[static_cast<std::size_t>(p - 1)] + send_counts[static_cast<std::size_t>(p - 1)];
+    recv_displs[static_cast<std::size_t>(p)] = recv_displs[static_cast<std::size_t>(p - 1)] + recv_counts[static_cast<std::size_t>(p - 1)];
+  }
+  std::vector<PetscInt> send_buf, recv_buf(static_cast<std::size_t>(recv_displs.back() + recv_counts.back()));
+  for (const auto &b : outgoing) send_buf.insert(send_buf.end(), b.begin(), b.end());
+  MPI_Alltoallv(send_buf.data(), send_counts.data(), send_displs.data(), MPIU_INT, recv_buf.data(),
+                recv_counts.data(), recv_displs.data(), MPIU_INT, mesh.comm);
+  for (std::size_t k = 0; k < recv_buf.size();) {
+    const PetscInt row = recv_buf[k] - mesh.node_start, count = recv_buf[k + 1];
+    auto &cols = columns[static_cast<std::size_t>(row)];
+    cols.insert(cols.end(), recv_buf.begin() + static_cast<std::ptrdiff_t>(k + 2),
+                recv_buf.begin() + static_cast<std::ptrdiff_t>(k + 2 + static_cast<std::size_t>(count)));
+    k += 2 + static_cast<std::size_t>(count);
+  }
+  columns.resize(static_cast<std::size_t>(n_owned));
+  for (auto &cols : columns) {
+    std::sort(cols.begin(), cols.end());
+    cols.erase(std::unique(cols.begin(), cols.end()), cols.end());
+  }
+  return columns;
+}
+
+} // namespace
+
+Mat create_matrix(const mesh::DistributedMesh &mesh) {
+  LogScope log("FxCreateMatrix");
+  // Block counts per owned node row, split into the diagonal (owned columns) and
+  // off-diagonal parts that MPIAIJ stores separately.
+  std::vector<PetscInt> diag(static_cast<std::size_t>(mesh.owned_nodes), 0), offdiag(diag.size(), 0);
+  {
+    const auto graph = node_graph(mesh);
+    const PetscInt lo = mesh.node_start, hi = mesh.node_start + mesh.owned_nodes;
+    for (std::size_t i = 0; i < graph.size(); ++i)
+      for (PetscInt g : graph[i]) ++((g >= lo && g < hi) ? diag : offdiag)[i];
+  }
+  const PetscInt n = 3 * mesh.owned_nodes;
   Mat A;
   FX_PETSC(MatCreate(mesh.comm, &A));
   FX_PETSC(MatSetSizes(A, n, n, PETSC_DETERMINE, PETSC_DETERMINE));
   FX_PETSC(MatSetBlockSize(A, 3));
   FX_PETSC(MatSetType(A, MATAIJ));
-  FX_PETSC(MatPreallocatorPreallocate(pre, PETSC_TRUE, A));
-  FX_PETSC(MatDestroy(&pre));
+  FX_PETSC(MatXAIJSetPreallocation(A, 3, diag.data(), offdiag.data(), nullptr, nullptr));
   set_local_to_global(mesh, A);
   FX_PETSC(MatSetOption(A, MAT_NEW_NONZERO_ALLOCATION_ERR, PETSC_TRUE));
   return A;
@@ -66,6 +143,7 @@ namespace {
 
 template <class Kernel>
 void assemble_matrix(const mesh::DistributedMesh &mesh, Mat A, Kernel &&kernel) {
+  LogScope log("FxAssembleMatrix");
   const int npe = mesh.nodes_per_element();
   FX_PETSC(MatZeroEntries(A));
   for (PetscInt e = 0; e < mesh.local_elements(); ++e) {

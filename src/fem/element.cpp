@@ -563,33 +563,40 @@ QuadratureRule face_quadrature(FaceType type, int degree) {
 // -----------------------------------------------------------------------------------------------
 // Shape functions
 
+namespace {
+
+/// Lagrange shape functions on a D-simplex in barycentric coordinates L (D + 1 of them, with
+/// constant reference gradients dL): linear N_a = L_a, or quadratic with corner functions
+/// L_a (2 L_a - 1) and, for edge e = (p, r) in Gmsh's edge order, 4 L_p L_r.
+template <int D>
+void simplex_lagrange(bool quadratic, const double *L, const double (*dL)[D],
+                      const int (*edges)[2], double *N, double *dN) {
+  constexpr int kCorners = D + 1, kEdges = D * (D + 1) / 2;
+  for (int a = 0; a < kCorners; ++a) {
+    const double f = quadratic ? L[a] * (2.0 * L[a] - 1.0) : L[a];
+    const double g = quadratic ? 4.0 * L[a] - 1.0 : 1.0;
+    if (N) N[a] = f;
+    if (dN)
+      for (int k = 0; k < D; ++k) dN[a * D + k] = g * dL[a][k];
+  }
+  if (!quadratic) return;
+  for (int e = 0; e < kEdges; ++e) {
+    const int p = edges[e][0], r = edges[e][1], n = kCorners + e;
+    if (N) N[n] = 4.0 * L[p] * L[r];
+    if (dN)
+      for (int k = 0; k < D; ++k) dN[n * D + k] = 4.0 * (L[r] * dL[p][k] + L[p] * dL[r][k]);
+  }
+}
+
+} // namespace
+
 void shape_functions(ElementType type, const Eigen::Vector3d &xi, double *N, double *dN) {
   switch (type) {
   case ElementType::Tet4:
   case ElementType::Tet10: {
-    // Barycentric coordinates L and their (constant) reference gradients.
     const double L[4] = {1.0 - xi[0] - xi[1] - xi[2], xi[0], xi[1], xi[2]};
     static constexpr double kDL[4][3] = {{-1, -1, -1}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
-    if (type == ElementType::Tet4) {
-      for (int a = 0; a < 4; ++a) {
-        if (N) N[a] = L[a];
-        if (dN)
-          for (int k = 0; k < 3; ++k) dN[a * 3 + k] = kDL[a][k];
-      }
-      return;
-    }
-    for (int a = 0; a < 4; ++a) {
-      if (N) N[a] = L[a] * (2.0 * L[a] - 1.0);
-      if (dN)
-        for (int k = 0; k < 3; ++k) dN[a * 3 + k] = (4.0 * L[a] - 1.0) * kDL[a][k];
-    }
-    for (int e = 0; e < 6; ++e) {
-      const int p = kTet10Edges[e][0], r = kTet10Edges[e][1];
-      if (N) N[4 + e] = 4.0 * L[p] * L[r];
-      if (dN)
-        for (int k = 0; k < 3; ++k)
-          dN[(4 + e) * 3 + k] = 4.0 * (L[r] * kDL[p][k] + L[p] * kDL[r][k]);
-    }
+    simplex_lagrange<3>(type == ElementType::Tet10, L, kDL, kTet10Edges, N, dN);
     return;
   }
   case ElementType::Hex8: {
@@ -618,27 +625,8 @@ void face_shape_functions(FaceType type, const Eigen::Vector2d &xi, double *N, d
   case FaceType::Tri6: {
     const double L[3] = {1.0 - xi[0] - xi[1], xi[0], xi[1]};
     static constexpr double kDL[3][2] = {{-1, -1}, {1, 0}, {0, 1}};
-    if (type == FaceType::Tri3) {
-      for (int a = 0; a < 3; ++a) {
-        if (N) N[a] = L[a];
-        if (dN)
-          for (int k = 0; k < 2; ++k) dN[a * 2 + k] = kDL[a][k];
-      }
-      return;
-    }
-    static constexpr int kEdges[3][2] = {{0, 1}, {1, 2}, {2, 0}};
-    for (int a = 0; a < 3; ++a) {
-      if (N) N[a] = L[a] * (2.0 * L[a] - 1.0);
-      if (dN)
-        for (int k = 0; k < 2; ++k) dN[a * 2 + k] = (4.0 * L[a] - 1.0) * kDL[a][k];
-    }
-    for (int e = 0; e < 3; ++e) {
-      const int p = kEdges[e][0], r = kEdges[e][1];
-      if (N) N[3 + e] = 4.0 * L[p] * L[r];
-      if (dN)
-        for (int k = 0; k < 2; ++k)
-          dN[(3 + e) * 2 + k] = 4.0 * (L[r] * kDL[p][k] + L[p] * kDL[r][k]);
-    }
+    static constexpr int kTri6Edges[3][2] = {{0, 1}, {1, 2}, {2, 0}};
+    simplex_lagrange<2>(type == FaceType::Tri6, L, kDL, kTri6Edges, N, dN);
     return;
   }
   case FaceType::Quad4: {

@@ -2,6 +2,7 @@
 
 #include "flexopt/core/context.hpp"
 #include "flexopt/core/error.hpp"
+#include "flexopt/core/log.hpp"
 #include "flexopt/mesh/load.hpp"
 
 #include <algorithm>
@@ -101,6 +102,7 @@ StaticProblem::~StaticProblem() {
 void StaticProblem::assemble_operator(const std::vector<double> &modulus_factor) {
   factor_ = modulus_factor;
   assemble_stiffness(mesh_, material_, factor_, K_);
+  LogScope log("FxApplySupports");
   // Supports: rows and columns of fixed DOFs replaced by a scaled identity (keeps K symmetric
   // and its diagonal scale, which matters for multigrid smoothers).
   PetscReal diag_sum = 0;

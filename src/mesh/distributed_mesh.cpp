@@ -35,29 +35,30 @@ std::string group_list(const std::vector<std::string> &names) {
 
 } // namespace
 
+namespace {
+
+/// A named physical group of `groups`, or a collective error listing the names there are.
+template <class Map>
+const typename Map::mapped_type &find_group(const Map &groups, const std::string &name, const char *kind,
+                                            const std::string &source, const std::string &where) {
+  auto it = groups.find(name);
+  if (it != groups.end()) return it->second;
+  std::vector<std::string> names;
+  for (const auto &kv : groups) names.push_back(kv.first);
+  throw Error(where + ": no physical " + kind + " '" + name + "' in " + source + " (physical " + kind +
+                  "s there: " + group_list(names) + ")",
+              true);
+}
+
+} // namespace
+
 const LocalSurface &DistributedMesh::surface(const std::string &name, const std::string &where) const {
-  auto it = surfaces.find(name);
-  if (it == surfaces.end()) {
-    std::vector<std::string> names;
-    for (const auto &kv : surfaces) names.push_back(kv.first);
-    throw Error(where + ": no physical surface '" + name + "' in " + source +
-                    " (physical surfaces there: " + group_list(names) + ")",
-                true);
-  }
-  return it->second;
+  return find_group(surfaces, name, "surface", source, where);
 }
 
 const std::vector<PetscInt> &DistributedMesh::volume_group(const std::string &name,
                                                            const std::string &where) const {
-  auto it = volume_groups.find(name);
-  if (it == volume_groups.end()) {
-    std::vector<std::string> names;
-    for (const auto &kv : volume_groups) names.push_back(kv.first);
-    throw Error(where + ": no physical volume '" + name + "' in " + source +
-                    " (physical volumes there: " + group_list(names) + ")",
-                true);
-  }
-  return it->second;
+  return find_group(volume_groups, name, "volume", source, where);
 }
 
 namespace {

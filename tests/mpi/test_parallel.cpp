@@ -8,7 +8,11 @@
 #include "flexopt/fem/probe.hpp"
 #include "flexopt/mesh/distributed_mesh.hpp"
 
+#include <gmsh.h>
 #include <gtest/gtest.h>
+
+#include <cstdio>
+#include <filesystem>
 
 #include <algorithm>
 #include <cmath>
@@ -175,6 +179,56 @@ TEST_P(Parallel, ProbeInterpolatesLinearFieldExactly) {
   }
   EXPECT_THROW(fem::probe_vector(m, u, {2.0, 0.0, 0.0}, "outside"), Error);
   VecDestroy(&u);
+}
+
+// A .msh (v4) file holds the same mesh as the .geo it was written from: the same elements,
+// nodes and physical groups, and the same mesh once distributed.
+TEST(MshFile, SameMeshAsTheGeoItCameFrom) {
+  const std::string geo = std::string(FLEXOPT_SOURCE_DIR) + "/meshes/beam.geo";
+  const std::string msh = (std::filesystem::temp_directory_path() /
+                           ("flexopt_beam_" + std::to_string(::getpid()) + ".msh")).string();
+  mesh::MeshData from_geo, from_msh;
+  run_on_root(PETSC_COMM_WORLD, 0, [&] {
+    from_geo = mesh::read_gmsh(geo, mesh::MeshOptions{0.04, 2});
+    gmsh::initialize(0, nullptr, false);
+    gmsh::option::setNumber("General.Terminal", 0);
+    gmsh::option::setNumber("Mesh.MeshSizeMax", 0.04);
+    gmsh::option::setNumber("Mesh.MeshSizeFromCurvature", 0);
+    gmsh::open(geo);
+    gmsh::model::mesh::generate(3);
+    gmsh::model::mesh::setOrder(2);
+    gmsh::option::setNumber("Mesh.MshFileVersion", 4.1);
+    gmsh::write(msh);
+    gmsh::finalize();
+    from_msh = mesh::read_gmsh(msh, mesh::MeshOptions{});
+    std::remove(msh.c_str());
+  });
+  if (comm_rank(PETSC_COMM_WORLD) == 0) {
+    EXPECT_EQ(from_msh.type, fem::ElementType::Tet10);
+    EXPECT_EQ(from_msh.element_count(), from_geo.element_count());
+    EXPECT_EQ(from_msh.node_count(), from_geo.node_count());
+    ASSERT_EQ(from_msh.surface_groups.size(), 2u);
+    for (const char *name : {"clamp", "tip"}) {
+      ASSERT_TRUE(from_msh.surface_groups.count(name)) << name;
+      EXPECT_EQ(from_msh.surface_groups.at(name).size(), from_geo.surface_groups.at(name).size()) << name;
+      EXPECT_EQ(from_msh.surface_groups.at(name).type, fem::FaceType::Tri6) << name;
+    }
+    EXPECT_EQ(from_msh.volume_groups.at("beam").size(), static_cast<std::size_t>(from_msh.element_count()));
+    double volume = 0;
+    const int npe = fem::nodes_per_element(from_msh.type);
+    for (std::int64_t e = 0; e < from_msh.element_count(); ++e) {
+      fem::ElementCoords X(npe, 3);
+      for (int a = 0; a < npe; ++a)
+        for (int k = 0; k < 3; ++k)
+          X(a, k) = from_msh.coordinates[static_cast<std::size_t>(3 * from_msh.connectivity[static_cast<std::size_t>(e * npe + a)] + k)];
+      volume += fem::element_volume(from_msh.type, X);
+    }
+    EXPECT_NEAR(volume, kL * kH * kB, 1e-12 * kL * kH * kB);
+  }
+  auto m = mesh::distribute_mesh(PETSC_COMM_WORLD, comm_rank(PETSC_COMM_WORLD) == 0 ? &from_msh : nullptr);
+  long long n_geo = from_geo.element_count();
+  MPI_Bcast(&n_geo, 1, MPI_LONG_LONG, 0, PETSC_COMM_WORLD);
+  EXPECT_EQ(static_cast<long long>(m.global_elements), n_geo);
 }
 
 INSTANTIATE_TEST_SUITE_P(Meshes, Parallel,

@@ -2,8 +2,8 @@
 /// \file Assembly of element kernels into PETSc objects on a DistributedMesh.
 ///
 /// DOFs are node-major with block size 3: global DOF 3*g + k is component k of global node g.
-/// Matrices are MATAIJ (MPIAIJ on several ranks) with block size 3, preallocated exactly by a
-/// MATPREALLOCATOR pass over the element connectivity, and carry the local-to-global mapping
+/// Matrices are MATAIJ (MPIAIJ on several ranks) with block size 3, preallocated exactly from
+/// the node graph of the mesh (shared rows completed by their owners), and carry the local-to-global mapping
 /// of the mesh's local nodes so that element blocks are added with MatSetValuesBlockedLocal.
 #include "flexopt/fem/element.hpp"
 #include "flexopt/mesh/distributed_mesh.hpp"
