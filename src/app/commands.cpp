@@ -43,7 +43,9 @@ io::Json base_summary(const Context &ctx, const Options &o, const io::Case &c) {
 
 void write_summary(const Context &ctx, const std::string &dir, io::Json &s, double t0) {
   s["wall_s"] = wall_time() - t0;
-  run_on_root(ctx.comm(), 0, [&] { io::write_file_atomic((fs::path(dir) / "summary.json").string(), s.dump() + "\n"); });
+  run_on_root(ctx.comm(), 0, [&] {
+    io::write_file_atomic((fs::path(dir) / "summary.json").string(), s.dump() + "\n");
+  });
 }
 
 io::Json rank_counts(const std::vector<PetscInt> &v) {
@@ -59,15 +61,16 @@ fem::IsotropicMaterial material_of(const io::Case &c, const io::BodySpec &b) {
 
 /// Writes the owner rank of each local element as a cell field.
 std::vector<double> owner_field(const mesh::DistributedMesh &m) {
-  return std::vector<double>(static_cast<std::size_t>(m.local_elements()), static_cast<double>(comm_rank(m.comm)));
+  return std::vector<double>(static_cast<std::size_t>(m.local_elements()),
+                             static_cast<double>(comm_rank(m.comm)));
 }
 
 int run_info(const Context &ctx, const Options &o, const io::Case &c, double t0) {
   const std::string dir = output_directory(ctx, o);
   io::Json s = base_summary(ctx, o, c);
   s["analysis"] = c.analysis;
-  print0(ctx.comm(), "case %s (%s), analysis: %s, %d rank(s)\n", c.name.c_str(), c.file.c_str(), c.analysis.c_str(),
-         ctx.size());
+  print0(ctx.comm(), "case %s (%s), analysis: %s, %d rank(s)\n", c.name.c_str(), c.file.c_str(),
+         c.analysis.c_str(), ctx.size());
   long long total_dofs = 0, total_elements = 0;
   io::Json bodies = io::Json::array();
   for (const auto &b : c.bodies) {
@@ -75,18 +78,22 @@ int run_info(const Context &ctx, const Options &o, const io::Case &c, double t0)
     mesh::DistributedMesh m = mesh::load_body_mesh(ctx.comm(), b);
     const auto elems = mesh::elements_per_rank(m), nodes = mesh::nodes_per_rank(m);
     const auto &mat = c.material(b.material);
-    print0(ctx.comm(), "body %s: model %s, geometry %s, material %s (E %g Pa, nu %g, density %g kg/m^3)\n",
-           b.name.c_str(), b.model.c_str(), b.geometry_key.c_str(), mat.name.c_str(), mat.E, mat.nu, mat.density);
-    print0(ctx.comm(), "  mesh: %lld %s elements, %lld nodes, %lld DOFs (meshed and distributed in %.2f s)\n",
-           static_cast<long long>(m.global_elements), fem::element_name(m.type), static_cast<long long>(m.global_nodes),
-           3LL * m.global_nodes, wall_time() - tb);
+    print0(ctx.comm(),
+           "body %s: model %s, geometry %s, material %s (E %g Pa, nu %g, density %g kg/m^3)\n",
+           b.name.c_str(), b.model.c_str(), b.geometry_key.c_str(), mat.name.c_str(), mat.E, mat.nu,
+           mat.density);
+    print0(ctx.comm(),
+           "  mesh: %lld %s elements, %lld nodes, %lld DOFs (meshed and distributed in %.2f s)\n",
+           static_cast<long long>(m.global_elements), fem::element_name(m.type),
+           static_cast<long long>(m.global_nodes), 3LL * m.global_nodes, wall_time() - tb);
     std::string vols, surfs;
     for (const auto &kv : m.volume_groups) vols += " " + kv.first;
     for (const auto &kv : m.surfaces) surfs += " " + kv.first;
-    print0(ctx.comm(), "  physical volumes:%s\n  physical surfaces:%s\n", vols.empty() ? " (none)" : vols.c_str(),
-           surfs.empty() ? " (none)" : surfs.c_str());
+    print0(ctx.comm(), "  physical volumes:%s\n  physical surfaces:%s\n",
+           vols.empty() ? " (none)" : vols.c_str(), surfs.empty() ? " (none)" : surfs.c_str());
     for (int r = 0; r < ctx.size(); ++r)
-      print0(ctx.comm(), "  rank %d: %lld elements, %lld owned nodes\n", r, static_cast<long long>(elems[static_cast<std::size_t>(r)]),
+      print0(ctx.comm(), "  rank %d: %lld elements, %lld owned nodes\n", r,
+             static_cast<long long>(elems[static_cast<std::size_t>(r)]),
              static_cast<long long>(nodes[static_cast<std::size_t>(r)]));
     io::Json jb = io::Json::object();
     jb["name"] = b.name;
@@ -110,23 +117,28 @@ int run_info(const Context &ctx, const Options &o, const io::Case &c, double t0)
 
 int run_static(const Context &ctx, const Options &o, const io::Case &c, double t0) {
   if (c.analysis != "static")
-    throw Error(c.file + ": analysis '" + c.analysis +
-                    "' is not available yet in this version of flexopt (static only; `flexopt modes` "
-                    "works on any single body)",
-                true);
+    throw Error(
+        c.file + ": analysis '" + c.analysis +
+            "' is not available yet in this version of flexopt (static only; `flexopt modes` "
+            "works on any single body)",
+        true);
   const std::string dir = output_directory(ctx, o);
   const double t_setup = wall_time();
   auto problem = fem::StaticProblem::create(ctx.comm(), c);
   const auto &m = problem->mesh();
-  print0(ctx.comm(), "static: %lld DOFs on %d rank(s), K and f assembled in %.2f s (set-up %.2f s)\n",
-         static_cast<long long>(problem->global_dofs()), ctx.size(), problem->timings().assemble, wall_time() - t_setup);
+  print0(ctx.comm(),
+         "static: %lld DOFs on %d rank(s), K and f assembled in %.2f s (set-up %.2f s)\n",
+         static_cast<long long>(problem->global_dofs()), ctx.size(), problem->timings().assemble,
+         wall_time() - t_setup);
   const double t_solve = wall_time();
   problem->solve();
   const double solve_s = wall_time() - t_solve;
   const double compliance = problem->compliance(), umax = problem->max_displacement();
   print0(ctx.comm(),
-         "static: solved in %.2f s (preconditioner %.2f s, %d iterations %.2f s); compliance %.10g J, max |u| %.6g m\n",
-         solve_s, problem->timings().setup, problem->iterations(), problem->timings().solve, compliance, umax);
+         "static: solved in %.2f s (preconditioner %.2f s, %d iterations %.2f s); compliance %.10g "
+         "J, max |u| %.6g m\n",
+         solve_s, problem->timings().setup, problem->iterations(), problem->timings().solve,
+         compliance, umax);
 
   io::Json s = base_summary(ctx, o, c);
   s["analysis"] = "static";
@@ -146,14 +158,17 @@ int run_static(const Context &ctx, const Options &o, const io::Case &c, double t
   s["max_displacement"] = umax;
   io::Json sensors = io::Json::object();
   for (const auto &sensor : c.sensors) {
-    auto u = fem::probe_vector(m, problem->displacement(), sensor.point, sensor.where.str() + ": sensor '" + sensor.name + "'");
+    auto u = fem::probe_vector(m, problem->displacement(), sensor.point,
+                               sensor.where.str() + ": sensor '" + sensor.name + "'");
     if (sensor.quantity == "position")
-      for (int k = 0; k < 3; ++k) u[static_cast<std::size_t>(k)] += sensor.point[static_cast<std::size_t>(k)];
+      for (int k = 0; k < 3; ++k)
+        u[static_cast<std::size_t>(k)] += sensor.point[static_cast<std::size_t>(k)];
     sensors[sensor.name]["quantity"] = sensor.quantity;
     sensors[sensor.name]["point"] = std::vector<double>(sensor.point.begin(), sensor.point.end());
     sensors[sensor.name]["value"] = std::vector<double>(u.begin(), u.end());
-    print0(ctx.comm(), "sensor %s (%s at %g %g %g): [%.10g, %.10g, %.10g]\n", sensor.name.c_str(), sensor.quantity.c_str(),
-           sensor.point[0], sensor.point[1], sensor.point[2], u[0], u[1], u[2]);
+    print0(ctx.comm(), "sensor %s (%s at %g %g %g): [%.10g, %.10g, %.10g]\n", sensor.name.c_str(),
+           sensor.quantity.c_str(), sensor.point[0], sensor.point[1], sensor.point[2], u[0], u[1],
+           u[2]);
   }
   s["sensors"] = sensors;
 
@@ -163,14 +178,16 @@ int run_static(const Context &ctx, const Options &o, const io::Case &c, double t
   FX_PETSC(VecGetArrayRead(problem->displacement(), &u));
   writer.node_vector("displacement", u);
   FX_PETSC(VecRestoreArrayRead(problem->displacement(), &u));
-  const auto vm = fem::element_von_mises(m, problem->material(), problem->modulus_factor(), problem->displacement());
+  const auto vm = fem::element_von_mises(m, problem->material(), problem->modulus_factor(),
+                                         problem->displacement());
   writer.cell_scalar("von_mises", vm.data());
   const auto owner = owner_field(m);
   writer.cell_scalar("rank", owner.data());
   const std::string xdmf = writer.close();
   s["output"] = xdmf;
   write_summary(ctx, dir, s, t0);
-  print0(ctx.comm(), "wrote %s (open it in ParaView) and %s\n", xdmf.c_str(), (fs::path(dir) / "summary.json").c_str());
+  print0(ctx.comm(), "wrote %s (open it in ParaView) and %s\n", xdmf.c_str(),
+         (fs::path(dir) / "summary.json").c_str());
   return 0;
 }
 
@@ -190,14 +207,15 @@ int run_modes(const Context &ctx, const Options &o, const io::Case &c, double t0
   MPI_Allreduce(&nfix, &total_fixed, 1, MPIU_INT, MPI_SUM, ctx.comm());
   const PetscInt dofs = 3 * m.global_nodes;
   if (o.count > dofs - total_fixed)
-    throw Error("modes: --count " + std::to_string(o.count) + " exceeds the " + std::to_string(dofs - total_fixed) +
-                    " free DOFs of the body",
+    throw Error("modes: --count " + std::to_string(o.count) + " exceeds the " +
+                    std::to_string(dofs - total_fixed) + " free DOFs of the body",
                 true);
   Mat K = fem::create_matrix(m), M;
   FX_PETSC(MatDuplicate(K, MAT_DO_NOT_COPY_VALUES, &M));
   fem::assemble_stiffness(m, mat, {}, K);
   fem::assemble_mass(m, mat.density, {}, M);
-  print0(ctx.comm(), "modes: %lld DOFs (%lld fixed) on %d rank(s), %s; K and M assembled (set-up %.2f s)\n",
+  print0(ctx.comm(),
+         "modes: %lld DOFs (%lld fixed) on %d rank(s), %s; K and M assembled (set-up %.2f s)\n",
          static_cast<long long>(dofs), static_cast<long long>(total_fixed), ctx.size(),
          total_fixed ? "supported" : "free-free", wall_time() - t_setup);
   const double t_solve = wall_time();
@@ -240,7 +258,8 @@ int run_modes(const Context &ctx, const Options &o, const io::Case &c, double t0
   s["frequencies_hz"] = freq;
   s["output"] = xdmf;
   write_summary(ctx, dir, s, t0);
-  print0(ctx.comm(), "wrote %s (one mode per time step) and %s\n", xdmf.c_str(), (fs::path(dir) / "summary.json").c_str());
+  print0(ctx.comm(), "wrote %s (one mode per time step) and %s\n", xdmf.c_str(),
+         (fs::path(dir) / "summary.json").c_str());
   return 0;
 }
 

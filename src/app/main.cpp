@@ -70,8 +70,10 @@ int main(int argc, char **argv) {
       }
       return argv[++i];
     };
-    if (a == "--help" || a == "-h" || a == "help") want_help = true;
-    else if (a == "--out") opts.out = value("--out");
+    if (a == "--help" || a == "-h" || a == "help")
+      want_help = true;
+    else if (a == "--out")
+      opts.out = value("--out");
     else if (a == "--count") {
       std::string v = value("--count");
       try {
@@ -81,17 +83,23 @@ int main(int argc, char **argv) {
       } catch (...) {
         if (arg_error.empty()) arg_error = "--count needs a positive integer, got '" + v + "'";
       }
-    } else if (a == "--free") opts.free = true;
-    else if (a.rfind("--", 0) == 0) arg_error = "unknown option '" + a + "'";
+    } else if (a == "--free")
+      opts.free = true;
+    else if (a.rfind("--", 0) == 0)
+      arg_error = "unknown option '" + a + "'";
     else if (a[0] == '-') {
       petsc_argv.push_back(argv[i]);
       // A PETSc option's value (if any) follows it and does not start with a letter dash.
-      if (i + 1 < argc && (argv[i + 1][0] != '-' || (argv[i + 1][1] >= '0' && argv[i + 1][1] <= '9') ||
-                           argv[i + 1][1] == '.'))
+      if (i + 1 < argc &&
+          (argv[i + 1][0] != '-' || (argv[i + 1][1] >= '0' && argv[i + 1][1] <= '9') ||
+           argv[i + 1][1] == '.'))
         petsc_argv.push_back(argv[++i]);
-    } else if (opts.command.empty()) opts.command = a;
-    else if (opts.case_dir.empty()) opts.case_dir = a;
-    else arg_error = "unexpected argument '" + a + "'";
+    } else if (opts.command.empty())
+      opts.command = a;
+    else if (opts.case_dir.empty())
+      opts.case_dir = a;
+    else
+      arg_error = "unexpected argument '" + a + "'";
   }
 
   if (want_help || opts.command.empty()) {
@@ -99,8 +107,10 @@ int main(int argc, char **argv) {
     std::fputs(h ? h : kUsage, opts.command.empty() && !want_help ? stderr : stdout);
     return want_help ? 0 : 2;
   }
-  if (!command_help(opts.command)) arg_error = "unknown command '" + opts.command + "'";
-  else if (opts.case_dir.empty()) arg_error = "missing CASE directory";
+  if (!command_help(opts.command))
+    arg_error = "unknown command '" + opts.command + "'";
+  else if (opts.case_dir.empty())
+    arg_error = "missing CASE directory";
   if (!arg_error.empty()) {
     std::fprintf(stderr, "flexopt: %s (see flexopt --help)\n", arg_error.c_str());
     return 2;

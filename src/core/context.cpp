@@ -2,10 +2,9 @@
 
 #include "flexopt/core/error.hpp"
 
-#include <slepcsys.h>
-
 #include <cstdarg>
 #include <cstdio>
+#include <slepcsys.h>
 #include <sstream>
 
 namespace flexopt {
@@ -18,7 +17,9 @@ Context::Context(int *argc, char ***argv, const char *help) {
   MPI_Comm_size(comm_, &size_);
 }
 
-Context::~Context() { SlepcFinalize(); }
+Context::~Context() {
+  SlepcFinalize();
+}
 
 int comm_rank(MPI_Comm comm) {
   int r = 0;
@@ -61,7 +62,9 @@ void print0(MPI_Comm comm, const char *format, ...) {
   std::fflush(stdout);
 }
 
-double wall_time() { return MPI_Wtime(); }
+double wall_time() {
+  return MPI_Wtime();
+}
 
 void insert_default_petsc_options(const std::string &options, const std::string &origin) {
   std::istringstream in(options);
@@ -70,17 +73,20 @@ void insert_default_petsc_options(const std::string &options, const std::string 
   for (std::size_t i = 0; i < tokens.size();) {
     const std::string &name = tokens[i];
     if (name.size() < 2 || name[0] != '-' || (name[1] >= '0' && name[1] <= '9'))
-      throw Error(origin + ": PETSc option string: expected an option name starting with '-', got '" +
+      throw Error(origin +
+                      ": PETSc option string: expected an option name starting with '-', got '" +
                       name + "'",
                   true);
     std::string value;
-    bool has_value = i + 1 < tokens.size() && !(tokens[i + 1][0] == '-' && tokens[i + 1].size() > 1 &&
-                                                !(tokens[i + 1][1] >= '0' && tokens[i + 1][1] <= '9') &&
-                                                tokens[i + 1][1] != '.');
+    bool has_value =
+        i + 1 < tokens.size() &&
+        !(tokens[i + 1][0] == '-' && tokens[i + 1].size() > 1 &&
+          !(tokens[i + 1][1] >= '0' && tokens[i + 1][1] <= '9') && tokens[i + 1][1] != '.');
     if (has_value) value = tokens[i + 1];
     PetscBool set = PETSC_FALSE;
     FX_PETSC(PetscOptionsHasName(nullptr, nullptr, name.c_str(), &set));
-    if (!set) FX_PETSC(PetscOptionsSetValue(nullptr, name.c_str(), has_value ? value.c_str() : nullptr));
+    if (!set)
+      FX_PETSC(PetscOptionsSetValue(nullptr, name.c_str(), has_value ? value.c_str() : nullptr));
     i += has_value ? 2 : 1;
   }
 }

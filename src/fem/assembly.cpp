@@ -13,17 +13,20 @@ namespace {
 
 void set_local_to_global(const mesh::DistributedMesh &mesh, Mat A) {
   std::vector<PetscInt> l2g(static_cast<std::size_t>(mesh.local_nodes()));
-  for (PetscInt i = 0; i < mesh.local_nodes(); ++i) l2g[static_cast<std::size_t>(i)] = mesh.local_to_global(i);
+  for (PetscInt i = 0; i < mesh.local_nodes(); ++i)
+    l2g[static_cast<std::size_t>(i)] = mesh.local_to_global(i);
   ISLocalToGlobalMapping map;
-  FX_PETSC(ISLocalToGlobalMappingCreate(mesh.comm, 3, mesh.local_nodes(), l2g.data(), PETSC_COPY_VALUES, &map));
+  FX_PETSC(ISLocalToGlobalMappingCreate(mesh.comm, 3, mesh.local_nodes(), l2g.data(),
+                                        PETSC_COPY_VALUES, &map));
   FX_PETSC(MatSetLocalToGlobalMapping(A, map, map));
   FX_PETSC(ISLocalToGlobalMappingDestroy(&map));
 }
 
-std::string element_context(const mesh::DistributedMesh &mesh, PetscInt e, const std::exception &err) {
+std::string element_context(const mesh::DistributedMesh &mesh, PetscInt e,
+                            const std::exception &err) {
   std::ostringstream s;
-  s << mesh.source << ": element " << mesh.element_tags[static_cast<std::size_t>(e)] << " (" << element_name(mesh.type)
-    << "): " << err.what();
+  s << mesh.source << ": element " << mesh.element_tags[static_cast<std::size_t>(e)] << " ("
+    << element_name(mesh.type) << "): " << err.what();
   return s.str();
 }
 
@@ -41,21 +44,25 @@ std::vector<std::vector<PetscInt>> node_graph(const mesh::DistributedMesh &mesh)
   const PetscInt n_elem = mesh.local_elements();
   // Node -> elements (CSR).
   std::vector<PetscInt> start(static_cast<std::size_t>(n_local + 1), 0), elems;
-  for (PetscInt k = 0; k < n_elem * npe; ++k) ++start[static_cast<std::size_t>(mesh.connectivity[static_cast<std::size_t>(k)] + 1)];
-  for (PetscInt i = 0; i < n_local; ++i) start[static_cast<std::size_t>(i + 1)] += start[static_cast<std::size_t>(i)];
+  for (PetscInt k = 0; k < n_elem * npe; ++k)
+    ++start[static_cast<std::size_t>(mesh.connectivity[static_cast<std::size_t>(k)] + 1)];
+  for (PetscInt i = 0; i < n_local; ++i)
+    start[static_cast<std::size_t>(i + 1)] += start[static_cast<std::size_t>(i)];
   elems.resize(static_cast<std::size_t>(start.back()));
   {
     std::vector<PetscInt> next(start.begin(), start.end() - 1);
     for (PetscInt e = 0; e < n_elem; ++e)
       for (int a = 0; a < npe; ++a)
-        elems[static_cast<std::size_t>(next[static_cast<std::size_t>(mesh.connectivity[static_cast<std::size_t>(e * npe + a)])]++)] = e;
+        elems[static_cast<std::size_t>(next[static_cast<std::size_t>(
+            mesh.connectivity[static_cast<std::size_t>(e * npe + a)])]++)] = e;
   }
   // Global column lists of every local node's row, from local elements only.
   std::vector<PetscInt> marker(static_cast<std::size_t>(n_local), -1);
   std::vector<std::vector<PetscInt>> columns(static_cast<std::size_t>(n_local));
   for (PetscInt i = 0; i < n_local; ++i) {
     auto &cols = columns[static_cast<std::size_t>(i)];
-    for (PetscInt k = start[static_cast<std::size_t>(i)]; k < start[static_cast<std::size_t>(i + 1)]; ++k) {
+    for (PetscInt k = start[static_cast<std::size_t>(i)];
+         k < start[static_cast<std::size_t>(i + 1)]; ++k) {
       const PetscInt e = elems[static_cast<std::size_t>(k)];
       for (int a = 0; a < npe; ++a) {
         const PetscInt j = mesh.connectivity[static_cast<std::size_t>(e * npe + a)];
@@ -73,22 +80,30 @@ std::vector<std::vector<PetscInt>> node_graph(const mesh::DistributedMesh &mesh)
   std::vector<std::vector<PetscInt>> outgoing(static_cast<std::size_t>(size));
   for (PetscInt i = n_owned; i < n_local; ++i) {
     const PetscInt g = mesh.local_to_global(i);
-    const int owner = static_cast<int>(std::upper_bound(ranges.begin(), ranges.end(), g) - ranges.begin()) - 1;
+    const int owner =
+        static_cast<int>(std::upper_bound(ranges.begin(), ranges.end(), g) - ranges.begin()) - 1;
     auto &buf = outgoing[static_cast<std::size_t>(owner)];
     const auto &cols = columns[static_cast<std::size_t>(i)];
     buf.push_back(g);
     buf.push_back(static_cast<PetscInt>(cols.size()));
     buf.insert(buf.end(), cols.begin(), cols.end());
   }
-  std::vector<int> send_counts(static_cast<std::size_t>(size)), recv_counts(static_cast<std::size_t>(size));
-  for (int p = 0; p < size; ++p) send_counts[static_cast<std::size_t>(p)] = static_cast<int>(outgoing[static_cast<std::size_t>(p)].size());
+  std::vector<int> send_counts(static_cast<std::size_t>(size)),
+      recv_counts(static_cast<std::size_t>(size));
+  for (int p = 0; p < size; ++p)
+    send_counts[static_cast<std::size_t>(p)] =
+        static_cast<int>(outgoing[static_cast<std::size_t>(p)].size());
   MPI_Alltoall(send_counts.data(), 1, MPI_INT, recv_counts.data(), 1, MPI_INT, mesh.comm);
-  std::vector<int> send_displs(static_cast<std::size_t>(size), 0), recv_displs(static_cast<std::size_t>(size), 0);
+  std::vector<int> send_displs(static_cast<std::size_t>(size), 0),
+      recv_displs(static_cast<std::size_t>(size), 0);
   for (int p = 1; p < size; ++p) {
-    send_displs[static_cast<std::size_t>(p)] = send_displs[static_cast<std::size_t>(p - 1)] + send_counts[static_cast<std::size_t>(p - 1)];
-    recv_displs[static_cast<std::size_t>(p)] = recv_displs[static_cast<std::size_t>(p - 1)] + recv_counts[static_cast<std::size_t>(p - 1)];
+    send_displs[static_cast<std::size_t>(p)] =
+        send_displs[static_cast<std::size_t>(p - 1)] + send_counts[static_cast<std::size_t>(p - 1)];
+    recv_displs[static_cast<std::size_t>(p)] =
+        recv_displs[static_cast<std::size_t>(p - 1)] + recv_counts[static_cast<std::size_t>(p - 1)];
   }
-  std::vector<PetscInt> send_buf, recv_buf(static_cast<std::size_t>(recv_displs.back() + recv_counts.back()));
+  std::vector<PetscInt> send_buf,
+      recv_buf(static_cast<std::size_t>(recv_displs.back() + recv_counts.back()));
   for (const auto &b : outgoing) send_buf.insert(send_buf.end(), b.begin(), b.end());
   MPI_Alltoallv(send_buf.data(), send_counts.data(), send_displs.data(), MPIU_INT, recv_buf.data(),
                 recv_counts.data(), recv_displs.data(), MPIU_INT, mesh.comm);
@@ -96,7 +111,8 @@ std::vector<std::vector<PetscInt>> node_graph(const mesh::DistributedMesh &mesh)
     const PetscInt row = recv_buf[k] - mesh.node_start, count = recv_buf[k + 1];
     auto &cols = columns[static_cast<std::size_t>(row)];
     cols.insert(cols.end(), recv_buf.begin() + static_cast<std::ptrdiff_t>(k + 2),
-                recv_buf.begin() + static_cast<std::ptrdiff_t>(k + 2 + static_cast<std::size_t>(count)));
+                recv_buf.begin() +
+                    static_cast<std::ptrdiff_t>(k + 2 + static_cast<std::size_t>(count)));
     k += 2 + static_cast<std::size_t>(count);
   }
   columns.resize(static_cast<std::size_t>(n_owned));
@@ -113,7 +129,8 @@ Mat create_matrix(const mesh::DistributedMesh &mesh) {
   LogScope log("FxCreateMatrix");
   // Block counts per owned node row, split into the diagonal (owned columns) and
   // off-diagonal parts that MPIAIJ stores separately.
-  std::vector<PetscInt> diag(static_cast<std::size_t>(mesh.owned_nodes), 0), offdiag(diag.size(), 0);
+  std::vector<PetscInt> diag(static_cast<std::size_t>(mesh.owned_nodes), 0),
+      offdiag(diag.size(), 0);
   {
     const auto graph = node_graph(mesh);
     const PetscInt lo = mesh.node_start, hi = mesh.node_start + mesh.owned_nodes;
@@ -183,7 +200,9 @@ void add_body_force(const mesh::DistributedMesh &mesh, const Eigen::Vector3d &b,
   std::vector<PetscInt> rows(static_cast<std::size_t>(npe));
   for (PetscInt e = 0; e < mesh.local_elements(); ++e) {
     ElementVector fe = element_body_force(mesh.type, mesh.element_coordinates(e), b);
-    for (int a = 0; a < npe; ++a) rows[static_cast<std::size_t>(a)] = mesh.local_to_global(mesh.connectivity[static_cast<std::size_t>(e * npe + a)]);
+    for (int a = 0; a < npe; ++a)
+      rows[static_cast<std::size_t>(a)] =
+          mesh.local_to_global(mesh.connectivity[static_cast<std::size_t>(e * npe + a)]);
     FX_PETSC(VecSetValuesBlocked(f, npe, rows.data(), fe.data(), ADD_VALUES));
   }
   FX_PETSC(VecAssemblyBegin(f));
@@ -197,16 +216,21 @@ void add_surface_traction(const mesh::DistributedMesh &mesh, const std::string &
   Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor, 9, 3> Xf(npf, 3);
   for (std::size_t k = 0; k < s.size(); ++k) {
     for (int a = 0; a < npf; ++a)
-      for (int c = 0; c < 3; ++c) Xf(a, c) = s.coordinates[3 * (k * static_cast<std::size_t>(npf) + static_cast<std::size_t>(a)) + static_cast<std::size_t>(c)];
+      for (int c = 0; c < 3; ++c)
+        Xf(a, c) =
+            s.coordinates[3 * (k * static_cast<std::size_t>(npf) + static_cast<std::size_t>(a)) +
+                          static_cast<std::size_t>(c)];
     ElementVector fe = face_traction_load(s.type, Xf, t);
-    FX_PETSC(VecSetValuesBlocked(f, npf, &s.global_nodes[k * static_cast<std::size_t>(npf)], fe.data(), ADD_VALUES));
+    FX_PETSC(VecSetValuesBlocked(f, npf, &s.global_nodes[k * static_cast<std::size_t>(npf)],
+                                 fe.data(), ADD_VALUES));
   }
   FX_PETSC(VecAssemblyBegin(f));
   FX_PETSC(VecAssemblyEnd(f));
 }
 
 std::vector<PetscInt> surface_dofs(const mesh::DistributedMesh &mesh, const std::string &surface,
-                                   const std::array<bool, 3> &components, const std::string &where) {
+                                   const std::array<bool, 3> &components,
+                                   const std::string &where) {
   mesh.surface(surface, where); // existence check with a clear message
   std::vector<PetscInt> dofs;
   for (PetscInt g : mesh.surface_nodes.at(surface))
@@ -221,7 +245,8 @@ Vec create_coordinate_vector(const mesh::DistributedMesh &mesh) {
   FX_PETSC(VecSetBlockSize(x, 3));
   PetscScalar *a;
   FX_PETSC(VecGetArray(x, &a));
-  for (PetscInt i = 0; i < 3 * mesh.owned_nodes; ++i) a[i] = mesh.coordinates[static_cast<std::size_t>(i)];
+  for (PetscInt i = 0; i < 3 * mesh.owned_nodes; ++i)
+    a[i] = mesh.coordinates[static_cast<std::size_t>(i)];
   FX_PETSC(VecRestoreArray(x, &a));
   return x;
 }
@@ -233,7 +258,8 @@ std::vector<double> element_volumes(const mesh::DistributedMesh &mesh) {
   return v;
 }
 
-ElementVector gather_element(const mesh::DistributedMesh &mesh, PetscInt e, const PetscScalar *u_local) {
+ElementVector gather_element(const mesh::DistributedMesh &mesh, PetscInt e,
+                             const PetscScalar *u_local) {
   const int npe = mesh.nodes_per_element();
   ElementVector ue(3 * npe);
   for (int a = 0; a < npe; ++a) {
@@ -254,8 +280,8 @@ std::vector<double> element_von_mises(const mesh::DistributedMesh &mesh,
   const Eigen::Vector3d xi = reference_centroid(mesh.type);
   for (PetscInt e = 0; e < mesh.local_elements(); ++e) {
     const double f = modulus_factor.empty() ? 1.0 : modulus_factor[static_cast<std::size_t>(e)];
-    vm[static_cast<std::size_t>(e)] =
-        von_mises(element_stress(mesh.type, mesh.element_coordinates(e), material, f, gather_element(mesh, e, u), xi));
+    vm[static_cast<std::size_t>(e)] = von_mises(element_stress(
+        mesh.type, mesh.element_coordinates(e), material, f, gather_element(mesh, e, u), xi));
   }
   FX_PETSC(VecRestoreArrayRead(local, &u));
   FX_PETSC(VecGhostRestoreLocalForm(u_ghosted, &local));

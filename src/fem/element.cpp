@@ -569,8 +569,8 @@ namespace {
 /// constant reference gradients dL): linear N_a = L_a, or quadratic with corner functions
 /// L_a (2 L_a - 1) and, for edge e = (p, r) in Gmsh's edge order, 4 L_p L_r.
 template <int D>
-void simplex_lagrange(bool quadratic, const double *L, const double (*dL)[D],
-                      const int (*edges)[2], double *N, double *dN) {
+void simplex_lagrange(bool quadratic, const double *L, const double (*dL)[D], const int (*edges)[2],
+                      double *N, double *dN) {
   constexpr int kCorners = D + 1, kEdges = D * (D + 1) / 2;
   for (int a = 0; a < kCorners; ++a) {
     const double f = quadratic ? L[a] * (2.0 * L[a] - 1.0) : L[a];

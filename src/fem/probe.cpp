@@ -20,7 +20,8 @@ std::array<double, 3> probe_vector(const mesh::DistributedMesh &mesh, Vec field_
   int found = 0;
   for (PetscInt e = 0; e < mesh.local_elements() && !found; ++e) {
     const ElementCoords X = mesh.element_coordinates(e);
-    const Eigen::Vector3d lo = X.colwise().minCoeff().transpose(), hi = X.colwise().maxCoeff().transpose();
+    const Eigen::Vector3d lo = X.colwise().minCoeff().transpose(),
+                          hi = X.colwise().maxCoeff().transpose();
     const double pad = 1e-9 * (hi - lo).norm();
     if ((p.array() < lo.array() - pad).any() || (p.array() > hi.array() + pad).any()) continue;
     Eigen::Vector3d xi;

@@ -44,8 +44,8 @@ void check_converged(KSP ksp, const std::string &what) {
   if (reason < 0) {
     PetscInt its = 0;
     FX_PETSC(KSPGetIterationNumber(ksp, &its));
-    throw Error(what + ": the linear solver did not converge (" + KSPConvergedReasons[reason] + " after " +
-                    std::to_string(its) +
+    throw Error(what + ": the linear solver did not converge (" + KSPConvergedReasons[reason] +
+                    " after " + std::to_string(its) +
                     " iterations). Is the body supported against rigid motion? Try "
                     "-ksp_monitor_true_residual, or a direct solver: -ksp_type preonly -pc_type lu "
                     "-pc_factor_mat_solver_type mumps",
@@ -68,7 +68,9 @@ std::unique_ptr<StaticProblem> StaticProblem::create(MPI_Comm comm, const io::Ca
   PetscInt n_fixed = static_cast<PetscInt>(p->fixed_.size()), total_fixed = 0;
   MPI_Allreduce(&n_fixed, &total_fixed, 1, MPIU_INT, MPI_SUM, comm);
   if (total_fixed == 0)
-    throw Error(c.file + ": a static analysis needs supports (the body is free to move as a rigid body)", true);
+    throw Error(c.file +
+                    ": a static analysis needs supports (the body is free to move as a rigid body)",
+                true);
 
   p->K_ = create_matrix(m);
   p->f_ = create_ghosted_vector(m);
@@ -114,13 +116,15 @@ void StaticProblem::assemble_operator(const std::vector<double> &modulus_factor)
   FX_PETSC(VecGetSize(d, &n));
   FX_PETSC(VecDestroy(&d));
   const PetscScalar scale = diag_sum / static_cast<PetscReal>(n);
-  FX_PETSC(MatZeroRowsColumns(K_, static_cast<PetscInt>(fixed_.size()), fixed_.data(), scale, nullptr, nullptr));
+  FX_PETSC(MatZeroRowsColumns(K_, static_cast<PetscInt>(fixed_.size()), fixed_.data(), scale,
+                              nullptr, nullptr));
 }
 
 void StaticProblem::solve() {
   FX_PETSC(VecCopy(f_, rhs_));
   std::vector<PetscScalar> zeros(fixed_.size(), 0.0);
-  FX_PETSC(VecSetValues(rhs_, static_cast<PetscInt>(fixed_.size()), fixed_.data(), zeros.data(), INSERT_VALUES));
+  FX_PETSC(VecSetValues(rhs_, static_cast<PetscInt>(fixed_.size()), fixed_.data(), zeros.data(),
+                        INSERT_VALUES));
   FX_PETSC(VecAssemblyBegin(rhs_));
   FX_PETSC(VecAssemblyEnd(rhs_));
   double t = wall_time();
@@ -149,7 +153,8 @@ double StaticProblem::max_displacement() const {
   FX_PETSC(VecGetArrayRead(u_, &u));
   double local = 0;
   for (PetscInt i = 0; i < mesh_.owned_nodes; ++i)
-    local = std::max(local, std::sqrt(u[3 * i] * u[3 * i] + u[3 * i + 1] * u[3 * i + 1] + u[3 * i + 2] * u[3 * i + 2]));
+    local = std::max(local, std::sqrt(u[3 * i] * u[3 * i] + u[3 * i + 1] * u[3 * i + 1] +
+                                      u[3 * i + 2] * u[3 * i + 2]));
   FX_PETSC(VecRestoreArrayRead(u_, &u));
   double global = 0;
   MPI_Allreduce(&local, &global, 1, MPI_DOUBLE, MPI_MAX, mesh_.comm);

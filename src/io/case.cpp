@@ -2,12 +2,11 @@
 
 #include "flexopt/core/error.hpp"
 
-#include <yaml-cpp/yaml.h>
-
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <set>
+#include <yaml-cpp/yaml.h>
 
 namespace fs = std::filesystem;
 
@@ -33,9 +32,9 @@ namespace {
 
 /// Keys of CASE_FORMAT.md that belong to later stages (mechanisms, optimization): recognised so
 /// that the message says they are not available yet rather than "unknown".
-const std::set<std::string> kNotYetSupported = {"ground",     "joints",    "drivers",  "time",
-                                                 "design",     "objective", "constraints",
-                                                 "optimizer",  "adjoint"};
+const std::set<std::string> kNotYetSupported = {"ground",      "joints",    "drivers",
+                                                "time",        "design",    "objective",
+                                                "constraints", "optimizer", "adjoint"};
 
 /// Validating reader over one YAML document: every failure names file, line and column.
 class Reader {
@@ -64,7 +63,8 @@ public:
                   std::initializer_list<const char *> allowed) const {
     for (const auto &kv : n) {
       const std::string key = kv.first.as<std::string>();
-      bool ok = std::any_of(allowed.begin(), allowed.end(), [&](const char *a) { return key == a; });
+      bool ok =
+          std::any_of(allowed.begin(), allowed.end(), [&](const char *a) { return key == a; });
       if (!ok) {
         std::string list;
         for (const char *a : allowed) list += std::string(list.empty() ? "" : ", ") + a;
@@ -122,7 +122,8 @@ public:
   }
 
   std::array<double, 3> vector3(const YAML::Node &n, const std::string &path) const {
-    if (!n.IsSequence() || n.size() != 3) fail(n, path + ": expected a list of 3 numbers [x, y, z]");
+    if (!n.IsSequence() || n.size() != 3)
+      fail(n, path + ": expected a list of 3 numbers [x, y, z]");
     return {number(n[0], path + "[0]"), number(n[1], path + "[1]"), number(n[2], path + "[2]")};
   }
 
@@ -153,8 +154,9 @@ void read_materials(const Reader &r, const YAML::Node &node, Case &c) {
     if (!(m.E > 0)) r.fail(v["E"], path + ".E: Young's modulus must be positive");
     if (!(m.nu > -1.0 && m.nu < 0.5))
       r.fail(v["nu"], path + ".nu: Poisson's ratio must satisfy -1 < nu < 0.5 (got " +
-                          v["nu"].Scalar() + "; nu = 0.5 is incompressible, which the displacement "
-                                             "formulation cannot represent)");
+                          v["nu"].Scalar() +
+                          "; nu = 0.5 is incompressible, which the displacement "
+                          "formulation cannot represent)");
     if (!(m.density > 0)) r.fail(v["density"], path + ".density: must be positive");
     c.materials.push_back(m);
   }
@@ -180,8 +182,10 @@ void read_bodies(const Reader &r, const YAML::Node &node, const fs::path &dir, C
     b.where = r.where(v);
     b.name = r.string(r.require(v, "name", path), path + ".name");
     for (const auto &other : c.bodies)
-      if (other.name == b.name) r.fail(v["name"], path + ".name: duplicate body name '" + b.name + "'");
-    if (v["model"]) b.model = r.choice(v["model"], path + ".model", {"rigid", "ffrf", "acf", "auto"});
+      if (other.name == b.name)
+        r.fail(v["name"], path + ".name: duplicate body name '" + b.name + "'");
+    if (v["model"])
+      b.model = r.choice(v["model"], path + ".model", {"rigid", "ffrf", "acf", "auto"});
     b.geometry_key = r.string(r.require(v, "geometry", path), path + ".geometry");
     b.geometry = (dir / b.geometry_key).string();
     const std::string ext = fs::path(b.geometry).extension().string();
@@ -238,10 +242,14 @@ void read_supports(const Reader &r, const YAML::Node &node, Case &c) {
     if (fix.empty()) r.fail(v["fix"], path + ".fix: name at least one of x, y, z");
     for (std::size_t k = 0; k < fix.size(); ++k) {
       const std::string &f = fix[k];
-      if (f == "x") s.fix[0] = true;
-      else if (f == "y") s.fix[1] = true;
-      else if (f == "z") s.fix[2] = true;
-      else r.fail(v["fix"][k], path + ".fix: '" + f + "' is not one of x, y, z");
+      if (f == "x")
+        s.fix[0] = true;
+      else if (f == "y")
+        s.fix[1] = true;
+      else if (f == "z")
+        s.fix[2] = true;
+      else
+        r.fail(v["fix"][k], path + ".fix: '" + f + "' is not one of x, y, z");
     }
     c.supports.push_back(s);
   }
@@ -275,7 +283,8 @@ void read_sensors(const Reader &r, const YAML::Node &node, Case &c) {
     s.where = r.where(v);
     s.name = r.string(r.require(v, "name", path), path + ".name");
     for (const auto &other : c.sensors)
-      if (other.name == s.name) r.fail(v["name"], path + ".name: duplicate sensor name '" + s.name + "'");
+      if (other.name == s.name)
+        r.fail(v["name"], path + ".name: duplicate sensor name '" + s.name + "'");
     s.body = r.string(r.require(v, "body", path), path + ".body");
     if (!has_body(c, s.body)) r.fail(v["body"], path + ".body: no body named '" + s.body + "'");
     s.point = r.vector3(r.require(v, "point", path), path + ".point");
@@ -292,22 +301,27 @@ Case load_case(const std::string &directory) {
   Case c;
   c.directory = directory;
   fs::path dir(directory);
-  if (!fs::is_directory(dir)) throw Error("case directory '" + directory + "' does not exist", true);
+  if (!fs::is_directory(dir))
+    throw Error("case directory '" + directory + "' does not exist", true);
   c.name = fs::absolute(dir).lexically_normal().filename().string();
-  if (c.name.empty()) c.name = fs::absolute(dir).lexically_normal().parent_path().filename().string();
+  if (c.name.empty())
+    c.name = fs::absolute(dir).lexically_normal().parent_path().filename().string();
   c.file = (dir / "case.yaml").string();
-  if (!fs::is_regular_file(c.file)) throw Error(c.file + ": file not found (a case directory holds case.yaml)", true);
+  if (!fs::is_regular_file(c.file))
+    throw Error(c.file + ": file not found (a case directory holds case.yaml)", true);
 
   YAML::Node root;
   try {
     root = YAML::LoadFile(c.file);
   } catch (const YAML::ParserException &e) {
-    throw Error(c.file + ":" + std::to_string(e.mark.line + 1) + ":" + std::to_string(e.mark.column + 1) +
-                    ": YAML syntax error: " + e.msg,
+    throw Error(c.file + ":" + std::to_string(e.mark.line + 1) + ":" +
+                    std::to_string(e.mark.column + 1) + ": YAML syntax error: " + e.msg,
                 true);
   }
   Reader r(c.file);
-  if (!root.IsMap()) throw Error(c.file + ":1:1: expected a mapping of keys (analysis, materials, bodies, ...)", true);
+  if (!root.IsMap())
+    throw Error(c.file + ":1:1: expected a mapping of keys (analysis, materials, bodies, ...)",
+                true);
 
   for (const auto &kv : root) {
     const std::string key = kv.first.as<std::string>();
@@ -328,7 +342,9 @@ Case load_case(const std::string &directory) {
     const YAML::Node &l = root["loads"];
     r.require_map(l, "loads");
     r.check_keys(l, "loads", {"gravity", "forces"});
-    if (l["forces"]) r.fail(l["forces"], "loads.forces: interface forces are not supported yet (dynamic analysis)");
+    if (l["forces"])
+      r.fail(l["forces"],
+             "loads.forces: interface forces are not supported yet (dynamic analysis)");
     if (l["gravity"]) c.gravity = r.vector3(l["gravity"], "loads.gravity");
   }
   if (root["supports"]) read_supports(r, root["supports"], c);

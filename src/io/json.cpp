@@ -33,10 +33,18 @@ static void escape_string(std::ostringstream &out, const std::string &s) {
   out << '"';
   for (char c : s) {
     switch (c) {
-    case '"': out << "\\\""; break;
-    case '\\': out << "\\\\"; break;
-    case '\n': out << "\\n"; break;
-    case '\t': out << "\\t"; break;
+    case '"':
+      out << "\\\"";
+      break;
+    case '\\':
+      out << "\\\\";
+      break;
+    case '\n':
+      out << "\\n";
+      break;
+    case '\t':
+      out << "\\t";
+      break;
     default:
       if (static_cast<unsigned char>(c) < 0x20) {
         char buf[8];
@@ -49,7 +57,6 @@ static void escape_string(std::ostringstream &out, const std::string &s) {
   }
   out << '"';
 }
-
 
 std::string Json::dump(int indent) const {
   std::ostringstream out;
@@ -73,7 +80,8 @@ std::string Json::dump(int indent) const {
     // Arrays of numbers stay on one line; others one element per line.
     bool flat = true;
     for (const auto &e : *a)
-      if (std::holds_alternative<Array>(e.value_) || std::holds_alternative<Object>(e.value_)) flat = false;
+      if (std::holds_alternative<Array>(e.value_) || std::holds_alternative<Object>(e.value_))
+        flat = false;
     out << '[';
     for (std::size_t i = 0; i < a->size(); ++i) {
       if (i) out << (flat ? ", " : ",");

@@ -3,10 +3,9 @@
 #include "flexopt/core/error.hpp"
 #include "flexopt/io/json.hpp"
 
-#include <hdf5.h>
-
 #include <cstdio>
 #include <filesystem>
+#include <hdf5.h>
 #include <sstream>
 
 namespace flexopt::io {
@@ -50,13 +49,15 @@ struct XdmfWriter::Impl {
     hid_t fspace = h5id(H5Screate_simple(cols == 1 ? 1 : 2, gdims, nullptr), "H5Screate_simple");
     hid_t lcpl = h5id(H5Pcreate(H5P_LINK_CREATE), "H5Pcreate");
     h5check(H5Pset_create_intermediate_group(lcpl, 1), "H5Pset_create_intermediate_group");
-    hid_t dset = h5id(H5Dcreate2(file, path.c_str(), file_type, fspace, lcpl, H5P_DEFAULT, H5P_DEFAULT),
-                      "creating dataset " + path);
+    hid_t dset =
+        h5id(H5Dcreate2(file, path.c_str(), file_type, fspace, lcpl, H5P_DEFAULT, H5P_DEFAULT),
+             "creating dataset " + path);
     hsize_t offset[2] = {static_cast<hsize_t>(start), 0};
     hsize_t count[2] = {static_cast<hsize_t>(rows), static_cast<hsize_t>(cols)};
     hid_t mspace = h5id(H5Screate_simple(cols == 1 ? 1 : 2, count, nullptr), "H5Screate_simple");
     if (rows > 0) {
-      h5check(H5Sselect_hyperslab(fspace, H5S_SELECT_SET, offset, nullptr, count, nullptr), "H5Sselect_hyperslab");
+      h5check(H5Sselect_hyperslab(fspace, H5S_SELECT_SET, offset, nullptr, count, nullptr),
+              "H5Sselect_hyperslab");
     } else {
       h5check(H5Sselect_none(fspace), "H5Sselect_none");
       h5check(H5Sselect_none(mspace), "H5Sselect_none");
@@ -76,26 +77,32 @@ struct XdmfWriter::Impl {
     std::ostringstream x;
     const long long nn = layout.global_nodes, nc = layout.global_cells;
     x << "<?xml version=\"1.0\" ?>\n<Xdmf Version=\"3.0\">\n  <Domain>\n"
-      << "    <Grid Name=\"" << basename << "\" GridType=\"Collection\" CollectionType=\"Temporal\">\n";
+      << "    <Grid Name=\"" << basename
+      << "\" GridType=\"Collection\" CollectionType=\"Temporal\">\n";
     for (std::size_t s = 0; s < steps.size(); ++s) {
       char tbuf[40];
       std::snprintf(tbuf, sizeof tbuf, "%.17g", steps[s].time);
       x << "      <Grid Name=\"step_" << s << "\" GridType=\"Uniform\">\n"
         << "        <Time Value=\"" << tbuf << "\"/>\n"
-        << "        <Topology TopologyType=\"" << layout.topology_type << "\" NumberOfElements=\"" << nc << "\">\n"
+        << "        <Topology TopologyType=\"" << layout.topology_type << "\" NumberOfElements=\""
+        << nc << "\">\n"
         << "          <DataItem Dimensions=\"" << nc << " " << layout.nodes_per_cell
-        << "\" NumberType=\"Int\" Precision=\"8\" Format=\"HDF\">" << h5name << ":/mesh/topology</DataItem>\n"
+        << "\" NumberType=\"Int\" Precision=\"8\" Format=\"HDF\">" << h5name
+        << ":/mesh/topology</DataItem>\n"
         << "        </Topology>\n"
         << "        <Geometry GeometryType=\"XYZ\">\n"
-        << "          <DataItem Dimensions=\"" << nn << " 3\" NumberType=\"Float\" Precision=\"8\" Format=\"HDF\">"
-        << h5name << ":/mesh/geometry</DataItem>\n"
+        << "          <DataItem Dimensions=\"" << nn
+        << " 3\" NumberType=\"Float\" Precision=\"8\" Format=\"HDF\">" << h5name
+        << ":/mesh/geometry</DataItem>\n"
         << "        </Geometry>\n";
       for (const Field &f : steps[s].fields) {
         const long long rows = f.cell ? nc : nn;
-        x << "        <Attribute Name=\"" << f.name << "\" AttributeType=\"" << (f.vector ? "Vector" : "Scalar")
-          << "\" Center=\"" << (f.cell ? "Cell" : "Node") << "\">\n"
+        x << "        <Attribute Name=\"" << f.name << "\" AttributeType=\""
+          << (f.vector ? "Vector" : "Scalar") << "\" Center=\"" << (f.cell ? "Cell" : "Node")
+          << "\">\n"
           << "          <DataItem Dimensions=\"" << rows << (f.vector ? " 3" : "")
-          << "\" NumberType=\"Float\" Precision=\"8\" Format=\"HDF\">" << h5name << ":" << f.dataset << "</DataItem>\n"
+          << "\" NumberType=\"Float\" Precision=\"8\" Format=\"HDF\">" << h5name << ":" << f.dataset
+          << "</DataItem>\n"
           << "        </Attribute>\n";
       }
       x << "      </Grid>\n";
@@ -105,7 +112,8 @@ struct XdmfWriter::Impl {
   }
 };
 
-XdmfWriter::XdmfWriter(const GridLayout &layout, const std::string &directory, const std::string &basename)
+XdmfWriter::XdmfWriter(const GridLayout &layout, const std::string &directory,
+                       const std::string &basename)
     : impl_(std::make_unique<Impl>()) {
   Impl &m = *impl_;
   m.layout = layout;
@@ -117,11 +125,12 @@ XdmfWriter::XdmfWriter(const GridLayout &layout, const std::string &directory, c
   h5check(H5Pset_fapl_mpio(fapl, layout.comm, MPI_INFO_NULL), "H5Pset_fapl_mpio");
   m.file = H5Fcreate(m.h5_tmp.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, fapl);
   H5Pclose(fapl);
-  if (m.file < 0) throw Error("cannot create '" + m.h5_tmp + "' (is the output directory writable?)", true);
+  if (m.file < 0)
+    throw Error("cannot create '" + m.h5_tmp + "' (is the output directory writable?)", true);
   m.write_rows("/mesh/geometry", H5T_NATIVE_DOUBLE, H5T_IEEE_F64LE, layout.owned_coordinates.data(),
                layout.global_nodes, layout.node_start, layout.owned_nodes, 3);
-  m.write_rows("/mesh/topology", H5T_NATIVE_LLONG, H5T_STD_I64LE, layout.cell_nodes.data(), layout.global_cells,
-               layout.cell_start, layout.local_cells, layout.nodes_per_cell);
+  m.write_rows("/mesh/topology", H5T_NATIVE_LLONG, H5T_STD_I64LE, layout.cell_nodes.data(),
+               layout.global_cells, layout.cell_start, layout.local_cells, layout.nodes_per_cell);
 }
 
 XdmfWriter::~XdmfWriter() {
@@ -161,7 +170,8 @@ std::string XdmfWriter::close() {
   h5check(H5Fclose(m.file), "closing " + m.h5_tmp);
   m.file = -1;
   m.closed = true;
-  const std::string xdmf_final = (std::filesystem::path(m.directory) / (m.basename + ".xdmf")).string();
+  const std::string xdmf_final =
+      (std::filesystem::path(m.directory) / (m.basename + ".xdmf")).string();
   int rank = 0;
   MPI_Comm_rank(m.layout.comm, &rank);
   int ok = 1;

@@ -3,10 +3,9 @@
 #include "flexopt/core/context.hpp"
 #include "flexopt/core/error.hpp"
 
-#include <metis.h>
-
 #include <algorithm>
 #include <cstring>
+#include <metis.h>
 #include <numeric>
 
 namespace flexopt::mesh {
@@ -39,20 +38,22 @@ namespace {
 
 /// A named physical group of `groups`, or a collective error listing the names there are.
 template <class Map>
-const typename Map::mapped_type &find_group(const Map &groups, const std::string &name, const char *kind,
-                                            const std::string &source, const std::string &where) {
+const typename Map::mapped_type &find_group(const Map &groups, const std::string &name,
+                                            const char *kind, const std::string &source,
+                                            const std::string &where) {
   auto it = groups.find(name);
   if (it != groups.end()) return it->second;
   std::vector<std::string> names;
   for (const auto &kv : groups) names.push_back(kv.first);
-  throw Error(where + ": no physical " + kind + " '" + name + "' in " + source + " (physical " + kind +
-                  "s there: " + group_list(names) + ")",
+  throw Error(where + ": no physical " + kind + " '" + name + "' in " + source + " (physical " +
+                  kind + "s there: " + group_list(names) + ")",
               true);
 }
 
 } // namespace
 
-const LocalSurface &DistributedMesh::surface(const std::string &name, const std::string &where) const {
+const LocalSurface &DistributedMesh::surface(const std::string &name,
+                                             const std::string &where) const {
   return find_group(surfaces, name, "surface", source, where);
 }
 
@@ -69,7 +70,9 @@ std::vector<T> scatter_parts(MPI_Comm comm, const std::vector<std::vector<T>> &p
   const int rank = comm_rank(comm), size = comm_size(comm);
   std::vector<long long> counts(static_cast<std::size_t>(size), 0);
   if (rank == 0)
-    for (int p = 0; p < size; ++p) counts[static_cast<std::size_t>(p)] = static_cast<long long>(per_rank[static_cast<std::size_t>(p)].size());
+    for (int p = 0; p < size; ++p)
+      counts[static_cast<std::size_t>(p)] =
+          static_cast<long long>(per_rank[static_cast<std::size_t>(p)].size());
   long long my_count = 0;
   MPI_Scatter(counts.data(), 1, MPI_LONG_LONG, &my_count, 1, MPI_LONG_LONG, 0, comm);
   std::vector<T> mine(static_cast<std::size_t>(my_count));
@@ -83,8 +86,9 @@ std::vector<T> scatter_parts(MPI_Comm comm, const std::vector<std::vector<T>> &p
       const std::size_t chunk = std::size_t(1) << 30;
       for (std::size_t off = 0; off < bytes; off += chunk) {
         requests.emplace_back();
-        MPI_Isend(reinterpret_cast<const char *>(v.data()) + off, static_cast<int>(std::min(chunk, bytes - off)),
-                  MPI_BYTE, p, 7, comm, &requests.back());
+        MPI_Isend(reinterpret_cast<const char *>(v.data()) + off,
+                  static_cast<int>(std::min(chunk, bytes - off)), MPI_BYTE, p, 7, comm,
+                  &requests.back());
       }
     }
     MPI_Waitall(static_cast<int>(requests.size()), requests.data(), MPI_STATUSES_IGNORE);
@@ -92,8 +96,9 @@ std::vector<T> scatter_parts(MPI_Comm comm, const std::vector<std::vector<T>> &p
     const std::size_t bytes = mine.size() * sizeof(T);
     const std::size_t chunk = std::size_t(1) << 30;
     for (std::size_t off = 0; off < bytes; off += chunk)
-      MPI_Recv(reinterpret_cast<char *>(mine.data()) + off, static_cast<int>(std::min(chunk, bytes - off)),
-               MPI_BYTE, 0, 7, comm, MPI_STATUS_IGNORE);
+      MPI_Recv(reinterpret_cast<char *>(mine.data()) + off,
+               static_cast<int>(std::min(chunk, bytes - off)), MPI_BYTE, 0, 7, comm,
+               MPI_STATUS_IGNORE);
   }
   return mine;
 }
@@ -111,13 +116,17 @@ std::vector<int> partition_elements(const MeshData &m, int parts) {
   const std::int64_t ne = m.element_count();
   std::vector<int> part(static_cast<std::size_t>(ne), 0);
   if (parts == 1 || ne == 0) return part;
-  if (ne < parts) throw Error(m.source + ": the mesh has fewer elements (" + std::to_string(ne) + ") than ranks (" + std::to_string(parts) + ")");
+  if (ne < parts)
+    throw Error(m.source + ": the mesh has fewer elements (" + std::to_string(ne) +
+                ") than ranks (" + std::to_string(parts) + ")");
   const int npe = fem::nodes_per_element(m.type), nc = fem::corner_nodes(m.type);
-  std::vector<idx_t> eptr(static_cast<std::size_t>(ne + 1)), eind(static_cast<std::size_t>(ne * nc));
+  std::vector<idx_t> eptr(static_cast<std::size_t>(ne + 1)),
+      eind(static_cast<std::size_t>(ne * nc));
   for (std::int64_t e = 0; e < ne; ++e) {
     eptr[static_cast<std::size_t>(e)] = static_cast<idx_t>(e * nc);
     for (int a = 0; a < nc; ++a)
-      eind[static_cast<std::size_t>(e * nc + a)] = static_cast<idx_t>(m.connectivity[static_cast<std::size_t>(e * npe + a)]);
+      eind[static_cast<std::size_t>(e * nc + a)] =
+          static_cast<idx_t>(m.connectivity[static_cast<std::size_t>(e * npe + a)]);
   }
   eptr[static_cast<std::size_t>(ne)] = static_cast<idx_t>(ne * nc);
   idx_t n_el = static_cast<idx_t>(ne), n_nodes = static_cast<idx_t>(m.node_count());
@@ -127,10 +136,13 @@ std::vector<int> partition_elements(const MeshData &m, int parts) {
   METIS_SetDefaultOptions(options);
   options[METIS_OPTION_SEED] = 1; // deterministic partitions
   std::vector<idx_t> epart(static_cast<std::size_t>(ne)), npart(static_cast<std::size_t>(n_nodes));
-  int status = METIS_PartMeshDual(&n_el, &n_nodes, eptr.data(), eind.data(), nullptr, nullptr, &ncommon,
-                                  &nparts, nullptr, options, &objval, epart.data(), npart.data());
-  if (status != METIS_OK) throw Error(m.source + ": METIS_PartMeshDual failed (status " + std::to_string(status) + ")");
-  for (std::int64_t e = 0; e < ne; ++e) part[static_cast<std::size_t>(e)] = static_cast<int>(epart[static_cast<std::size_t>(e)]);
+  int status =
+      METIS_PartMeshDual(&n_el, &n_nodes, eptr.data(), eind.data(), nullptr, nullptr, &ncommon,
+                         &nparts, nullptr, options, &objval, epart.data(), npart.data());
+  if (status != METIS_OK)
+    throw Error(m.source + ": METIS_PartMeshDual failed (status " + std::to_string(status) + ")");
+  for (std::int64_t e = 0; e < ne; ++e)
+    part[static_cast<std::size_t>(e)] = static_cast<int>(epart[static_cast<std::size_t>(e)]);
   return part;
 }
 
@@ -166,7 +178,8 @@ DistributedMesh distribute_mesh(MPI_Comm comm, const MeshData *root_mesh) {
   auto split = [](const std::string &s) {
     std::vector<std::string> out;
     std::size_t a = 0;
-    for (std::size_t b; (b = s.find('\n', a)) != std::string::npos; a = b + 1) out.push_back(s.substr(a, b - a));
+    for (std::size_t b; (b = s.find('\n', a)) != std::string::npos; a = b + 1)
+      out.push_back(s.substr(a, b - a));
     return out;
   };
   const auto vnames = split(volume_names), snames = split(surface_names);
@@ -175,14 +188,20 @@ DistributedMesh distribute_mesh(MPI_Comm comm, const MeshData *root_mesh) {
   MPI_Bcast(face_types.data(), n_faces_types, MPI_INT, 0, comm);
 
   const int npe = dm.nodes_per_element();
-  std::vector<std::vector<PetscInt>> conn_parts(static_cast<std::size_t>(size)), ghost_parts(static_cast<std::size_t>(size));
+  std::vector<std::vector<PetscInt>> conn_parts(static_cast<std::size_t>(size)),
+      ghost_parts(static_cast<std::size_t>(size));
   std::vector<std::vector<double>> coord_parts(static_cast<std::size_t>(size));
   std::vector<std::vector<std::size_t>> tag_parts(static_cast<std::size_t>(size));
-  std::vector<std::vector<PetscInt>> meta_parts(static_cast<std::size_t>(size)); // owned count, start
-  std::vector<std::vector<std::vector<PetscInt>>> vgroup_parts(vnames.size(), std::vector<std::vector<PetscInt>>(static_cast<std::size_t>(size)));
-  std::vector<std::vector<std::vector<PetscInt>>> sface_parts(snames.size(), std::vector<std::vector<PetscInt>>(static_cast<std::size_t>(size)));
-  std::vector<std::vector<std::vector<double>>> scoord_parts(snames.size(), std::vector<std::vector<double>>(static_cast<std::size_t>(size)));
-  std::vector<std::vector<std::vector<PetscInt>>> snode_parts(snames.size(), std::vector<std::vector<PetscInt>>(static_cast<std::size_t>(size)));
+  std::vector<std::vector<PetscInt>> meta_parts(
+      static_cast<std::size_t>(size)); // owned count, start
+  std::vector<std::vector<std::vector<PetscInt>>> vgroup_parts(
+      vnames.size(), std::vector<std::vector<PetscInt>>(static_cast<std::size_t>(size)));
+  std::vector<std::vector<std::vector<PetscInt>>> sface_parts(
+      snames.size(), std::vector<std::vector<PetscInt>>(static_cast<std::size_t>(size)));
+  std::vector<std::vector<std::vector<double>>> scoord_parts(
+      snames.size(), std::vector<std::vector<double>>(static_cast<std::size_t>(size)));
+  std::vector<std::vector<std::vector<PetscInt>>> snode_parts(
+      snames.size(), std::vector<std::vector<PetscInt>>(static_cast<std::size_t>(size)));
 
   run_on_root(comm, 0, [&] {
     const MeshData &m = *root_mesh;
@@ -193,17 +212,23 @@ DistributedMesh distribute_mesh(MPI_Comm comm, const MeshData *root_mesh) {
     std::vector<int> owner(static_cast<std::size_t>(nn), size);
     for (std::int64_t e = 0; e < ne; ++e)
       for (int a = 0; a < npe; ++a) {
-        int &o = owner[static_cast<std::size_t>(m.connectivity[static_cast<std::size_t>(e * npe + a)])];
+        int &o =
+            owner[static_cast<std::size_t>(m.connectivity[static_cast<std::size_t>(e * npe + a)])];
         o = std::min(o, part[static_cast<std::size_t>(e)]);
       }
     // New global numbering: by owner rank, then by original index.
-    std::vector<PetscInt> owned_count(static_cast<std::size_t>(size), 0), start(static_cast<std::size_t>(size), 0);
+    std::vector<PetscInt> owned_count(static_cast<std::size_t>(size), 0),
+        start(static_cast<std::size_t>(size), 0);
     for (int o : owner) ++owned_count[static_cast<std::size_t>(o)];
-    for (int p = 1; p < size; ++p) start[static_cast<std::size_t>(p)] = start[static_cast<std::size_t>(p - 1)] + owned_count[static_cast<std::size_t>(p - 1)];
+    for (int p = 1; p < size; ++p)
+      start[static_cast<std::size_t>(p)] =
+          start[static_cast<std::size_t>(p - 1)] + owned_count[static_cast<std::size_t>(p - 1)];
     std::vector<PetscInt> new_number(static_cast<std::size_t>(nn));
     {
       std::vector<PetscInt> next = start;
-      for (std::int64_t i = 0; i < nn; ++i) new_number[static_cast<std::size_t>(i)] = next[static_cast<std::size_t>(owner[static_cast<std::size_t>(i)])]++;
+      for (std::int64_t i = 0; i < nn; ++i)
+        new_number[static_cast<std::size_t>(i)] =
+            next[static_cast<std::size_t>(owner[static_cast<std::size_t>(i)])]++;
     }
     // Elements per part, in original order; their local element index for volume groups.
     std::vector<PetscInt> local_index(static_cast<std::size_t>(ne));
@@ -214,16 +239,20 @@ DistributedMesh distribute_mesh(MPI_Comm comm, const MeshData *root_mesh) {
       list.push_back(e);
     }
     std::vector<std::int64_t> old_of_new(static_cast<std::size_t>(nn));
-    for (std::int64_t i = 0; i < nn; ++i) old_of_new[static_cast<std::size_t>(new_number[static_cast<std::size_t>(i)])] = i;
+    for (std::int64_t i = 0; i < nn; ++i)
+      old_of_new[static_cast<std::size_t>(new_number[static_cast<std::size_t>(i)])] = i;
 
     for (int p = 0; p < size; ++p) {
-      const PetscInt s = start[static_cast<std::size_t>(p)], n_own = owned_count[static_cast<std::size_t>(p)];
+      const PetscInt s = start[static_cast<std::size_t>(p)],
+                     n_own = owned_count[static_cast<std::size_t>(p)];
       auto &conn = conn_parts[static_cast<std::size_t>(p)];
       auto &ghosts = ghost_parts[static_cast<std::size_t>(p)];
       for (std::int64_t e : elements_of[static_cast<std::size_t>(p)]) {
-        tag_parts[static_cast<std::size_t>(p)].push_back(m.element_tags[static_cast<std::size_t>(e)]);
+        tag_parts[static_cast<std::size_t>(p)].push_back(
+            m.element_tags[static_cast<std::size_t>(e)]);
         for (int a = 0; a < npe; ++a) {
-          const PetscInt g = new_number[static_cast<std::size_t>(m.connectivity[static_cast<std::size_t>(e * npe + a)])];
+          const PetscInt g = new_number[static_cast<std::size_t>(
+              m.connectivity[static_cast<std::size_t>(e * npe + a)])];
           conn.push_back(g);
           if (g < s || g >= s + n_own) ghosts.push_back(g);
         }
@@ -232,14 +261,18 @@ DistributedMesh distribute_mesh(MPI_Comm comm, const MeshData *root_mesh) {
       ghosts.erase(std::unique(ghosts.begin(), ghosts.end()), ghosts.end());
       // Global -> local node index for this part.
       for (PetscInt &g : conn) {
-        if (g >= s && g < s + n_own) g -= s;
-        else g = n_own + static_cast<PetscInt>(std::lower_bound(ghosts.begin(), ghosts.end(), g) - ghosts.begin());
+        if (g >= s && g < s + n_own)
+          g -= s;
+        else
+          g = n_own + static_cast<PetscInt>(std::lower_bound(ghosts.begin(), ghosts.end(), g) -
+                                            ghosts.begin());
       }
       auto &xyz = coord_parts[static_cast<std::size_t>(p)];
       xyz.reserve(static_cast<std::size_t>(3 * (n_own + static_cast<PetscInt>(ghosts.size()))));
       auto push_node = [&](PetscInt g) {
         const std::int64_t old = old_of_new[static_cast<std::size_t>(g)];
-        for (int k = 0; k < 3; ++k) xyz.push_back(m.coordinates[static_cast<std::size_t>(3 * old + k)]);
+        for (int k = 0; k < 3; ++k)
+          xyz.push_back(m.coordinates[static_cast<std::size_t>(3 * old + k)]);
       };
       for (PetscInt g = s; g < s + n_own; ++g) push_node(g);
       for (PetscInt g : ghosts) push_node(g);
@@ -248,7 +281,8 @@ DistributedMesh distribute_mesh(MPI_Comm comm, const MeshData *root_mesh) {
     std::size_t gi = 0;
     for (const auto &kv : m.volume_groups) {
       for (std::int64_t e : kv.second)
-        vgroup_parts[gi][static_cast<std::size_t>(part[static_cast<std::size_t>(e)])].push_back(local_index[static_cast<std::size_t>(e)]);
+        vgroup_parts[gi][static_cast<std::size_t>(part[static_cast<std::size_t>(e)])].push_back(
+            local_index[static_cast<std::size_t>(e)]);
       ++gi;
     }
     std::size_t si = 0;
@@ -257,18 +291,26 @@ DistributedMesh distribute_mesh(MPI_Comm comm, const MeshData *root_mesh) {
       const int npf = fem::nodes_per_face(g.type);
       std::vector<PetscInt> nodes_on;
       for (std::size_t f = 0; f < g.size(); ++f) {
-        const PetscInt first = new_number[static_cast<std::size_t>(g.connectivity[f * static_cast<std::size_t>(npf)])];
+        const PetscInt first =
+            new_number[static_cast<std::size_t>(g.connectivity[f * static_cast<std::size_t>(npf)])];
         const int p = owner[static_cast<std::size_t>(old_of_new[static_cast<std::size_t>(first)])];
         for (int a = 0; a < npf; ++a) {
-          const std::int64_t old = g.connectivity[f * static_cast<std::size_t>(npf) + static_cast<std::size_t>(a)];
-          sface_parts[si][static_cast<std::size_t>(p)].push_back(new_number[static_cast<std::size_t>(old)]);
+          const std::int64_t old =
+              g.connectivity[f * static_cast<std::size_t>(npf) + static_cast<std::size_t>(a)];
+          sface_parts[si][static_cast<std::size_t>(p)].push_back(
+              new_number[static_cast<std::size_t>(old)]);
           nodes_on.push_back(new_number[static_cast<std::size_t>(old)]);
-          for (int k = 0; k < 3; ++k) scoord_parts[si][static_cast<std::size_t>(p)].push_back(m.coordinates[static_cast<std::size_t>(3 * old + k)]);
+          for (int k = 0; k < 3; ++k)
+            scoord_parts[si][static_cast<std::size_t>(p)].push_back(
+                m.coordinates[static_cast<std::size_t>(3 * old + k)]);
         }
       }
       std::sort(nodes_on.begin(), nodes_on.end());
       nodes_on.erase(std::unique(nodes_on.begin(), nodes_on.end()), nodes_on.end());
-      for (PetscInt gnode : nodes_on) snode_parts[si][static_cast<std::size_t>(owner[static_cast<std::size_t>(old_of_new[static_cast<std::size_t>(gnode)])])].push_back(gnode);
+      for (PetscInt gnode : nodes_on)
+        snode_parts[si][static_cast<std::size_t>(owner[static_cast<std::size_t>(
+                            old_of_new[static_cast<std::size_t>(gnode)])])]
+            .push_back(gnode);
       ++si;
     }
   });
@@ -280,7 +322,8 @@ DistributedMesh distribute_mesh(MPI_Comm comm, const MeshData *root_mesh) {
   dm.ghosts = scatter_parts(comm, ghost_parts);
   dm.coordinates = scatter_parts(comm, coord_parts);
   dm.element_tags = scatter_parts(comm, tag_parts);
-  for (std::size_t g = 0; g < vnames.size(); ++g) dm.volume_groups[vnames[g]] = scatter_parts(comm, vgroup_parts[g]);
+  for (std::size_t g = 0; g < vnames.size(); ++g)
+    dm.volume_groups[vnames[g]] = scatter_parts(comm, vgroup_parts[g]);
   for (std::size_t g = 0; g < snames.size(); ++g) {
     LocalSurface &s = dm.surfaces[snames[g]];
     s.type = static_cast<fem::FaceType>(face_types[g]);

@@ -1,10 +1,9 @@
 #include "flexopt/core/error.hpp"
 #include "flexopt/mesh/mesh_data.hpp"
 
-#include <gmsh.h>
-
 #include <algorithm>
 #include <filesystem>
+#include <gmsh.h>
 #include <set>
 #include <unordered_map>
 
@@ -50,9 +49,12 @@ struct GmshSession {
 
 fem::ElementType volume_type(int gmsh_type, const std::string &path) {
   switch (gmsh_type) {
-  case kGmshTet4: return fem::ElementType::Tet4;
-  case kGmshTet10: return fem::ElementType::Tet10;
-  case kGmshHex8: return fem::ElementType::Hex8;
+  case kGmshTet4:
+    return fem::ElementType::Tet4;
+  case kGmshTet10:
+    return fem::ElementType::Tet10;
+  case kGmshHex8:
+    return fem::ElementType::Hex8;
   default: {
     std::string name;
     int dim, order, nn, npn;
@@ -66,9 +68,12 @@ fem::ElementType volume_type(int gmsh_type, const std::string &path) {
 
 fem::FaceType face_type(int gmsh_type, const std::string &path, const std::string &group) {
   switch (gmsh_type) {
-  case kGmshTri3: return fem::FaceType::Tri3;
-  case kGmshTri6: return fem::FaceType::Tri6;
-  case kGmshQuad4: return fem::FaceType::Quad4;
+  case kGmshTri3:
+    return fem::FaceType::Tri3;
+  case kGmshTri6:
+    return fem::FaceType::Tri6;
+  case kGmshQuad4:
+    return fem::FaceType::Quad4;
   default:
     throw Error(path + ": physical surface '" + group + "' has face elements of Gmsh type " +
                 std::to_string(gmsh_type) + " (supported: Tri3, Tri6, Quad4)");
@@ -154,7 +159,8 @@ MeshData read_gmsh(const std::string &path, const MeshOptions &options) {
       element_index[tags[k][e]] = static_cast<std::int64_t>(mesh.element_tags.size());
       mesh.element_tags.push_back(tags[k][e]);
       for (int a = 0; a < npe; ++a)
-        mesh.connectivity.push_back(index_of.at(nodes[k][e * static_cast<std::size_t>(npe) + static_cast<std::size_t>(a)]));
+        mesh.connectivity.push_back(
+            index_of.at(nodes[k][e * static_cast<std::size_t>(npe) + static_cast<std::size_t>(a)]));
     }
   }
 
@@ -194,8 +200,9 @@ MeshData read_gmsh(const std::string &path, const MeshOptions &options) {
           for (std::size_t t : enodes[k]) {
             auto it = index_of.find(t);
             if (it == index_of.end())
-              throw Error(path + ": physical surface '" + name +
-                          "' has nodes that belong to no volume element (a surface outside the body?)");
+              throw Error(
+                  path + ": physical surface '" + name +
+                  "' has nodes that belong to no volume element (a surface outside the body?)");
             group.connectivity.push_back(it->second);
           }
         }

@@ -17,16 +17,23 @@ io::GridLayout grid_layout(const DistributedMesh &mesh) {
   g.global_nodes = mesh.global_nodes;
   g.node_start = mesh.node_start;
   g.owned_nodes = mesh.owned_nodes;
-  g.owned_coordinates.assign(mesh.coordinates.begin(), mesh.coordinates.begin() + 3 * mesh.owned_nodes);
+  g.owned_coordinates.assign(mesh.coordinates.begin(),
+                             mesh.coordinates.begin() + 3 * mesh.owned_nodes);
   g.global_cells = mesh.global_elements;
   g.cell_start = mesh.element_start;
   g.local_cells = mesh.local_elements();
   const int npe = mesh.nodes_per_element();
   g.nodes_per_cell = npe;
   switch (mesh.type) {
-  case fem::ElementType::Tet4: g.topology_type = "Tetrahedron"; break;
-  case fem::ElementType::Tet10: g.topology_type = "Tetrahedron_10"; break;
-  case fem::ElementType::Hex8: g.topology_type = "Hexahedron"; break;
+  case fem::ElementType::Tet4:
+    g.topology_type = "Tetrahedron";
+    break;
+  case fem::ElementType::Tet10:
+    g.topology_type = "Tetrahedron_10";
+    break;
+  case fem::ElementType::Hex8:
+    g.topology_type = "Hexahedron";
+    break;
   }
   g.cell_nodes.resize(mesh.connectivity.size());
   for (PetscInt e = 0; e < mesh.local_elements(); ++e)

@@ -2,11 +2,10 @@
 
 #include "flexopt/core/error.hpp"
 
-#include <slepceps.h>
-
 #include <algorithm>
 #include <cmath>
 #include <numeric>
+#include <slepceps.h>
 
 namespace flexopt::reduce {
 
@@ -33,7 +32,8 @@ void solve_modes(Mat K, Mat M, const std::vector<PetscInt> &fixed_dofs, int coun
     free.push_back(i);
   }
   IS is;
-  FX_PETSC(ISCreateGeneral(comm, static_cast<PetscInt>(free.size()), free.data(), PETSC_COPY_VALUES, &is));
+  FX_PETSC(ISCreateGeneral(comm, static_cast<PetscInt>(free.size()), free.data(), PETSC_COPY_VALUES,
+                           &is));
   Mat Kf, Mf;
   FX_PETSC(MatCreateSubMatrix(K, is, is, MAT_INITIAL_MATRIX, &Kf));
   FX_PETSC(MatCreateSubMatrix(M, is, is, MAT_INITIAL_MATRIX, &Mf));
@@ -64,8 +64,8 @@ void solve_modes(Mat K, Mat M, const std::vector<PetscInt> &fixed_dofs, int coun
   FX_PETSC(EPSGetIterationNumber(eps, &its));
   result.iterations = static_cast<int>(its);
   if (nconv < count)
-    throw Error("modal analysis: SLEPc converged only " + std::to_string(nconv) + " of " + std::to_string(count) +
-                    " eigenpairs (try -eps_max_it or -eps_ncv)",
+    throw Error("modal analysis: SLEPc converged only " + std::to_string(nconv) + " of " +
+                    std::to_string(count) + " eigenpairs (try -eps_max_it or -eps_ncv)",
                 true);
 
   std::vector<double> lambda(static_cast<std::size_t>(nconv));

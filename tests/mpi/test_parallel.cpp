@@ -8,14 +8,12 @@
 #include "flexopt/fem/probe.hpp"
 #include "flexopt/mesh/distributed_mesh.hpp"
 
-#include <gmsh.h>
-#include <gtest/gtest.h>
-
-#include <cstdio>
-#include <filesystem>
-
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <gmsh.h>
+#include <gtest/gtest.h>
 #include <numeric>
 
 using namespace flexopt;
@@ -34,9 +32,12 @@ struct MeshCase {
 mesh::DistributedMesh load(MeshCase mc, mesh::MeshData *root_copy = nullptr) {
   mesh::MeshData data;
   const std::string geo = std::string(FLEXOPT_SOURCE_DIR) + "/meshes/" + mc.geometry;
-  run_on_root(PETSC_COMM_WORLD, 0, [&] { data = mesh::read_gmsh(geo, mesh::MeshOptions{mc.size, mc.order}); });
+  run_on_root(PETSC_COMM_WORLD, 0, [&] {
+    data = mesh::read_gmsh(geo, mesh::MeshOptions{mc.size, mc.order});
+  });
   if (root_copy) *root_copy = data;
-  return mesh::distribute_mesh(PETSC_COMM_WORLD, comm_rank(PETSC_COMM_WORLD) == 0 ? &data : nullptr);
+  return mesh::distribute_mesh(PETSC_COMM_WORLD,
+                               comm_rank(PETSC_COMM_WORLD) == 0 ? &data : nullptr);
 }
 
 class Parallel : public ::testing::TestWithParam<MeshCase> {};
@@ -48,22 +49,28 @@ TEST_P(Parallel, PartitionCoversEveryElementOnce) {
   auto m = load(GetParam(), &root);
   const int size = comm_size(m.comm), rank = comm_rank(m.comm);
   int n = static_cast<int>(m.element_tags.size());
-  std::vector<int> counts(static_cast<std::size_t>(size)), displs(static_cast<std::size_t>(size), 0);
+  std::vector<int> counts(static_cast<std::size_t>(size)),
+      displs(static_cast<std::size_t>(size), 0);
   MPI_Gather(&n, 1, MPI_INT, counts.data(), 1, MPI_INT, 0, m.comm);
   std::vector<unsigned long> mine(m.element_tags.begin(), m.element_tags.end()), all;
   if (rank == 0) {
-    for (int p = 1; p < size; ++p) displs[static_cast<std::size_t>(p)] = displs[static_cast<std::size_t>(p - 1)] + counts[static_cast<std::size_t>(p - 1)];
+    for (int p = 1; p < size; ++p)
+      displs[static_cast<std::size_t>(p)] =
+          displs[static_cast<std::size_t>(p - 1)] + counts[static_cast<std::size_t>(p - 1)];
     all.resize(static_cast<std::size_t>(displs.back() + counts.back()));
   }
-  MPI_Gatherv(mine.data(), n, MPI_UNSIGNED_LONG, all.data(), counts.data(), displs.data(), MPI_UNSIGNED_LONG, 0, m.comm);
+  MPI_Gatherv(mine.data(), n, MPI_UNSIGNED_LONG, all.data(), counts.data(), displs.data(),
+              MPI_UNSIGNED_LONG, 0, m.comm);
   if (rank == 0) {
     std::sort(all.begin(), all.end());
-    EXPECT_EQ(std::adjacent_find(all.begin(), all.end()), all.end()) << "an element is on two ranks";
+    EXPECT_EQ(std::adjacent_find(all.begin(), all.end()), all.end())
+        << "an element is on two ranks";
     std::vector<unsigned long> expected(root.element_tags.begin(), root.element_tags.end());
     std::sort(expected.begin(), expected.end());
     EXPECT_EQ(all, expected);
     EXPECT_EQ(static_cast<long long>(all.size()), static_cast<long long>(m.global_elements));
-    for (int p = 0; p < size; ++p) EXPECT_GT(counts[static_cast<std::size_t>(p)], 0) << "rank " << p << " got no elements";
+    for (int p = 0; p < size; ++p)
+      EXPECT_GT(counts[static_cast<std::size_t>(p)], 0) << "rank " << p << " got no elements";
   }
   // Owned node ranges are contiguous and cover all nodes.
   PetscInt owned = m.owned_nodes, total = 0, start = 0;
@@ -79,7 +86,8 @@ TEST_P(Parallel, GhostCoordinatesMatchOwners) {
   Vec x = fem::create_ghosted_vector(m);
   PetscScalar *a;
   VecGetArray(x, &a);
-  for (PetscInt i = 0; i < 3 * m.owned_nodes; ++i) a[i] = m.coordinates[static_cast<std::size_t>(i)];
+  for (PetscInt i = 0; i < 3 * m.owned_nodes; ++i)
+    a[i] = m.coordinates[static_cast<std::size_t>(i)];
   VecRestoreArray(x, &a);
   VecGhostUpdateBegin(x, INSERT_VALUES, SCATTER_FORWARD);
   VecGhostUpdateEnd(x, INSERT_VALUES, SCATTER_FORWARD);
@@ -87,7 +95,8 @@ TEST_P(Parallel, GhostCoordinatesMatchOwners) {
   VecGhostGetLocalForm(x, &local);
   const PetscScalar *l;
   VecGetArrayRead(local, &l);
-  for (PetscInt i = 0; i < 3 * m.local_nodes(); ++i) ASSERT_EQ(l[i], m.coordinates[static_cast<std::size_t>(i)]);
+  for (PetscInt i = 0; i < 3 * m.local_nodes(); ++i)
+    ASSERT_EQ(l[i], m.coordinates[static_cast<std::size_t>(i)]);
   VecRestoreArrayRead(local, &l);
   VecGhostRestoreLocalForm(x, &local);
   VecDestroy(&x);
@@ -168,14 +177,19 @@ TEST_P(Parallel, ProbeInterpolatesLinearFieldExactly) {
   VecGhostGetLocalForm(u, &local);
   PetscScalar *a;
   VecGetArray(local, &a);
-  auto field = [](const double *x, int k) { return 0.1 * (k + 1) * x[0] - 0.2 * x[1] + 0.3 * k * x[2] + 0.01 * k; };
+  auto field = [](const double *x, int k) {
+    return 0.1 * (k + 1) * x[0] - 0.2 * x[1] + 0.3 * k * x[2] + 0.01 * k;
+  };
   for (PetscInt i = 0; i < m.local_nodes(); ++i)
-    for (int k = 0; k < 3; ++k) a[3 * i + k] = field(&m.coordinates[static_cast<std::size_t>(3 * i)], k);
+    for (int k = 0; k < 3; ++k)
+      a[3 * i + k] = field(&m.coordinates[static_cast<std::size_t>(3 * i)], k);
   VecRestoreArray(local, &a);
   VecGhostRestoreLocalForm(u, &local);
-  for (const std::array<double, 3> p : {std::array<double, 3>{0.37, 0.011, 0.093}, {1.0, 0.025, 0.05}, {0.0, 0.0, 0.0}}) {
+  for (const std::array<double, 3> p :
+       {std::array<double, 3>{0.37, 0.011, 0.093}, {1.0, 0.025, 0.05}, {0.0, 0.0, 0.0}}) {
     auto v = fem::probe_vector(m, u, p, "test probe");
-    for (int k = 0; k < 3; ++k) EXPECT_NEAR(v[static_cast<std::size_t>(k)], field(p.data(), k), 1e-12);
+    for (int k = 0; k < 3; ++k)
+      EXPECT_NEAR(v[static_cast<std::size_t>(k)], field(p.data(), k), 1e-12);
   }
   EXPECT_THROW(fem::probe_vector(m, u, {2.0, 0.0, 0.0}, "outside"), Error);
   VecDestroy(&u);
@@ -186,7 +200,8 @@ TEST_P(Parallel, ProbeInterpolatesLinearFieldExactly) {
 TEST(MshFile, SameMeshAsTheGeoItCameFrom) {
   const std::string geo = std::string(FLEXOPT_SOURCE_DIR) + "/meshes/beam.geo";
   const std::string msh = (std::filesystem::temp_directory_path() /
-                           ("flexopt_beam_" + std::to_string(::getpid()) + ".msh")).string();
+                           ("flexopt_beam_" + std::to_string(::getpid()) + ".msh"))
+                              .string();
   mesh::MeshData from_geo, from_msh;
   run_on_root(PETSC_COMM_WORLD, 0, [&] {
     from_geo = mesh::read_gmsh(geo, mesh::MeshOptions{0.04, 2});
@@ -210,30 +225,37 @@ TEST(MshFile, SameMeshAsTheGeoItCameFrom) {
     ASSERT_EQ(from_msh.surface_groups.size(), 2u);
     for (const char *name : {"clamp", "tip"}) {
       ASSERT_TRUE(from_msh.surface_groups.count(name)) << name;
-      EXPECT_EQ(from_msh.surface_groups.at(name).size(), from_geo.surface_groups.at(name).size()) << name;
+      EXPECT_EQ(from_msh.surface_groups.at(name).size(), from_geo.surface_groups.at(name).size())
+          << name;
       EXPECT_EQ(from_msh.surface_groups.at(name).type, fem::FaceType::Tri6) << name;
     }
-    EXPECT_EQ(from_msh.volume_groups.at("beam").size(), static_cast<std::size_t>(from_msh.element_count()));
+    EXPECT_EQ(from_msh.volume_groups.at("beam").size(),
+              static_cast<std::size_t>(from_msh.element_count()));
     double volume = 0;
     const int npe = fem::nodes_per_element(from_msh.type);
     for (std::int64_t e = 0; e < from_msh.element_count(); ++e) {
       fem::ElementCoords X(npe, 3);
       for (int a = 0; a < npe; ++a)
         for (int k = 0; k < 3; ++k)
-          X(a, k) = from_msh.coordinates[static_cast<std::size_t>(3 * from_msh.connectivity[static_cast<std::size_t>(e * npe + a)] + k)];
+          X(a, k) = from_msh.coordinates[static_cast<std::size_t>(
+              3 * from_msh.connectivity[static_cast<std::size_t>(e * npe + a)] + k)];
       volume += fem::element_volume(from_msh.type, X);
     }
     EXPECT_NEAR(volume, kL * kH * kB, 1e-12 * kL * kH * kB);
   }
-  auto m = mesh::distribute_mesh(PETSC_COMM_WORLD, comm_rank(PETSC_COMM_WORLD) == 0 ? &from_msh : nullptr);
+  auto m = mesh::distribute_mesh(PETSC_COMM_WORLD,
+                                 comm_rank(PETSC_COMM_WORLD) == 0 ? &from_msh : nullptr);
   long long n_geo = from_geo.element_count();
   MPI_Bcast(&n_geo, 1, MPI_LONG_LONG, 0, PETSC_COMM_WORLD);
   EXPECT_EQ(static_cast<long long>(m.global_elements), n_geo);
 }
 
 INSTANTIATE_TEST_SUITE_P(Meshes, Parallel,
-                         ::testing::Values(MeshCase{1, 0.04}, MeshCase{2, 0.04}, MeshCase{1, 0.0, "beam_hex.geo"}),
+                         ::testing::Values(MeshCase{1, 0.04}, MeshCase{2, 0.04},
+                                           MeshCase{1, 0.0, "beam_hex.geo"}),
                          [](const auto &info) {
-                           if (std::string(info.param.geometry) == "beam_hex.geo") return std::string("Hex8");
-                           return info.param.order == 1 ? std::string("Tet4") : std::string("Tet10");
+                           if (std::string(info.param.geometry) == "beam_hex.geo")
+                             return std::string("Hex8");
+                           return info.param.order == 1 ? std::string("Tet4")
+                                                        : std::string("Tet10");
                          });

@@ -3,10 +3,9 @@
 #include "flexopt/core/error.hpp"
 #include "flexopt/io/case.hpp"
 
-#include <gtest/gtest.h>
-
 #include <filesystem>
 #include <fstream>
+#include <gtest/gtest.h>
 
 namespace fs = std::filesystem;
 using flexopt::Error;
@@ -17,8 +16,9 @@ namespace {
 class CaseFiles : public ::testing::Test {
 protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() / ("flexopt_case_test_" + std::to_string(::getpid()) + "_" +
-                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    dir_ = fs::temp_directory_path() /
+           ("flexopt_case_test_" + std::to_string(::getpid()) + "_" +
+            ::testing::UnitTest::GetInstance()->current_test_info()->name());
     fs::create_directories(dir_);
     std::ofstream(dir_ / "beam.geo") << "// geometry placeholder for parsing tests\n";
   }
@@ -108,7 +108,8 @@ TEST_F(CaseFiles, WrongTypeRejected) {
   y.replace(y.find("size: 0.02"), 10, "size: fine");
   write(y);
   const std::string msg = error();
-  EXPECT_NE(msg.find("bodies[0].mesh.size: expected a number, got 'fine'"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("bodies[0].mesh.size: expected a number, got 'fine'"), std::string::npos)
+      << msg;
   EXPECT_NE(msg.find("case.yaml:7:"), std::string::npos) << msg;
 }
 

@@ -1,8 +1,7 @@
 #pragma once
 /// \file Process-wide set-up: MPI, PETSc and SLEPc initialisation, and collective helpers.
-#include <mpi.h>
-
 #include <functional>
+#include <mpi.h>
 #include <string>
 #include <vector>
 

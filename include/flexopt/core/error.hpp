@@ -6,7 +6,6 @@
 /// communicator is known to throw it (e.g. a case-file error found by every rank); otherwise
 /// `main` aborts the communicator so that no rank is left waiting in a collective call.
 #include <petscsys.h>
-
 #include <stdexcept>
 #include <string>
 
@@ -33,5 +32,6 @@ void throw_petsc_error(PetscErrorCode code, const char *call, const char *file, 
 #define FX_PETSC(call)                                                                             \
   do {                                                                                             \
     PetscErrorCode fx_ierr_ = (call);                                                              \
-    if (PetscUnlikely(fx_ierr_)) ::flexopt::throw_petsc_error(fx_ierr_, #call, __FILE__, __LINE__); \
+    if (PetscUnlikely(fx_ierr_))                                                                   \
+      ::flexopt::throw_petsc_error(fx_ierr_, #call, __FILE__, __LINE__);                           \
   } while (0)

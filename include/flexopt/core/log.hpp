@@ -10,7 +10,9 @@ PetscLogEvent log_event(const char *name);
 /// Scoped begin/end of a PETSc log event.
 class LogScope {
 public:
-  explicit LogScope(const char *name) : event_(log_event(name)) { PetscLogEventBegin(event_, 0, 0, 0, 0); }
+  explicit LogScope(const char *name) : event_(log_event(name)) {
+    PetscLogEventBegin(event_, 0, 0, 0, 0);
+  }
   ~LogScope() { PetscLogEventEnd(event_, 0, 0, 0, 0); }
   LogScope(const LogScope &) = delete;
   LogScope &operator=(const LogScope &) = delete;

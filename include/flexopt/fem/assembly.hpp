@@ -3,15 +3,15 @@
 ///
 /// DOFs are node-major with block size 3: global DOF 3*g + k is component k of global node g.
 /// Matrices are MATAIJ (MPIAIJ on several ranks) with block size 3, preallocated exactly from
-/// the node graph of the mesh (shared rows completed by their owners), and carry the local-to-global mapping
-/// of the mesh's local nodes so that element blocks are added with MatSetValuesBlockedLocal.
+/// the node graph of the mesh (shared rows completed by their owners), and carry the
+/// local-to-global mapping of the mesh's local nodes so that element blocks are added with
+/// MatSetValuesBlockedLocal.
 #include "flexopt/fem/element.hpp"
 #include "flexopt/mesh/distributed_mesh.hpp"
 
+#include <array>
 #include <petscmat.h>
 #include <petscvec.h>
-
-#include <array>
 #include <vector>
 
 namespace flexopt::fem {
@@ -57,6 +57,7 @@ std::vector<double> element_von_mises(const mesh::DistributedMesh &mesh,
                                       const std::vector<double> &modulus_factor, Vec u_ghosted);
 
 /// Displacement of local element e from the local form of a ghosted vector.
-ElementVector gather_element(const mesh::DistributedMesh &mesh, PetscInt e, const PetscScalar *u_local);
+ElementVector gather_element(const mesh::DistributedMesh &mesh, PetscInt e,
+                             const PetscScalar *u_local);
 
 } // namespace flexopt::fem

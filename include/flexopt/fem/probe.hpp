@@ -2,9 +2,8 @@
 /// \file Point evaluation of a nodal vector field (sensors).
 #include "flexopt/mesh/distributed_mesh.hpp"
 
-#include <petscvec.h>
-
 #include <array>
+#include <petscvec.h>
 #include <string>
 
 namespace flexopt::fem {

@@ -25,9 +25,9 @@ public:
   const mesh::DistributedMesh &mesh() const { return mesh_; }
   const IsotropicMaterial &material() const { return material_; }
   const std::vector<double> &modulus_factor() const { return factor_; }
-  Vec displacement() const { return u_; }   ///< ghosted; ghosts current after solve()
-  Vec load() const { return f_; }           ///< external load (unmodified by supports)
-  Mat stiffness() const { return K_; }      ///< with supports applied (identity-scaled rows)
+  Vec displacement() const { return u_; } ///< ghosted; ghosts current after solve()
+  Vec load() const { return f_; }         ///< external load (unmodified by supports)
+  Mat stiffness() const { return K_; }    ///< with supports applied (identity-scaled rows)
   KSP solver() const { return ksp_; }
   const std::vector<PetscInt> &fixed_dofs() const { return fixed_; }
   PetscInt global_dofs() const { return 3 * mesh_.global_nodes; }
@@ -38,8 +38,8 @@ public:
     double mesh = 0, assemble = 0, setup = 0, solve = 0;
   };
   const Timings &timings() const { return timings_; }
-  double compliance() const;                ///< f . u [J]
-  double max_displacement() const;          ///< max over nodes of |u| [m]
+  double compliance() const;       ///< f . u [J]
+  double max_displacement() const; ///< max over nodes of |u| [m]
 
 private:
   StaticProblem() = default;
@@ -59,8 +59,9 @@ std::vector<PetscInt> support_dofs(const mesh::DistributedMesh &mesh, const io::
 
 /// Sets the default solver for an SPD elasticity operator: CG + GAMG with the rigid-body
 /// near-null space (built from the node coordinates), relative tolerance 1e-8
-/// (the compliance error is quadratic in it: CG is a Galerkin method in the energy norm). Options from the case's
-/// `solver:` string and the command line are applied afterwards (KSPSetFromOptions).
+/// (the compliance error is quadratic in it: CG is a Galerkin method in the energy norm). Options
+/// from the case's `solver:` string and the command line are applied afterwards
+/// (KSPSetFromOptions).
 void configure_elasticity_solver(KSP ksp, Mat A, const mesh::DistributedMesh &mesh);
 
 /// Throws a collective flexopt::Error naming `what` if the last KSPSolve diverged.

@@ -28,9 +28,9 @@ struct MaterialSpec {
 };
 
 struct MeshSpec {
-  double size = 0;        ///< target element size [m] (.geo only); 0: the .geo's own sizes
-  int order = 1;          ///< 1: Tet4 (Hex8 if the .geo recombines), 2: Tet10
-  bool given = false;     ///< true if the `mesh:` key was present
+  double size = 0;    ///< target element size [m] (.geo only); 0: the .geo's own sizes
+  int order = 1;      ///< 1: Tet4 (Hex8 if the .geo recombines), 2: Tet10
+  bool given = false; ///< true if the `mesh:` key was present
 };
 
 struct BodySpec {
@@ -80,7 +80,7 @@ struct Case {
   std::vector<SupportSpec> supports;
   std::vector<TractionSpec> tractions;
   std::vector<SensorSpec> sensors;
-  std::string solver;    ///< PETSc options applied before the command line's
+  std::string solver; ///< PETSc options applied before the command line's
   int output_every = 1;
 
   const MaterialSpec &material(const std::string &name) const;

@@ -26,8 +26,16 @@ public:
   Json(const char *s) : value_(std::string(s)) {}
   Json(std::string s) : value_(std::move(s)) {}
   Json(const std::vector<double> &v);
-  static Json array() { Json j; j.value_ = Array{}; return j; }
-  static Json object() { Json j; j.value_ = Object{}; return j; }
+  static Json array() {
+    Json j;
+    j.value_ = Array{};
+    return j;
+  }
+  static Json object() {
+    Json j;
+    j.value_ = Object{};
+    return j;
+  }
 
   /// Object member access; creates the member (and turns a null into an object) if absent.
   Json &operator[](const std::string &key);

@@ -5,9 +5,8 @@
 /// (/step_K/<field>); the XDMF file describes a temporal collection of grids that all share
 /// the mesh. Both files are written under temporary names and renamed when complete, so an
 /// interrupted run never leaves a valid-looking result.
-#include <mpi.h>
-
 #include <memory>
+#include <mpi.h>
 #include <string>
 #include <vector>
 
@@ -21,8 +20,8 @@ struct GridLayout {
   std::vector<double> owned_coordinates; ///< 3 per owned node
   long long global_cells = 0, cell_start = 0, local_cells = 0;
   int nodes_per_cell = 0;
-  std::vector<long long> cell_nodes;     ///< global node numbers, XDMF/VTK node order
-  std::string topology_type;             ///< XDMF name: Tetrahedron, Tetrahedron_10, Hexahedron
+  std::vector<long long> cell_nodes; ///< global node numbers, XDMF/VTK node order
+  std::string topology_type;         ///< XDMF name: Tetrahedron, Tetrahedron_10, Hexahedron
 };
 
 class XdmfWriter {

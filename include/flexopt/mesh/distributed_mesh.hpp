@@ -10,10 +10,9 @@
 #include "flexopt/fem/element.hpp"
 #include "flexopt/mesh/mesh_data.hpp"
 
+#include <map>
 #include <mpi.h>
 #include <petscsys.h>
-
-#include <map>
 #include <string>
 #include <vector>
 
@@ -25,7 +24,9 @@ struct LocalSurface {
   fem::FaceType type = fem::FaceType::Tri3;
   std::vector<PetscInt> global_nodes; ///< nodes_per_face per face
   std::vector<double> coordinates;    ///< 3 per face node
-  std::size_t size() const { return global_nodes.size() / static_cast<std::size_t>(fem::nodes_per_face(type)); }
+  std::size_t size() const {
+    return global_nodes.size() / static_cast<std::size_t>(fem::nodes_per_face(type));
+  }
 };
 
 struct DistributedMesh {
@@ -33,15 +34,15 @@ struct DistributedMesh {
   std::string source;
   fem::ElementType type = fem::ElementType::Tet4;
 
-  PetscInt global_nodes = 0;    ///< over all ranks
-  PetscInt owned_nodes = 0;     ///< owned by this rank
-  PetscInt node_start = 0;      ///< first owned global node number
-  std::vector<PetscInt> ghosts; ///< global numbers of ghost nodes (local index owned_nodes + k)
+  PetscInt global_nodes = 0;       ///< over all ranks
+  PetscInt owned_nodes = 0;        ///< owned by this rank
+  PetscInt node_start = 0;         ///< first owned global node number
+  std::vector<PetscInt> ghosts;    ///< global numbers of ghost nodes (local index owned_nodes + k)
   std::vector<double> coordinates; ///< 3 per local node (owned, then ghosts)
 
   PetscInt global_elements = 0;
-  PetscInt element_start = 0;          ///< global number of the first local element
-  std::vector<PetscInt> connectivity;  ///< local node indices, nodes_per_element per element
+  PetscInt element_start = 0;            ///< global number of the first local element
+  std::vector<PetscInt> connectivity;    ///< local node indices, nodes_per_element per element
   std::vector<std::size_t> element_tags; ///< Gmsh tags (for messages)
   std::map<std::string, std::vector<PetscInt>> volume_groups; ///< name -> local element indices
 
@@ -52,13 +53,15 @@ struct DistributedMesh {
   PetscInt local_elements() const;
   int nodes_per_element() const { return fem::nodes_per_element(type); }
   PetscInt local_to_global(PetscInt local) const {
-    return local < owned_nodes ? node_start + local : ghosts[static_cast<std::size_t>(local - owned_nodes)];
+    return local < owned_nodes ? node_start + local
+                               : ghosts[static_cast<std::size_t>(local - owned_nodes)];
   }
   /// Coordinates of local element e, one row per node.
   fem::ElementCoords element_coordinates(PetscInt e) const;
   /// Throws a collective flexopt::Error naming `where` if the group does not exist.
   const LocalSurface &surface(const std::string &name, const std::string &where) const;
-  const std::vector<PetscInt> &volume_group(const std::string &name, const std::string &where) const;
+  const std::vector<PetscInt> &volume_group(const std::string &name,
+                                            const std::string &where) const;
 };
 
 /// Partitions `root_mesh` (significant on rank 0 only) over `comm` and distributes it.

@@ -12,14 +12,15 @@ namespace flexopt::mesh {
 /// Faces of one Gmsh physical surface (all of one face type).
 struct SurfaceGroup {
   fem::FaceType type = fem::FaceType::Tri3;
-  std::vector<std::int64_t> connectivity; ///< nodes_per_face entries per face, MeshData node indices
-  std::size_t size() const;               ///< number of faces
+  std::vector<std::int64_t>
+      connectivity;         ///< nodes_per_face entries per face, MeshData node indices
+  std::size_t size() const; ///< number of faces
 };
 
 /// A body's mesh: one volume element type, node coordinates, and named physical groups.
 /// Node indices are 0-based and only nodes used by volume elements are kept.
 struct MeshData {
-  std::string source;                     ///< file the mesh came from (for messages)
+  std::string source; ///< file the mesh came from (for messages)
   fem::ElementType type = fem::ElementType::Tet4;
   std::vector<double> coordinates;        ///< 3 per node [m]
   std::vector<std::int64_t> connectivity; ///< nodes_per_element per element, Gmsh node order

@@ -1,7 +1,6 @@
 #pragma once
 /// \file Natural frequencies and mode shapes: K phi = omega^2 M phi with SLEPc.
 #include <petscmat.h>
-
 #include <vector>
 
 namespace flexopt::reduce {
