@@ -11,12 +11,12 @@ namespace flexopt::fem {
 
 namespace {
 
-void set_local_to_global(const mesh::DistributedMesh &mesh, Mat A) {
+void set_local_to_global(const mesh::DistributedMesh &mesh, Mat A, int block_size) {
   std::vector<PetscInt> l2g(static_cast<std::size_t>(mesh.local_nodes()));
   for (PetscInt i = 0; i < mesh.local_nodes(); ++i)
     l2g[static_cast<std::size_t>(i)] = mesh.local_to_global(i);
   ISLocalToGlobalMapping map;
-  FX_PETSC(ISLocalToGlobalMappingCreate(mesh.comm, 3, mesh.local_nodes(), l2g.data(),
+  FX_PETSC(ISLocalToGlobalMappingCreate(mesh.comm, block_size, mesh.local_nodes(), l2g.data(),
                                         PETSC_COPY_VALUES, &map));
   FX_PETSC(MatSetLocalToGlobalMapping(A, map, map));
   FX_PETSC(ISLocalToGlobalMappingDestroy(&map));
@@ -125,7 +125,7 @@ std::vector<std::vector<PetscInt>> node_graph(const mesh::DistributedMesh &mesh)
 
 } // namespace
 
-Mat create_matrix(const mesh::DistributedMesh &mesh) {
+Mat create_matrix(const mesh::DistributedMesh &mesh, int block_size) {
   LogScope log("FxCreateMatrix");
   // Block counts per owned node row, split into the diagonal (owned columns) and
   // off-diagonal parts that MPIAIJ stores separately.
@@ -137,14 +137,14 @@ Mat create_matrix(const mesh::DistributedMesh &mesh) {
     for (std::size_t i = 0; i < graph.size(); ++i)
       for (PetscInt g : graph[i]) ++((g >= lo && g < hi) ? diag : offdiag)[i];
   }
-  const PetscInt n = 3 * mesh.owned_nodes;
+  const PetscInt n = block_size * mesh.owned_nodes;
   Mat A;
   FX_PETSC(MatCreate(mesh.comm, &A));
   FX_PETSC(MatSetSizes(A, n, n, PETSC_DETERMINE, PETSC_DETERMINE));
-  FX_PETSC(MatSetBlockSize(A, 3));
+  FX_PETSC(MatSetBlockSize(A, block_size));
   FX_PETSC(MatSetType(A, MATAIJ));
-  FX_PETSC(MatXAIJSetPreallocation(A, 3, diag.data(), offdiag.data(), nullptr, nullptr));
-  set_local_to_global(mesh, A);
+  FX_PETSC(MatXAIJSetPreallocation(A, block_size, diag.data(), offdiag.data(), nullptr, nullptr));
+  set_local_to_global(mesh, A, block_size);
   FX_PETSC(MatSetOption(A, MAT_NEW_NONZERO_ALLOCATION_ERR, PETSC_TRUE));
   return A;
 }

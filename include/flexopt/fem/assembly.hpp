@@ -16,8 +16,9 @@
 
 namespace flexopt::fem {
 
-/// Creates an empty, exactly preallocated stiffness-pattern matrix. Collective.
-Mat create_matrix(const mesh::DistributedMesh &mesh);
+/// Creates an empty, exactly preallocated matrix with the node graph's pattern and
+/// `block_size` DOFs per node (3: displacements; 1: a scalar nodal field). Collective.
+Mat create_matrix(const mesh::DistributedMesh &mesh, int block_size = 3);
 
 /// Creates a ghosted vector (block size 3) over the mesh's local nodes. Collective.
 Vec create_ghosted_vector(const mesh::DistributedMesh &mesh);
