@@ -32,9 +32,7 @@ namespace {
 
 /// Keys of CASE_FORMAT.md that belong to later stages (mechanisms, optimization): recognised so
 /// that the message says they are not available yet rather than "unknown".
-const std::set<std::string> kNotYetSupported = {"ground",      "joints",    "drivers",
-                                                "time",        "design",    "objective",
-                                                "constraints", "optimizer", "adjoint"};
+const std::set<std::string> kNotYetSupported = {"ground", "joints", "drivers", "time", "adjoint"};
 
 /// Validating reader over one YAML document: every failure names file, line and column.
 class Reader {
@@ -295,6 +293,97 @@ void read_sensors(const Reader &r, const YAML::Node &node, Case &c) {
   }
 }
 
+void read_design(const Reader &r, const YAML::Node &v, Case &c) {
+  const std::string path = "design";
+  r.require_map(v, path);
+  r.check_keys(v, path, {"body", "region", "initial", "interpolation", "filter", "projection"});
+  DesignSpec d;
+  d.where = r.where(v);
+  d.body = r.string(r.require(v, "body", path), path + ".body");
+  if (!has_body(c, d.body)) r.fail(v["body"], path + ".body: no body named '" + d.body + "'");
+  if (v["region"]) d.region = r.string(v["region"], path + ".region");
+  if (v["initial"]) {
+    d.initial = r.number(v["initial"], path + ".initial");
+    if (!(d.initial > 0 && d.initial <= 1))
+      r.fail(v["initial"], path + ".initial: must lie in (0, 1]");
+  }
+  if (v["interpolation"]) {
+    const YAML::Node &i = v["interpolation"];
+    const std::string ip = path + ".interpolation";
+    r.require_map(i, ip);
+    r.check_keys(i, ip, {"penalty", "min_stiffness", "mass"});
+    if (i["penalty"]) {
+      d.penalty = r.number(i["penalty"], ip + ".penalty");
+      if (!(d.penalty >= 1)) r.fail(i["penalty"], ip + ".penalty: the SIMP exponent must be >= 1");
+    }
+    if (i["min_stiffness"]) {
+      d.min_stiffness = r.number(i["min_stiffness"], ip + ".min_stiffness");
+      if (!(d.min_stiffness > 0 && d.min_stiffness < 1))
+        r.fail(i["min_stiffness"], ip + ".min_stiffness: E_min / E_0 must lie in (0, 1)");
+    }
+    if (i["mass"]) d.mass = r.choice(i["mass"], ip + ".mass", {"linear", "pedersen"});
+  }
+  const YAML::Node &f = r.require(v, "filter", path);
+  r.require_map(f, path + ".filter");
+  r.check_keys(f, path + ".filter", {"radius"});
+  d.filter_radius = r.number(r.require(f, "radius", path + ".filter"), path + ".filter.radius");
+  if (!(d.filter_radius > 0)) r.fail(f["radius"], path + ".filter.radius: must be positive");
+  if (v["projection"]) {
+    const YAML::Node &p = v["projection"];
+    const std::string pp = path + ".projection";
+    r.require_map(p, pp);
+    r.check_keys(p, pp, {"beta", "eta"});
+    const YAML::Node &b = r.require(p, "beta", pp);
+    r.require_sequence(b, pp + ".beta");
+    if (b.size() == 0) r.fail(b, pp + ".beta: give at least one value");
+    for (std::size_t k = 0; k < b.size(); ++k) {
+      d.beta.push_back(r.number(b[k], pp + ".beta[" + std::to_string(k) + "]"));
+      if (!(d.beta.back() > 0)) r.fail(b[k], pp + ".beta: values must be positive");
+    }
+    if (p["eta"]) {
+      d.eta = r.number(p["eta"], pp + ".eta");
+      if (!(d.eta > 0 && d.eta < 1)) r.fail(p["eta"], pp + ".eta: must lie in (0, 1)");
+    }
+  }
+  c.design = d;
+}
+
+ResponseSpec read_response(const Reader &r, const YAML::Node &v, const std::string &path,
+                           bool constraint, const Case &c) {
+  r.require_map(v, path);
+  r.check_keys(v, path, {"type", "sensor", "direction", "max"});
+  ResponseSpec s;
+  s.where = r.where(v);
+  s.type = r.choice(r.require(v, "type", path), path + ".type",
+                    {"compliance", "volume_fraction", "displacement", "strain_energy_integral",
+                     "tracking_error"});
+  if (s.type == "strain_energy_integral" || s.type == "tracking_error")
+    r.fail(v["type"], path + ".type: '" + s.type + "' needs a dynamic analysis, not supported yet");
+  if (s.type == "displacement") {
+    s.sensor = r.string(r.require(v, "sensor", path), path + ".sensor");
+    bool found = false;
+    for (const auto &sensor : c.sensors) found = found || sensor.name == s.sensor;
+    if (!found) r.fail(v["sensor"], path + ".sensor: no sensor named '" + s.sensor + "'");
+    s.direction = r.vector3(r.require(v, "direction", path), path + ".direction");
+    const double n = std::sqrt(s.direction[0] * s.direction[0] + s.direction[1] * s.direction[1] +
+                               s.direction[2] * s.direction[2]);
+    if (!(n > 0)) r.fail(v["direction"], path + ".direction: must not be zero");
+    for (double &x : s.direction) x /= n;
+  } else {
+    for (const char *k : {"sensor", "direction"})
+      if (v[k]) r.fail(v[k], path + "." + k + ": only a displacement response takes it");
+  }
+  if (constraint) {
+    s.max = r.number(r.require(v, "max", path), path + ".max");
+    s.has_max = true;
+    if (s.type == "volume_fraction" && !(s.max > 0 && s.max < 1))
+      r.fail(v["max"], path + ".max: a volume fraction bound must lie in (0, 1)");
+  } else if (v["max"]) {
+    r.fail(v["max"], path + ".max: the objective takes no bound");
+  }
+  return s;
+}
+
 } // namespace
 
 Case load_case(const std::string &directory) {
@@ -328,11 +417,11 @@ Case load_case(const std::string &directory) {
     if (kNotYetSupported.count(key))
       r.fail(kv.first, "key '" + key +
                            "' is part of the case format but not supported yet by this version of "
-                           "flexopt (static and modal analysis only)");
+                           "flexopt (static and modal analysis and static topology optimization)");
   }
   r.check_keys(root, "",
                {"analysis", "materials", "bodies", "loads", "supports", "tractions", "sensors",
-                "output", "solver"});
+                "output", "solver", "design", "objective", "constraints", "optimizer"});
 
   c.analysis = r.choice(r.require(root, "analysis", ""), "analysis", {"static", "dynamic"});
   read_materials(r, r.require(root, "materials", ""), c);
@@ -360,6 +449,39 @@ Case load_case(const std::string &directory) {
     }
   }
   if (root["solver"]) c.solver = r.string(root["solver"], "solver");
+  if (root["design"]) read_design(r, root["design"], c);
+  if (root["objective"]) c.objective = read_response(r, root["objective"], "objective", false, c);
+  if (root["constraints"]) {
+    const YAML::Node &l = root["constraints"];
+    r.require_sequence(l, "constraints");
+    for (std::size_t i = 0; i < l.size(); ++i)
+      c.constraints.push_back(
+          read_response(r, l[i], "constraints[" + std::to_string(i) + "]", true, c));
+  }
+  if (root["optimizer"]) {
+    const YAML::Node &o = root["optimizer"];
+    r.require_map(o, "optimizer");
+    r.check_keys(o, "optimizer", {"max_iterations", "move_limit", "tolerance"});
+    if (o["max_iterations"]) {
+      c.optimizer.max_iterations = r.integer(o["max_iterations"], "optimizer.max_iterations");
+      if (c.optimizer.max_iterations < 1)
+        r.fail(o["max_iterations"], "optimizer.max_iterations: must be >= 1");
+    }
+    if (o["move_limit"]) {
+      c.optimizer.move_limit = r.number(o["move_limit"], "optimizer.move_limit");
+      if (!(c.optimizer.move_limit > 0 && c.optimizer.move_limit <= 1))
+        r.fail(o["move_limit"], "optimizer.move_limit: must lie in (0, 1]");
+    }
+    if (o["tolerance"]) {
+      c.optimizer.tolerance = r.number(o["tolerance"], "optimizer.tolerance");
+      if (!(c.optimizer.tolerance >= 0))
+        r.fail(o["tolerance"], "optimizer.tolerance: must be >= 0");
+    }
+  }
+  if ((c.objective || !c.constraints.empty() || root["optimizer"]) && !c.design)
+    r.fail(root, "objective/constraints/optimizer need a design: section (the design field)");
+  if (c.design && !c.objective)
+    r.fail(root["design"], "design: an optimization needs an objective:");
 
   if (c.analysis == "static") {
     if (c.bodies.size() != 1)

@@ -153,3 +153,65 @@ TEST_F(CaseFiles, BadFixComponentRejected) {
   write(y);
   EXPECT_NE(error().find("'w' is not one of x, y, z"), std::string::npos);
 }
+
+namespace {
+
+const char *kDesign = R"(design:
+  body: beam
+  region: design
+  initial: 0.3
+  interpolation: {penalty: 3, min_stiffness: 1.0e-9}
+  filter: {radius: 0.02}
+objective: {type: compliance}
+constraints:
+  - {type: volume_fraction, max: 0.3}
+  - {type: displacement, sensor: tip, direction: [0, -2, 0], max: 0.001}
+optimizer: {max_iterations: 50, move_limit: 0.2, tolerance: 0.001}
+)";
+
+} // namespace
+
+TEST_F(CaseFiles, DesignSectionParses) {
+  write(std::string(kValid) + kDesign);
+  auto c = load_case(dir_.string());
+  ASSERT_TRUE(c.design.has_value());
+  EXPECT_EQ(c.design->region, "design");
+  EXPECT_DOUBLE_EQ(c.design->filter_radius, 0.02);
+  EXPECT_DOUBLE_EQ(c.design->penalty, 3.0);
+  ASSERT_TRUE(c.objective.has_value());
+  EXPECT_EQ(c.objective->type, "compliance");
+  ASSERT_EQ(c.constraints.size(), 2u);
+  EXPECT_DOUBLE_EQ(c.constraints[0].max, 0.3);
+  EXPECT_DOUBLE_EQ(c.constraints[1].direction[1], -1.0); // normalized
+  EXPECT_EQ(c.optimizer.max_iterations, 50);
+}
+
+TEST_F(CaseFiles, VolumeFractionOutsideUnitIntervalRejected) {
+  std::string d = kDesign;
+  d.replace(d.find("max: 0.3"), 8, "max: 1.2");
+  write(std::string(kValid) + d);
+  const std::string msg = error();
+  EXPECT_NE(msg.find("constraints[0].max: a volume fraction bound must lie in (0, 1)"),
+            std::string::npos)
+      << msg;
+  EXPECT_NE(msg.find("case.yaml:26:34:"), std::string::npos) << msg; // the value 1.2
+}
+
+TEST_F(CaseFiles, NonPositiveFilterRadiusRejected) {
+  std::string d = kDesign;
+  d.replace(d.find("radius: 0.02"), 12, "radius: 0");
+  write(std::string(kValid) + d);
+  EXPECT_NE(error().find("design.filter.radius: must be positive"), std::string::npos);
+}
+
+TEST_F(CaseFiles, DisplacementResponseNeedsAKnownSensor) {
+  std::string d = kDesign;
+  d.replace(d.find("sensor: tip"), 11, "sensor: toe");
+  write(std::string(kValid) + d);
+  EXPECT_NE(error().find("no sensor named 'toe'"), std::string::npos);
+}
+
+TEST_F(CaseFiles, ObjectiveWithoutDesignRejected) {
+  write(std::string(kValid) + "objective: {type: compliance}\n");
+  EXPECT_NE(error().find("need a design: section"), std::string::npos);
+}

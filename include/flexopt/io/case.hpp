@@ -69,6 +69,36 @@ struct SensorSpec {
   Location where;
 };
 
+/// The design field of a topology optimization (`design:`).
+struct DesignSpec {
+  std::string body;
+  std::string region = "design"; ///< physical volume holding the design elements
+  double initial = 0.5;          ///< initial density of every design element
+  double penalty = 3.0;          ///< SIMP exponent p
+  double min_stiffness = 1e-9;   ///< E_min / E_0
+  std::string mass = "linear";   ///< mass interpolation (dynamic analyses): linear | pedersen
+  double filter_radius = 0;      ///< Helmholtz length scale r [m]
+  std::vector<double> beta;      ///< Heaviside projection continuation (empty: no projection)
+  double eta = 0.5;              ///< projection threshold
+  Location where;
+};
+
+/// A response (objective or constraint).
+struct ResponseSpec {
+  std::string type;                         ///< compliance | volume_fraction | displacement
+  std::string sensor;                       ///< displacement: a sensor name
+  std::array<double, 3> direction{0, 0, 0}; ///< displacement: unit direction
+  double max = 0;                           ///< constraints: upper bound
+  bool has_max = false;
+  Location where;
+};
+
+struct OptimizerSpec {
+  int max_iterations = 100;
+  double move_limit = 0.2;
+  double tolerance = 1e-3; ///< stop when the max design change is below
+};
+
 struct Case {
   std::string directory; ///< the case directory as given
   std::string file;      ///< path of case.yaml
@@ -82,6 +112,10 @@ struct Case {
   std::vector<SensorSpec> sensors;
   std::string solver; ///< PETSc options applied before the command line's
   int output_every = 1;
+  std::optional<DesignSpec> design;      ///< topology optimization: the design field
+  std::optional<ResponseSpec> objective; ///< topology optimization: minimized
+  std::vector<ResponseSpec> constraints; ///< topology optimization: each <= max
+  OptimizerSpec optimizer;
 
   const MaterialSpec &material(const std::string &name) const;
   const BodySpec &body(const std::string &name) const;
