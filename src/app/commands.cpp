@@ -6,9 +6,12 @@
 #include "flexopt/io/case.hpp"
 #include "flexopt/io/json.hpp"
 #include "flexopt/mesh/load.hpp"
+#include "flexopt/optimize/topology_problem.hpp"
 #include "flexopt/reduce/modal.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <filesystem>
 
 namespace fs = std::filesystem;
@@ -263,6 +266,202 @@ int run_modes(const Context &ctx, const Options &o, const io::Case &c, double t0
   return 0;
 }
 
+/// A reproducible pseudo-random number in [0, 1) from an integer key (splitmix64), so that
+/// directions and sample elements depend on Gmsh element tags, not on the partition.
+double hash_uniform(std::uint64_t key) {
+  std::uint64_t z = key + 0x9e3779b97f4a7c15ULL;
+  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+  z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+  z ^= z >> 31;
+  return static_cast<double>(z >> 11) * 0x1.0p-53;
+}
+
+/// All response values of an evaluation: objective first, then the constraints.
+std::vector<double> response_values(const optimize::Evaluation &e) {
+  std::vector<double> v{e.objective};
+  v.insert(v.end(), e.constraints.begin(), e.constraints.end());
+  return v;
+}
+
+int run_check_gradient(const Context &ctx, const Options &o, const io::Case &c, double t0) {
+  const std::string dir = output_directory(ctx, o);
+  auto problem = optimize::TopologyProblem::create(ctx.comm(), c);
+  const auto &names = problem->response_names();
+  const std::size_t nr = names.size();
+  print0(ctx.comm(), "check-gradient: %lld design variables, %zu response(s)\n",
+         static_cast<long long>(problem->design_size()), nr);
+
+  Vec x0 = problem->create_design_vector(), x, direction;
+  problem->initial_design(x0);
+  FX_PETSC(VecDuplicate(x0, &x));
+  FX_PETSC(VecDuplicate(x0, &direction));
+  {
+    PetscScalar *d;
+    FX_PETSC(VecGetArray(direction, &d));
+    const auto &tags = problem->design_tags();
+    for (std::size_t k = 0; k < tags.size(); ++k) d[k] = 2.0 * hash_uniform(tags[k]) - 1.0;
+    FX_PETSC(VecRestoreArray(direction, &d));
+  }
+  optimize::Evaluation base;
+  problem->evaluate(x0, true, base);
+  const std::vector<double> r0 = response_values(base);
+  std::vector<double> slope(nr);
+  for (std::size_t i = 0; i < nr; ++i)
+    FX_PETSC(VecDot(i == 0 ? base.d_objective : base.d_constraints[i - 1], direction, &slope[i]));
+
+  // Taylor test: |R(x0 + h d) - R(x0) - h g.d| = O(h^2) if g is the gradient.
+  const std::vector<double> steps{1e-1, 1e-2, 1e-3, 1e-4, 1e-5};
+  std::vector<std::vector<double>> remainders(nr);
+  for (double h : steps) {
+    FX_PETSC(VecWAXPY(x, h, direction, x0));
+    optimize::Evaluation e;
+    problem->evaluate(x, false, e);
+    const auto r = response_values(e);
+    for (std::size_t i = 0; i < nr; ++i)
+      remainders[i].push_back(std::abs(r[i] - r0[i] - h * slope[i]));
+  }
+  io::Json s = base_summary(ctx, o, c);
+  s["dofs"] = static_cast<long long>(problem->static_problem().global_dofs());
+  s["elements"] = static_cast<long long>(problem->mesh().global_elements);
+  s["design_variables"] = static_cast<long long>(problem->design_size());
+  // Remainders below kNoiseFloor |R| are round-off of the evaluation itself (the state
+  // solve is accurate to about eps * cond(K), measured ~1e-11 relative on the test cases), so
+  // orders are taken between steps whose remainders both lie above it. A response whose
+  // remainders all lie below it is linear in the design (the volume fraction): exact.
+  constexpr double kNoiseFloor = 1e-10;
+  io::Json taylor = io::Json::array();
+  for (std::size_t i = 0; i < nr; ++i) {
+    std::vector<double> orders;
+    double min_order = 1e300;
+    const double floor = kNoiseFloor * std::max(std::abs(r0[i]), 1e-300);
+    for (std::size_t k = 0; k + 1 < steps.size(); ++k) {
+      orders.push_back(std::log10(remainders[i][k] / remainders[i][k + 1]) /
+                       std::log10(steps[k] / steps[k + 1]));
+      if (remainders[i][k + 1] > floor) min_order = std::min(min_order, orders.back());
+    }
+    const bool linear = remainders[i][0] <= floor;
+    io::Json t = io::Json::object();
+    t["response"] = names[i];
+    t["value"] = r0[i];
+    t["steps"] = steps;
+    t["remainders"] = remainders[i];
+    t["orders"] = orders;
+    t["noise_floor"] = floor;
+    t["linear"] = linear;
+    t["min_order"] = linear ? io::Json() : io::Json(min_order);
+    taylor.push_back(t);
+    print0(ctx.comm(), "taylor %-28s value %.10g  remainders", names[i].c_str(), r0[i]);
+    for (double rem : remainders[i]) print0(ctx.comm(), " %.3e", rem);
+    print0(ctx.comm(), "  orders");
+    for (double ord : orders) print0(ctx.comm(), " %.3f", ord);
+    if (linear)
+      print0(ctx.comm(), "  (linear: remainders at round-off)");
+    else
+      print0(ctx.comm(), "  min order above the noise floor %.3f", min_order);
+    print0(ctx.comm(), "\n");
+  }
+  s["taylor"] = taylor;
+
+  // Central differences on 5 design elements chosen by their tags' hashes among those whose
+  // objective sensitivity is at least kSignificant of the largest: on the others a difference
+  // quotient measures the evaluation's round-off (eps cond(K) |R| / step), not the gradient.
+  // Fourth order: D = (4 D(h/2) - D(h)) / 3 with D(h) the central difference of step h.
+  constexpr int kSamples = 5;
+  constexpr double kStep = 1e-2, kSignificant = 1e-2;
+  PetscReal gmax = 0;
+  FX_PETSC(VecNorm(base.d_objective, NORM_INFINITY, &gmax));
+  std::vector<std::pair<double, unsigned long long>> mine;
+  {
+    const PetscScalar *g;
+    FX_PETSC(VecGetArrayRead(base.d_objective, &g));
+    const auto &tags = problem->design_tags();
+    for (std::size_t k = 0; k < tags.size(); ++k)
+      if (std::abs(g[k]) >= kSignificant * gmax)
+        mine.emplace_back(hash_uniform(tags[k] ^ 0x5bd1e995ULL), tags[k]);
+    FX_PETSC(VecRestoreArrayRead(base.d_objective, &g));
+  }
+  std::sort(mine.begin(), mine.end());
+  mine.resize(std::min<std::size_t>(mine.size(), kSamples));
+  std::vector<double> keys;
+  for (auto &p : mine) keys.insert(keys.end(), {p.first, static_cast<double>(p.second)});
+  int n_mine = static_cast<int>(keys.size());
+  std::vector<int> counts(static_cast<std::size_t>(ctx.size())),
+      displs(static_cast<std::size_t>(ctx.size()), 0);
+  MPI_Allgather(&n_mine, 1, MPI_INT, counts.data(), 1, MPI_INT, ctx.comm());
+  for (int p = 1; p < ctx.size(); ++p)
+    displs[static_cast<std::size_t>(p)] =
+        displs[static_cast<std::size_t>(p - 1)] + counts[static_cast<std::size_t>(p - 1)];
+  std::vector<double> all(static_cast<std::size_t>(displs.back() + counts.back()));
+  MPI_Allgatherv(keys.data(), n_mine, MPI_DOUBLE, all.data(), counts.data(), displs.data(),
+                 MPI_DOUBLE, ctx.comm());
+  std::vector<std::pair<double, unsigned long long>> candidates;
+  for (std::size_t k = 0; k < all.size(); k += 2)
+    candidates.emplace_back(all[k], static_cast<unsigned long long>(all[k + 1]));
+  std::sort(candidates.begin(), candidates.end());
+  candidates.resize(std::min<std::size_t>(candidates.size(), kSamples));
+
+  io::Json fd = io::Json::array();
+  double max_rel = 0;
+  for (const auto &cand : candidates) {
+    const unsigned long long tag = cand.second;
+    const auto &tags = problem->design_tags();
+    const auto it = std::find(tags.begin(), tags.end(), static_cast<std::size_t>(tag));
+    const PetscInt local = it == tags.end() ? -1 : static_cast<PetscInt>(it - tags.begin());
+    PetscInt first = 0;
+    FX_PETSC(VecGetOwnershipRange(x0, &first, nullptr));
+    std::vector<double> adjoint(nr, 0.0), value(2 * nr, 0.0);
+    for (std::size_t i = 0; i < nr; ++i) {
+      if (local >= 0) {
+        const PetscScalar *g;
+        Vec gv = i == 0 ? base.d_objective : base.d_constraints[i - 1];
+        FX_PETSC(VecGetArrayRead(gv, &g));
+        adjoint[i] = g[local];
+        FX_PETSC(VecRestoreArrayRead(gv, &g));
+      }
+    }
+    MPI_Allreduce(MPI_IN_PLACE, adjoint.data(), static_cast<int>(nr), MPI_DOUBLE, MPI_SUM,
+                  ctx.comm());
+    std::vector<std::vector<double>> sided; // +h, -h, +h/2, -h/2
+    for (double delta : {kStep, -kStep, 0.5 * kStep, -0.5 * kStep}) {
+      FX_PETSC(VecCopy(x0, x));
+      if (local >= 0) FX_PETSC(VecSetValue(x, first + local, delta, ADD_VALUES));
+      FX_PETSC(VecAssemblyBegin(x));
+      FX_PETSC(VecAssemblyEnd(x));
+      optimize::Evaluation e;
+      problem->evaluate(x, false, e);
+      sided.push_back(response_values(e));
+    }
+    for (std::size_t i = 0; i < nr; ++i) {
+      const double d_h = (sided[0][i] - sided[1][i]) / (2 * kStep);
+      const double d_half = (sided[2][i] - sided[3][i]) / kStep;
+      const double f = (4.0 * d_half - d_h) / 3.0;
+      const double rel = std::abs(adjoint[i] - f) / std::max(std::abs(f), 1e-300);
+      max_rel = std::max(max_rel, rel);
+      io::Json row = io::Json::object();
+      row["element"] = static_cast<long long>(tag);
+      row["response"] = names[i];
+      row["adjoint"] = adjoint[i];
+      row["fd"] = f;
+      row["rel_err"] = rel;
+      fd.push_back(row);
+      print0(ctx.comm(), "fd element %-8llu %-28s adjoint % .10e  fd % .10e  rel err %.2e\n", tag,
+             names[i].c_str(), adjoint[i], f, rel);
+    }
+  }
+  s["fd"] = fd;
+  s["fd_step"] = kStep;
+  s["fd_significance"] = kSignificant;
+  s["max_rel_err"] = max_rel;
+  s["state_solves"] = problem->state_solves();
+  FX_PETSC(VecDestroy(&x0));
+  FX_PETSC(VecDestroy(&x));
+  FX_PETSC(VecDestroy(&direction));
+  write_summary(ctx, dir, s, t0);
+  print0(ctx.comm(), "check-gradient: max relative error of the adjoint gradient %.2e; wrote %s\n",
+         max_rel, (fs::path(dir) / "summary.json").c_str());
+  return 0;
+}
+
 } // namespace
 
 int run(const Context &ctx, const Options &o) {
@@ -272,6 +471,7 @@ int run(const Context &ctx, const Options &o) {
   if (o.command == "info") return run_info(ctx, o, c, t0);
   if (o.command == "simulate") return run_static(ctx, o, c, t0);
   if (o.command == "modes") return run_modes(ctx, o, c, t0);
+  if (o.command == "check-gradient") return run_check_gradient(ctx, o, c, t0);
   throw Error("unknown command '" + o.command + "'", true);
 }
 

@@ -142,6 +142,18 @@ void StaticProblem::solve() {
   FX_PETSC(VecGhostUpdateEnd(u_, INSERT_VALUES, SCATTER_FORWARD));
 }
 
+void StaticProblem::solve_adjoint(Vec rhs, Vec lambda) {
+  std::vector<PetscScalar> zeros(fixed_.size(), 0.0);
+  FX_PETSC(VecSetValues(rhs, static_cast<PetscInt>(fixed_.size()), fixed_.data(), zeros.data(),
+                        INSERT_VALUES));
+  FX_PETSC(VecAssemblyBegin(rhs));
+  FX_PETSC(VecAssemblyEnd(rhs));
+  FX_PETSC(KSPSolve(ksp_, rhs, lambda));
+  check_converged(ksp_, "adjoint solve");
+  FX_PETSC(VecGhostUpdateBegin(lambda, INSERT_VALUES, SCATTER_FORWARD));
+  FX_PETSC(VecGhostUpdateEnd(lambda, INSERT_VALUES, SCATTER_FORWARD));
+}
+
 double StaticProblem::compliance() const {
   PetscScalar c = 0;
   FX_PETSC(VecDot(f_, u_, &c));

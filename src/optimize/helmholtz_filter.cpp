@@ -112,7 +112,7 @@ std::unique_ptr<HelmholtzFilter> HelmholtzFilter::create(const mesh::Distributed
   PC pc;
   FX_PETSC(KSPGetPC(f->ksp_, &pc));
   FX_PETSC(PCSetType(pc, PCGAMG));
-  FX_PETSC(KSPSetTolerances(f->ksp_, 1e-10, 1e-300, PETSC_DEFAULT, 1000));
+  FX_PETSC(KSPSetTolerances(f->ksp_, 1e-12, 1e-300, PETSC_DEFAULT, 1000));
   FX_PETSC(KSPSetFromOptions(f->ksp_));
   FX_PETSC(KSPSetUp(f->ksp_));
   return f;

@@ -21,6 +21,11 @@ public:
   void assemble_operator(const std::vector<double> &modulus_factor);
   /// Solves K u = f. Throws (collectively) if the linear solver does not converge. Collective.
   void solve();
+  /// Solves the adjoint system K lambda = rhs with the forward operator and preconditioner
+  /// (K is symmetric); the supported DOFs of rhs are zeroed first (rhs is modified).
+  /// `lambda` must be a ghosted vector from this problem's layout; its ghosts are updated.
+  /// Collective.
+  void solve_adjoint(Vec rhs, Vec lambda);
 
   const mesh::DistributedMesh &mesh() const { return mesh_; }
   const IsotropicMaterial &material() const { return material_; }
