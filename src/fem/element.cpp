@@ -49,6 +49,9 @@ constexpr int kHex8LoadDegree = 3;
 constexpr int kTri3Degree = 1;
 constexpr int kTri6Degree = 10;
 constexpr int kQuad4Degree = 7;
+/// Edges: N_a |dx/dxi| is polynomial of degree 4 on a straight Line3 (|dx/dxi| linear in xi
+/// only if curved; 5 Gauss points, degree 9, integrate curved Gmsh edges to round-off level).
+constexpr int kLineDegree = 9;
 
 int type_index(ElementType type) {
   switch (type) {
@@ -70,6 +73,10 @@ int face_index(FaceType type) {
     return 1;
   case FaceType::Quad4:
     return 2;
+  case FaceType::Line2:
+    return 3;
+  case FaceType::Line3:
+    return 4;
   }
   throw Error("flexopt::fem: invalid FaceType value " + std::to_string(static_cast<int>(type)));
 }
@@ -256,8 +263,9 @@ const ShapeTable &volume_table(ElementType type, int degree) {
 
 const ShapeTable &face_table(FaceType type, int degree) {
   static const auto tables = [] {
-    std::array<std::array<ShapeTable, kMaxCachedDegree + 1>, 3> all;
-    for (FaceType t : {FaceType::Tri3, FaceType::Tri6, FaceType::Quad4})
+    std::array<std::array<ShapeTable, kMaxCachedDegree + 1>, 5> all;
+    for (FaceType t :
+         {FaceType::Tri3, FaceType::Tri6, FaceType::Quad4, FaceType::Line2, FaceType::Line3})
       for (int d = 0; d <= kMaxCachedDegree; ++d) {
         const QuadratureRule rule = face_quadrature(t, d);
         ShapeTable &tab = all[face_index(t)][d];
@@ -445,6 +453,13 @@ double surface_jacobian(const FaceCoords &Xf, const double *dN) {
   return t1.cross(t2).norm();
 }
 
+/// |dx/dxi| of a curve edge at a point with reference derivatives dN (2 per node, the first used).
+double curve_jacobian(const FaceCoords &Xf, const double *dN) {
+  Eigen::Vector3d t1 = Eigen::Vector3d::Zero();
+  for (int a = 1; a < Xf.rows(); ++a) t1 += dN[a * 2] * (Xf.row(a) - Xf.row(0)).transpose();
+  return t1.norm();
+}
+
 int face_degree(FaceType type) {
   switch (type) {
   case FaceType::Tri3:
@@ -453,6 +468,9 @@ int face_degree(FaceType type) {
     return kTri6Degree;
   case FaceType::Quad4:
     return kQuad4Degree;
+  case FaceType::Line2:
+  case FaceType::Line3:
+    return kLineDegree;
   }
   throw Error("flexopt::fem: invalid FaceType value");
 }
@@ -464,7 +482,9 @@ double integrate_face(FaceType type, const FaceCoords &Xf, double *nodal) {
   if (nodal) std::fill(nodal, nodal + n, 0.0);
   double area = 0.0;
   for (int q = 0; q < tab.num_points; ++q) {
-    const double wda = tab.weights[q] * surface_jacobian(Xf, &tab.dN[q * n * 2]);
+    const double wda = tab.weights[q] * (type == FaceType::Line2 || type == FaceType::Line3
+                                             ? curve_jacobian(Xf, &tab.dN[q * n * 2])
+                                             : surface_jacobian(Xf, &tab.dN[q * n * 2]));
     area += wda;
     if (nodal)
       for (int a = 0; a < n; ++a) nodal[a] += wda * tab.N[q * n + a];
@@ -483,7 +503,7 @@ int nodes_per_element(ElementType type) {
 }
 
 int nodes_per_face(FaceType type) {
-  static constexpr int kNodes[3] = {3, 6, 4};
+  static constexpr int kNodes[5] = {3, 6, 4, 2, 3};
   return kNodes[face_index(type)];
 }
 
@@ -493,7 +513,7 @@ const char *element_name(ElementType type) {
 }
 
 const char *face_name(FaceType type) {
-  static constexpr const char *kNames[3] = {"Tri3", "Tri6", "Quad4"};
+  static constexpr const char *kNames[5] = {"Tri3", "Tri6", "Quad4", "Line2", "Line3"};
   return kNames[face_index(type)];
 }
 
@@ -556,6 +576,17 @@ QuadratureRule face_quadrature(FaceType type, int degree) {
     return tri_rule(degree);
   case FaceType::Quad4:
     return quad_rule(degree);
+  case FaceType::Line2:
+  case FaceType::Line3: {
+    std::vector<double> x, w;
+    gauss_legendre(degree / 2 + 1, x, w);
+    QuadratureRule rule;
+    for (std::size_t k = 0; k < x.size(); ++k) {
+      rule.points.emplace_back(x[k], 0.0, 0.0);
+      rule.weights.push_back(w[k]);
+    }
+    return rule;
+  }
   }
   throw Error("face_quadrature: invalid FaceType");
 }
@@ -638,6 +669,32 @@ void face_shape_functions(FaceType type, const Eigen::Vector2d &xi, double *N, d
       if (dN) {
         dN[a * 2 + 0] = 0.25 * kS[a][0] * fy;
         dN[a * 2 + 1] = 0.25 * fx * kS[a][1];
+      }
+    }
+    return;
+  }
+  case FaceType::Line2:
+  case FaceType::Line3: {
+    const double t = xi[0];
+    if (type == FaceType::Line2) {
+      if (N) {
+        N[0] = 0.5 * (1.0 - t);
+        N[1] = 0.5 * (1.0 + t);
+      }
+      if (dN) {
+        dN[0] = -0.5, dN[1] = 0.0;
+        dN[2] = 0.5, dN[3] = 0.0;
+      }
+    } else {
+      if (N) {
+        N[0] = 0.5 * t * (t - 1.0);
+        N[1] = 0.5 * t * (t + 1.0);
+        N[2] = 1.0 - t * t;
+      }
+      if (dN) {
+        dN[0] = t - 0.5, dN[1] = 0.0;
+        dN[2] = t + 0.5, dN[3] = 0.0;
+        dN[4] = -2.0 * t, dN[5] = 0.0;
       }
     }
     return;

@@ -81,6 +81,9 @@ std::unique_ptr<StaticProblem> StaticProblem::create(MPI_Comm comm, const io::Ca
     const auto &g = *c.gravity;
     add_body_force(m, mat.density * Eigen::Vector3d(g[0], g[1], g[2]), p->f_);
   }
+  for (const auto &t : c.line_loads)
+    add_surface_traction(m, t.surface, Eigen::Vector3d(t.value[0], t.value[1], t.value[2]),
+                         t.where.str() + ": line_loads", p->f_);
   for (const auto &t : c.tractions)
     add_surface_traction(m, t.surface, Eigen::Vector3d(t.value[0], t.value[1], t.value[2]),
                          t.where.str() + ": tractions", p->f_);

@@ -253,20 +253,21 @@ void read_supports(const Reader &r, const YAML::Node &node, Case &c) {
   }
 }
 
-void read_tractions(const Reader &r, const YAML::Node &node, Case &c) {
-  r.require_sequence(node, "tractions");
+void read_tractions(const Reader &r, const YAML::Node &node, Case &c, const char *key,
+                    const char *where_key, std::vector<TractionSpec> &out) {
+  r.require_sequence(node, key);
   for (std::size_t i = 0; i < node.size(); ++i) {
     const YAML::Node &v = node[i];
-    const std::string path = "tractions[" + std::to_string(i) + "]";
+    const std::string path = std::string(key) + "[" + std::to_string(i) + "]";
     r.require_map(v, path);
-    r.check_keys(v, path, {"body", "surface", "value"});
+    r.check_keys(v, path, {"body", where_key, "value"});
     TractionSpec t;
     t.where = r.where(v);
     t.body = r.string(r.require(v, "body", path), path + ".body");
     if (!has_body(c, t.body)) r.fail(v["body"], path + ".body: no body named '" + t.body + "'");
-    t.surface = r.string(r.require(v, "surface", path), path + ".surface");
+    t.surface = r.string(r.require(v, where_key, path), path + "." + where_key);
     t.value = r.vector3(r.require(v, "value", path), path + ".value");
-    c.tractions.push_back(t);
+    out.push_back(t);
   }
 }
 
@@ -420,8 +421,8 @@ Case load_case(const std::string &directory) {
                            "flexopt (static and modal analysis and static topology optimization)");
   }
   r.check_keys(root, "",
-               {"analysis", "materials", "bodies", "loads", "supports", "tractions", "sensors",
-                "output", "solver", "design", "objective", "constraints", "optimizer"});
+               {"analysis", "materials", "bodies", "loads", "supports", "tractions", "line_loads",
+                "sensors", "output", "solver", "design", "objective", "constraints", "optimizer"});
 
   c.analysis = r.choice(r.require(root, "analysis", ""), "analysis", {"static", "dynamic"});
   read_materials(r, r.require(root, "materials", ""), c);
@@ -437,7 +438,10 @@ Case load_case(const std::string &directory) {
     if (l["gravity"]) c.gravity = r.vector3(l["gravity"], "loads.gravity");
   }
   if (root["supports"]) read_supports(r, root["supports"], c);
-  if (root["tractions"]) read_tractions(r, root["tractions"], c);
+  if (root["tractions"])
+    read_tractions(r, root["tractions"], c, "tractions", "surface", c.tractions);
+  if (root["line_loads"])
+    read_tractions(r, root["line_loads"], c, "line_loads", "curve", c.line_loads);
   if (root["sensors"]) read_sensors(r, root["sensors"], c);
   if (root["output"]) {
     const YAML::Node &o = root["output"];

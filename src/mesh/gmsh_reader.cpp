@@ -20,8 +20,8 @@ std::int64_t MeshData::element_count() const {
 namespace {
 
 /// Gmsh element type codes (see the Gmsh reference manual, "MSH file format").
-constexpr int kGmshTri3 = 2, kGmshQuad4 = 3, kGmshTet4 = 4, kGmshHex8 = 5, kGmshTri6 = 9,
-              kGmshTet10 = 11;
+constexpr int kGmshLine2 = 1, kGmshTri3 = 2, kGmshQuad4 = 3, kGmshTet4 = 4, kGmshHex8 = 5,
+              kGmshLine3 = 8, kGmshTri6 = 9, kGmshTet10 = 11;
 
 std::string gmsh_last_error() {
   std::string err;
@@ -74,9 +74,14 @@ fem::FaceType face_type(int gmsh_type, const std::string &path, const std::strin
     return fem::FaceType::Tri6;
   case kGmshQuad4:
     return fem::FaceType::Quad4;
+  case kGmshLine2:
+    return fem::FaceType::Line2;
+  case kGmshLine3:
+    return fem::FaceType::Line3;
   default:
     throw Error(path + ": physical surface '" + group + "' has face elements of Gmsh type " +
-                std::to_string(gmsh_type) + " (supported: Tri3, Tri6, Quad4)");
+                std::to_string(gmsh_type) +
+                " (supported: Tri3, Tri6, Quad4 faces; Line2, Line3 edges)");
   }
 }
 
@@ -168,7 +173,7 @@ MeshData read_gmsh(const std::string &path, const MeshOptions &options) {
   gmsh::vectorpair groups;
   gmsh::model::getPhysicalGroups(groups, -1);
   for (const auto &[dim, tag] : groups) {
-    if (dim != 2 && dim != 3) continue;
+    if (dim < 1 || dim > 3) continue;
     std::string name;
     gmsh::model::getPhysicalName(dim, tag, name);
     if (name.empty()) name = std::to_string(tag);
@@ -185,12 +190,16 @@ MeshData read_gmsh(const std::string &path, const MeshOptions &options) {
       }
       std::sort(list.begin(), list.end());
     } else {
+      // Physical surfaces and physical curves share one namespace of boundary groups.
+      if (mesh.surface_groups.count(name))
+        throw Error(path + ": a physical curve and a physical surface are both named '" + name +
+                    "'");
       SurfaceGroup &group = mesh.surface_groups[name];
       int ftype = -1;
       for (int ent : entities) {
         std::vector<int> et;
         std::vector<std::vector<std::size_t>> etags, enodes;
-        gmsh::model::mesh::getElements(et, etags, enodes, 2, ent);
+        gmsh::model::mesh::getElements(et, etags, enodes, dim, ent);
         for (std::size_t k = 0; k < et.size(); ++k) {
           if (etags[k].empty()) continue;
           if (ftype != -1 && ftype != et[k])

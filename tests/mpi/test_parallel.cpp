@@ -195,6 +195,26 @@ TEST_P(Parallel, ProbeInterpolatesLinearFieldExactly) {
   VecDestroy(&u);
 }
 
+// A line load on a physical curve integrates to force per length x length (the box's load
+// edge has length 1), and matches the reference code's nodal loads: 0.001 per node, half at
+// the two ends.
+TEST(LineLoad, IntegratesToForceTimesLength) {
+  mesh::MeshData data;
+  const std::string geo = std::string(FLEXOPT_SOURCE_DIR) + "/meshes/box_2x1x1_hex.geo";
+  run_on_root(PETSC_COMM_WORLD, 0, [&] { data = mesh::read_gmsh(geo, mesh::MeshOptions{}); });
+  auto m =
+      mesh::distribute_mesh(PETSC_COMM_WORLD, comm_rank(PETSC_COMM_WORLD) == 0 ? &data : nullptr);
+  Vec f = fem::create_ghosted_vector(m);
+  VecZeroEntries(f);
+  fem::add_surface_traction(m, "load_edge", Eigen::Vector3d(0, 0, -0.016), "test", f);
+  PetscReal sum_abs, max_abs;
+  VecNorm(f, NORM_1, &sum_abs);
+  VecNorm(f, NORM_INFINITY, &max_abs);
+  EXPECT_NEAR(sum_abs, 0.016, 1e-15);
+  EXPECT_NEAR(max_abs, 0.001, 1e-16);
+  VecDestroy(&f);
+}
+
 // A .msh (v4) file holds the same mesh as the .geo it was written from: the same elements,
 // nodes and physical groups, and the same mesh once distributed.
 TEST(MshFile, SameMeshAsTheGeoItCameFrom) {

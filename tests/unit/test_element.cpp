@@ -1105,3 +1105,34 @@ TEST(Convergence, ManufacturedSolutionOrders) {
 }
 
 } // namespace
+
+// Edges (physical curves): consistent loads of a constant force per length.
+TEST(EdgeLoad, LineElementsIntegrateForcePerLength) {
+  using flexopt::fem::FaceCoords;
+  using flexopt::fem::FaceType;
+  const Eigen::Vector3d q(0.0, 0.0, -2.5);
+  // Straight Line2 of length 3 in a skew direction: each end gets q L / 2.
+  FaceCoords l2(2, 3);
+  l2 << 1.0, 2.0, 3.0, 1.0 + 1.0, 2.0 + 2.0, 3.0 + 2.0; // direction (1, 2, 2), length 3
+  EXPECT_NEAR(flexopt::fem::face_area(FaceType::Line2, l2), 3.0, 1e-14);
+  auto f2 = flexopt::fem::face_traction_load(FaceType::Line2, l2, q);
+  EXPECT_NEAR(f2[2], -2.5 * 1.5, 1e-14);
+  EXPECT_NEAR(f2[5], -2.5 * 1.5, 1e-14);
+  // Straight Line3 (mid node at the midpoint): L/6, L/6, 2L/3.
+  FaceCoords l3(3, 3);
+  l3 << 0, 0, 0, 2, 0, 0, 1, 0, 0;
+  auto f3 = flexopt::fem::face_traction_load(FaceType::Line3, l3, q);
+  EXPECT_NEAR(f3[2], -2.5 * 2.0 / 6.0, 1e-14);
+  EXPECT_NEAR(f3[5], -2.5 * 2.0 / 6.0, 1e-14);
+  EXPECT_NEAR(f3[8], -2.5 * 2.0 * 2.0 / 3.0, 1e-14);
+  // Curved Line3: the parabola x = t, y = c (1 - t^2), t in [-1, 1] (nodes at t = -1, 1, 0).
+  // Its length is 2 int_0^1 sqrt(1 + 4 c^2 t^2) dt, in closed form with asinh.
+  const double c = 0.3;
+  FaceCoords arc(3, 3);
+  arc << -1, 0, 0, 1, 0, 0, 0, c, 0;
+  const double a = 2.0 * c;
+  const double exact = (std::sqrt(1 + a * a) + std::asinh(a) / a);
+  EXPECT_NEAR(flexopt::fem::face_area(FaceType::Line3, arc), exact, 1e-6 * exact);
+  auto fa = flexopt::fem::face_traction_load(FaceType::Line3, arc, q);
+  EXPECT_NEAR(fa[2] + fa[5] + fa[8], -2.5 * flexopt::fem::face_area(FaceType::Line3, arc), 1e-13);
+}

@@ -24,7 +24,10 @@ namespace flexopt::fem {
 /// Volume element types (isoparametric, Lagrange).
 enum class ElementType { Tet4, Tet10, Hex8 };
 /// Boundary face types: Tri3 (face of Tet4), Tri6 (face of Tet10), Quad4 (face of Hex8).
-enum class FaceType { Tri3, Tri6, Quad4 };
+/// Boundary entities: surface faces (Tri3, Tri6, Quad4) and curve edges (Line2, Line3; Gmsh
+/// Line3 order: end nodes 0, 1, then the mid node 2). Edges use the first reference
+/// coordinate on [-1, 1]; their "area" is a length and their traction a force per length.
+enum class FaceType { Tri3, Tri6, Quad4, Line2, Line3 };
 
 /// Maximum number of nodes of a volume element (Tet10).
 constexpr int kMaxNodes = 10;

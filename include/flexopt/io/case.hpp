@@ -109,6 +109,8 @@ struct Case {
   std::optional<std::array<double, 3>> gravity; ///< [m/s^2]
   std::vector<SupportSpec> supports;
   std::vector<TractionSpec> tractions;
+  std::vector<TractionSpec>
+      line_loads; ///< force per length [N/m] on physical curves (`surface` = curve name)
   std::vector<SensorSpec> sensors;
   std::string solver; ///< PETSc options applied before the command line's
   int output_every = 1;
