@@ -6,6 +6,7 @@
 #include "flexopt/io/case.hpp"
 #include "flexopt/io/json.hpp"
 #include "flexopt/mesh/load.hpp"
+#include "flexopt/optimize/optimizer.hpp"
 #include "flexopt/optimize/topology_problem.hpp"
 #include "flexopt/reduce/modal.hpp"
 
@@ -462,6 +463,35 @@ int run_check_gradient(const Context &ctx, const Options &o, const io::Case &c, 
   return 0;
 }
 
+int run_optimize(const Context &ctx, const Options &o, const io::Case &c, double t0) {
+  if (!c.design)
+    throw Error(c.file + ": optimize needs design:, objective: (and constraints:) sections", true);
+  const std::string dir = output_directory(ctx, o);
+  const auto r = optimize::run_optimization(ctx.comm(), c, dir);
+  io::Json s = base_summary(ctx, o, c);
+  s["dofs"] = r.dofs;
+  s["elements"] = r.elements;
+  s["design_variables"] = r.design_variables;
+  s["iterations"] = r.iterations;
+  s["objective"] = r.objective;
+  io::Json cons = io::Json::array();
+  for (const auto &row : r.constraints) cons.push_back(io::Json(row));
+  s["constraints"] = cons;
+  s["max_change"] = r.max_change;
+  s["volume_fraction"] = r.volume_fraction;
+  s["converged"] = r.converged;
+  s["stop_reason"] = r.stop_reason;
+  s["output"] = r.output;
+  s["history"] = (fs::path(dir) / "history.csv").string();
+  write_summary(ctx, dir, s, t0);
+  print0(
+      ctx.comm(),
+      "wrote %s (densities per iteration: threshold filtered_density at 0.5 in ParaView), %s, %s\n",
+      r.output.c_str(), (fs::path(dir) / "history.csv").c_str(),
+      (fs::path(dir) / "summary.json").c_str());
+  return 0;
+}
+
 } // namespace
 
 int run(const Context &ctx, const Options &o) {
@@ -472,6 +502,7 @@ int run(const Context &ctx, const Options &o) {
   if (o.command == "simulate") return run_static(ctx, o, c, t0);
   if (o.command == "modes") return run_modes(ctx, o, c, t0);
   if (o.command == "check-gradient") return run_check_gradient(ctx, o, c, t0);
+  if (o.command == "optimize") return run_optimize(ctx, o, c, t0);
   throw Error("unknown command '" + o.command + "'", true);
 }
 

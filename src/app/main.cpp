@@ -22,6 +22,7 @@ const char *kUsage =
     "  info      the scene as understood: bodies, elements, DOFs, partition (no solve)\n"
     "  simulate  run the case's analysis (static: K u = f) and write out/static.xdmf\n"
     "  modes     lowest natural frequencies and mode shapes (SLEPc), out/modes.xdmf\n"
+    "  optimize  static SIMP topology optimization with MMA: out/design.xdmf, history.csv\n"
     "  check-gradient  Taylor and finite-difference checks of the adjoint gradients of a\n"
     "            topology optimization case (design:, objective:, constraints:)\n"
     "\n"
@@ -52,6 +53,14 @@ const char *command_help(const std::string &cmd) {
            "SLEPc shift-and-invert with a MUMPS factorization. With --free the supports are\n"
            "ignored and the six rigid-body modes come first. Writes out/modes.xdmf (one mode\n"
            "per step) and out/summary.json (frequencies_hz).\n";
+  if (cmd == "optimize")
+    return "usage: flexopt optimize CASE [--out DIR] [PETSc options]\n"
+           "Minimizes the case's objective subject to its constraints over the element densities\n"
+           "of design.region (Helmholtz filter, SIMP, adjoint gradients, MMA). Prints one line\n"
+           "per iteration (objective, each constraint, max density change, seconds); stops when\n"
+           "the max change falls below optimizer.tolerance or at optimizer.max_iterations.\n"
+           "Writes out/design.xdmf + .h5 (density and filtered_density every output.every\n"
+           "iterations and at the end, as time steps), out/history.csv and out/summary.json.\n";
   if (cmd == "check-gradient")
     return "usage: flexopt check-gradient CASE [--out DIR] [PETSc options]\n"
            "For the objective and each constraint of the case's optimization problem, at the\n"

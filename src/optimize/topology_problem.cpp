@@ -114,6 +114,12 @@ void TopologyProblem::restrict_to_design(Vec full, Vec x) const {
   FX_PETSC(VecRestoreArrayRead(full, &f));
 }
 
+double TopologyProblem::volume_fraction() {
+  io::ResponseSpec v;
+  v.type = "volume_fraction";
+  return response_value(v);
+}
+
 double TopologyProblem::response_value(const io::ResponseSpec &r) {
   if (r.type == "compliance") return static_->compliance();
   if (r.type == "volume_fraction") {

@@ -49,6 +49,11 @@ public:
   fem::StaticProblem &static_problem() { return *static_; }
   /// Physical (filtered) densities of all local elements at the last evaluation.
   Vec filtered_density() const { return filtered_; }
+  /// Design densities of all local elements at the last evaluation (1 outside the region).
+  Vec density() const { return rho_; }
+  /// Volume fraction of the design region at the last evaluation (filtered densities).
+  /// Collective.
+  double volume_fraction();
   int state_solves() const { return solves_; }
 
 private:

@@ -1,0 +1,29 @@
+#pragma once
+/// \file The optimization loop: MMA on the topology problem, with history and density output.
+#include "flexopt/io/case.hpp"
+
+#include <mpi.h>
+#include <string>
+#include <vector>
+
+namespace flexopt::optimize {
+
+struct OptimizationResult {
+  int iterations = 0;
+  std::vector<double> objective;                ///< per iteration (unscaled)
+  std::vector<std::vector<double>> constraints; ///< per iteration, response values
+  std::vector<double> max_change;               ///< per iteration
+  double volume_fraction = 0;                   ///< final, of the design region
+  bool converged = false;                       ///< stopped on optimizer.tolerance
+  std::string stop_reason;
+  long long dofs = 0, elements = 0, design_variables = 0;
+  std::string output; ///< design.xdmf path
+};
+
+/// Runs the case's optimization problem (design:, objective:, constraints:, optimizer:),
+/// writing `out_dir`/history.csv and `out_dir`/design.xdmf (+ .h5: design and filtered
+/// densities every output.every iterations and at the last). Prints one line per
+/// iteration. Collective.
+OptimizationResult run_optimization(MPI_Comm comm, const io::Case &c, const std::string &out_dir);
+
+} // namespace flexopt::optimize

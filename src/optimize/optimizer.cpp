@@ -1,0 +1,147 @@
+#include "flexopt/optimize/optimizer.hpp"
+
+#include "flexopt/core/context.hpp"
+#include "flexopt/core/error.hpp"
+#include "flexopt/io/json.hpp"
+#include "flexopt/io/xdmf.hpp"
+#include "flexopt/optimize/mma.hpp"
+#include "flexopt/optimize/topology_problem.hpp"
+
+#include <cmath>
+#include <filesystem>
+#include <sstream>
+
+namespace flexopt::optimize {
+
+namespace {
+
+/// Writes the densities of the current evaluation as one step of the design collection.
+void write_densities(io::XdmfWriter &writer, TopologyProblem &p, double step) {
+  writer.begin_step(step);
+  const PetscScalar *a;
+  FX_PETSC(VecGetArrayRead(p.density(), &a));
+  writer.cell_scalar("density", a);
+  FX_PETSC(VecRestoreArrayRead(p.density(), &a));
+  FX_PETSC(VecGetArrayRead(p.filtered_density(), &a));
+  writer.cell_scalar("filtered_density", a);
+  FX_PETSC(VecRestoreArrayRead(p.filtered_density(), &a));
+}
+
+} // namespace
+
+OptimizationResult run_optimization(MPI_Comm comm, const io::Case &c, const std::string &out_dir) {
+  auto problem = TopologyProblem::create(comm, c);
+  const auto &names = problem->response_names();
+  const std::size_t m = c.constraints.size();
+  OptimizationResult result;
+  result.dofs = problem->static_problem().global_dofs();
+  result.elements = problem->mesh().global_elements;
+  result.design_variables = problem->design_size();
+
+  Vec x = problem->create_design_vector(), xold, xmin, xmax;
+  problem->initial_design(x);
+  FX_PETSC(VecDuplicate(x, &xold));
+  FX_PETSC(VecDuplicate(x, &xmin));
+  FX_PETSC(VecDuplicate(x, &xmax));
+  FX_PETSC(VecSet(xmin, 0.0));
+  FX_PETSC(VecSet(xmax, 1.0));
+  MmaSettings settings;
+  settings.move_limit = c.optimizer.move_limit;
+  auto mma = Mma::create(x, static_cast<int>(m), settings);
+
+  // MMA works best with an objective of order 1 ... 100 and constraints of order 1 (Svanberg
+  // 2007; its subproblem tolerance is absolute, docs/theory-mma.md): the objective is scaled
+  // to 10 at the first iteration, and constraints are g_i = R_i / max_i - 1.
+  double objective_scale = 1.0;
+  std::vector<Vec> dg(m);
+  for (auto &v : dg) FX_PETSC(VecDuplicate(x, &v));
+  Vec df0;
+  FX_PETSC(VecDuplicate(x, &df0));
+
+  io::XdmfWriter writer(mesh::grid_layout(problem->mesh()), out_dir, "design");
+  std::ostringstream history;
+  history << "iteration,objective";
+  for (std::size_t i = 0; i < m; ++i) history << "," << names[i + 1];
+  history << ",max_change,seconds\n";
+
+  print0(
+      comm,
+      "optimize: %lld design variables, %zu constraint(s), at most %d iterations, move limit %g\n",
+      static_cast<long long>(problem->design_size()), m, c.optimizer.max_iterations,
+      c.optimizer.move_limit);
+  print0(comm, "%5s %16s", "it", "objective");
+  for (std::size_t i = 0; i < m; ++i)
+    print0(comm, " %16s",
+           ("c" + std::to_string(i) + ":" + c.constraints[i].type).substr(0, 16).c_str());
+  print0(comm, " %10s %8s\n", "change", "s");
+
+  Evaluation e;
+  for (int k = 1; k <= c.optimizer.max_iterations; ++k) {
+    const double t0 = wall_time();
+    problem->evaluate(x, true, e);
+    if (!std::isfinite(e.objective))
+      throw Error("optimize: iteration " + std::to_string(k) + ": the objective is not finite",
+                  true);
+    if (k == 1) objective_scale = std::abs(e.objective) > 0 ? 10.0 / std::abs(e.objective) : 1.0;
+    const bool write = (k - 1) % c.output_every == 0;
+    if (write) write_densities(writer, *problem, k - 1);
+
+    FX_PETSC(VecCopy(e.d_objective, df0));
+    FX_PETSC(VecScale(df0, objective_scale));
+    std::vector<double> g(m);
+    for (std::size_t i = 0; i < m; ++i) {
+      const double bound = c.constraints[i].max;
+      g[i] = e.constraints[i] / bound - 1.0;
+      FX_PETSC(VecCopy(e.d_constraints[i], dg[i]));
+      FX_PETSC(VecScale(dg[i], 1.0 / bound));
+    }
+    FX_PETSC(VecCopy(x, xold));
+    mma->update(x, xmin, xmax, e.objective * objective_scale, df0, g, dg);
+    const double change = max_abs_change(x, xold);
+    const double seconds = wall_time() - t0;
+
+    result.iterations = k;
+    result.objective.push_back(e.objective);
+    result.constraints.push_back(e.constraints);
+    result.max_change.push_back(change);
+    print0(comm, "%5d %16.9e", k, e.objective);
+    for (double v : e.constraints) print0(comm, " %16.9e", v);
+    print0(comm, " %10.3e %8.2f\n", change, seconds);
+    char buf[64];
+    std::snprintf(buf, sizeof buf, "%d,%.17g", k, e.objective);
+    history << buf;
+    for (double v : e.constraints) {
+      std::snprintf(buf, sizeof buf, ",%.17g", v);
+      history << buf;
+    }
+    std::snprintf(buf, sizeof buf, ",%.17g,%.6g\n", change, seconds);
+    history << buf;
+    if (change < c.optimizer.tolerance) {
+      result.converged = true;
+      result.stop_reason = "max design change " + std::to_string(change) + " < tolerance " +
+                           std::to_string(c.optimizer.tolerance);
+      break;
+    }
+  }
+  if (!result.converged) result.stop_reason = "max_iterations reached";
+  // Final state: the design after the last update.
+  problem->evaluate(x, false, e);
+  write_densities(writer, *problem, result.iterations);
+  result.volume_fraction = problem->volume_fraction();
+  result.output = writer.close();
+  run_on_root(comm, 0, [&] {
+    io::write_file_atomic((std::filesystem::path(out_dir) / "history.csv").string(), history.str());
+  });
+  print0(comm,
+         "optimize: stopped after %d iterations: %s; final objective %.9e, volume fraction %.6f\n",
+         result.iterations, result.stop_reason.c_str(), e.objective, result.volume_fraction);
+  for (auto &v : dg) FX_PETSC(VecDestroy(&v));
+  FX_PETSC(VecDestroy(&df0));
+  FX_PETSC(VecDestroy(&x));
+  FX_PETSC(VecDestroy(&xold));
+  FX_PETSC(VecDestroy(&xmin));
+  FX_PETSC(VecDestroy(&xmax));
+  return result;
+}
+
+} // namespace flexopt::optimize
