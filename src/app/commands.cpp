@@ -467,7 +467,9 @@ int run_optimize(const Context &ctx, const Options &o, const io::Case &c, double
   if (!c.design)
     throw Error(c.file + ": optimize needs design:, objective: (and constraints:) sections", true);
   const std::string dir = output_directory(ctx, o);
-  const auto r = optimize::run_optimization(ctx.comm(), c, dir);
+  io::Case run_case = c;
+  if (o.max_iterations > 0) run_case.optimizer.max_iterations = o.max_iterations;
+  const auto r = optimize::run_optimization(ctx.comm(), run_case, dir, o.restart);
   io::Json s = base_summary(ctx, o, c);
   s["dofs"] = r.dofs;
   s["elements"] = r.elements;
@@ -480,6 +482,7 @@ int run_optimize(const Context &ctx, const Options &o, const io::Case &c, double
   s["max_change"] = r.max_change;
   s["volume_fraction"] = r.volume_fraction;
   s["converged"] = r.converged;
+  s["restarted"] = o.restart;
   s["stop_reason"] = r.stop_reason;
   s["output"] = r.output;
   s["history"] = (fs::path(dir) / "history.csv").string();

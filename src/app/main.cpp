@@ -30,6 +30,8 @@ const char *kUsage =
     "  --out DIR    output directory (default CASE/out)\n"
     "  --count N    modes: number of modes (default 10)\n"
     "  --free       modes: ignore the case's supports (free-free body)\n"
+    "  --restart    optimize: continue from out/restart.h5\n"
+    "  --max-iterations N  optimize: override optimizer.max_iterations\n"
     "  --help       this text, or a command's: flexopt <command> --help\n"
     "\n"
     "PETSc and SLEPc options (-ksp_monitor, -log_view, -eps_view, ...) pass through; the\n"
@@ -54,13 +56,17 @@ const char *command_help(const std::string &cmd) {
            "ignored and the six rigid-body modes come first. Writes out/modes.xdmf (one mode\n"
            "per step) and out/summary.json (frequencies_hz).\n";
   if (cmd == "optimize")
-    return "usage: flexopt optimize CASE [--out DIR] [PETSc options]\n"
+    return "usage: flexopt optimize CASE [--restart] [--max-iterations N] [--out DIR] [PETSc "
+           "options]\n"
            "Minimizes the case's objective subject to its constraints over the element densities\n"
            "of design.region (Helmholtz filter, SIMP, adjoint gradients, MMA). Prints one line\n"
            "per iteration (objective, each constraint, max density change, seconds); stops when\n"
            "the max change falls below optimizer.tolerance or at optimizer.max_iterations.\n"
            "Writes out/design.xdmf + .h5 (density and filtered_density every output.every\n"
-           "iterations and at the end, as time steps), out/history.csv and out/summary.json.\n";
+           "iterations and at the end, as time steps), out/history.csv and out/summary.json.\n"
+           "After every iteration out/restart.h5 is replaced atomically; --restart continues\n"
+           "from it (on any number of ranks) with the same iterates as an uninterrupted run.\n"
+           "A restarted run's design.xdmf holds the iterations it computed itself.\n";
   if (cmd == "check-gradient")
     return "usage: flexopt check-gradient CASE [--out DIR] [PETSc options]\n"
            "For the objective and each constraint of the case's optimization problem, at the\n"
@@ -106,7 +112,19 @@ int main(int argc, char **argv) {
       }
     } else if (a == "--free")
       opts.free = true;
-    else if (a.rfind("--", 0) == 0)
+    else if (a == "--restart")
+      opts.restart = true;
+    else if (a == "--max-iterations") {
+      std::string v = value("--max-iterations");
+      try {
+        std::size_t pos = 0;
+        opts.max_iterations = std::stoi(v, &pos);
+        if (pos != v.size() || opts.max_iterations < 1) throw std::invalid_argument(v);
+      } catch (...) {
+        if (arg_error.empty())
+          arg_error = "--max-iterations needs a positive integer, got '" + v + "'";
+      }
+    } else if (a.rfind("--", 0) == 0)
       arg_error = "unknown option '" + a + "'";
     else if (a[0] == '-') {
       petsc_argv.push_back(argv[i]);

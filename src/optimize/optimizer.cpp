@@ -3,6 +3,7 @@
 #include "flexopt/core/context.hpp"
 #include "flexopt/core/error.hpp"
 #include "flexopt/io/json.hpp"
+#include "flexopt/io/restart.hpp"
 #include "flexopt/io/xdmf.hpp"
 #include "flexopt/optimize/mma.hpp"
 #include "flexopt/optimize/topology_problem.hpp"
@@ -27,9 +28,28 @@ void write_densities(io::XdmfWriter &writer, TopologyProblem &p, double step) {
   FX_PETSC(VecRestoreArrayRead(p.filtered_density(), &a));
 }
 
+/// Local values of a design-layout Vec.
+std::vector<double> local_values(Vec v) {
+  PetscInt n = 0;
+  FX_PETSC(VecGetLocalSize(v, &n));
+  const PetscScalar *a;
+  FX_PETSC(VecGetArrayRead(v, &a));
+  std::vector<double> out(a, a + n);
+  FX_PETSC(VecRestoreArrayRead(v, &a));
+  return out;
+}
+
+void set_local_values(Vec v, const std::vector<double> &values) {
+  PetscScalar *a;
+  FX_PETSC(VecGetArray(v, &a));
+  std::copy(values.begin(), values.end(), a);
+  FX_PETSC(VecRestoreArray(v, &a));
+}
+
 } // namespace
 
-OptimizationResult run_optimization(MPI_Comm comm, const io::Case &c, const std::string &out_dir) {
+OptimizationResult run_optimization(MPI_Comm comm, const io::Case &c, const std::string &out_dir,
+                                    bool restart) {
   auto problem = TopologyProblem::create(comm, c);
   const auto &names = problem->response_names();
   const std::size_t m = c.constraints.size();
@@ -75,8 +95,59 @@ OptimizationResult run_optimization(MPI_Comm comm, const io::Case &c, const std:
            ("c" + std::to_string(i) + ":" + c.constraints[i].type).substr(0, 16).c_str());
   print0(comm, " %10s %8s\n", "change", "s");
 
+  const std::string restart_path = (std::filesystem::path(out_dir) / "restart.h5").string();
+  const std::vector<std::uint64_t> tags(problem->design_tags().begin(),
+                                        problem->design_tags().end());
+  int first = 1;
+  std::vector<double> seconds_list;
+  if (restart) {
+    const io::RestartData r = io::read_restart(comm, restart_path, tags);
+    const auto &meta = r.arrays.at("meta"); // iteration, objective scale, m
+    const int done = static_cast<int>(meta.at(0));
+    if (static_cast<std::size_t>(meta.at(2)) != m)
+      throw Error(restart_path + ": written for " + std::to_string(static_cast<int>(meta.at(2))) +
+                      " constraints; the case has " + std::to_string(m),
+                  true);
+    objective_scale = meta.at(1);
+    set_local_values(x, r.fields.at("x"));
+    Mma::State st;
+    st.iteration = done;
+    Vec state_vecs[4];
+    const char *names4[4] = {"xold1", "xold2", "low", "upp"};
+    for (int i = 0; i < 4; ++i) {
+      FX_PETSC(VecDuplicate(x, &state_vecs[i]));
+      set_local_values(state_vecs[i], r.fields.at(names4[i]));
+    }
+    st.xold1 = state_vecs[0], st.xold2 = state_vecs[1], st.low = state_vecs[2],
+    st.upp = state_vecs[3];
+    mma->restore(st);
+    for (Vec &v : state_vecs) FX_PETSC(VecDestroy(&v));
+    const auto &obj = r.arrays.at("objective"), &chg = r.arrays.at("max_change"),
+               &con = r.arrays.at("constraints"), &sec = r.arrays.at("seconds");
+    for (int k = 0; k < done; ++k) {
+      result.objective.push_back(obj.at(static_cast<std::size_t>(k)));
+      result.max_change.push_back(chg.at(static_cast<std::size_t>(k)));
+      result.constraints.emplace_back(con.begin() + static_cast<std::ptrdiff_t>(k * m),
+                                      con.begin() + static_cast<std::ptrdiff_t>((k + 1) * m));
+      char buf[64];
+      std::snprintf(buf, sizeof buf, "%d,%.17g", k + 1, obj[static_cast<std::size_t>(k)]);
+      history << buf;
+      for (std::size_t i = 0; i < m; ++i) {
+        std::snprintf(buf, sizeof buf, ",%.17g", con[static_cast<std::size_t>(k) * m + i]);
+        history << buf;
+      }
+      std::snprintf(buf, sizeof buf, ",%.17g,%.6g\n", chg[static_cast<std::size_t>(k)],
+                    sec[static_cast<std::size_t>(k)]);
+      history << buf;
+    }
+    seconds_list = sec;
+    result.iterations = done;
+    first = done + 1;
+    print0(comm, "optimize: restarting from %s after iteration %d\n", restart_path.c_str(), done);
+  }
+
   Evaluation e;
-  for (int k = 1; k <= c.optimizer.max_iterations; ++k) {
+  for (int k = first; k <= c.optimizer.max_iterations; ++k) {
     const double t0 = wall_time();
     problem->evaluate(x, true, e);
     if (!std::isfinite(e.objective))
@@ -116,6 +187,26 @@ OptimizationResult run_optimization(MPI_Comm comm, const io::Case &c, const std:
     }
     std::snprintf(buf, sizeof buf, ",%.17g,%.6g\n", change, seconds);
     history << buf;
+    seconds_list.push_back(seconds);
+
+    // Restart point after every iteration (atomic: a kill at any moment leaves the previous
+    // complete file).
+    io::RestartData rd;
+    rd.tags = tags;
+    rd.fields["x"] = local_values(x);
+    const Mma::State st = mma->state();
+    rd.fields["xold1"] = local_values(st.xold1);
+    rd.fields["xold2"] = local_values(st.xold2);
+    rd.fields["low"] = local_values(st.low);
+    rd.fields["upp"] = local_values(st.upp);
+    rd.arrays["meta"] = {static_cast<double>(k), objective_scale, static_cast<double>(m)};
+    rd.arrays["objective"] = result.objective;
+    rd.arrays["max_change"] = result.max_change;
+    rd.arrays["seconds"] = seconds_list;
+    std::vector<double> flat;
+    for (const auto &row : result.constraints) flat.insert(flat.end(), row.begin(), row.end());
+    rd.arrays["constraints"] = flat;
+    io::write_restart(comm, restart_path, rd);
     if (change < c.optimizer.tolerance) {
       result.converged = true;
       result.stop_reason = "max design change " + std::to_string(change) + " < tolerance " +

@@ -9,9 +9,11 @@ namespace flexopt::app {
 struct Options {
   std::string command; ///< info | simulate | modes
   std::string case_dir;
-  std::string out;   ///< output directory; empty: <case>/out
-  int count = 10;    ///< modes: number of modes
-  bool free = false; ///< modes: ignore supports
+  std::string out;        ///< output directory; empty: <case>/out
+  int count = 10;         ///< modes: number of modes
+  bool free = false;      ///< modes: ignore supports
+  bool restart = false;   ///< optimize: continue from out/restart.h5
+  int max_iterations = 0; ///< optimize: overrides optimizer.max_iterations when > 0
 };
 
 /// Runs one command. Collective. Returns the process exit status; throws flexopt::Error.

@@ -24,6 +24,10 @@ struct OptimizationResult {
 /// writing `out_dir`/history.csv and `out_dir`/design.xdmf (+ .h5: design and filtered
 /// densities every output.every iterations and at the last). Prints one line per
 /// iteration. Collective.
-OptimizationResult run_optimization(MPI_Comm comm, const io::Case &c, const std::string &out_dir);
+/// With `restart`, continues from `out_dir`/restart.h5 (written atomically after every
+/// iteration: design, MMA state, objective scale and history, keyed by element tag so that
+/// any number of ranks can resume); the iterates are those of an uninterrupted run.
+OptimizationResult run_optimization(MPI_Comm comm, const io::Case &c, const std::string &out_dir,
+                                    bool restart = false);
 
 } // namespace flexopt::optimize

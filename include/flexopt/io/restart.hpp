@@ -1,0 +1,28 @@
+#pragma once
+/// \file Restart files: per-element fields keyed by Gmsh element tag (so that a run may be
+/// resumed on any number of ranks) plus replicated arrays, in one HDF5 file written in
+/// parallel under a temporary name and renamed when complete.
+#include <cstdint>
+#include <map>
+#include <mpi.h>
+#include <string>
+#include <vector>
+
+namespace flexopt::io {
+
+struct RestartData {
+  std::vector<std::uint64_t> tags;                   ///< this rank's elements
+  std::map<std::string, std::vector<double>> fields; ///< aligned with tags
+  std::map<std::string, std::vector<double>> arrays; ///< the same on every rank
+};
+
+/// Writes `data` to `path` atomically (path.tmp, then renamed). Collective.
+void write_restart(MPI_Comm comm, const std::string &path, const RestartData &data);
+
+/// Reads `path`; the fields are returned for `tags` (this rank's elements, in that order).
+/// Throws a collective flexopt::Error naming the file if it is missing, unreadable, or lacks
+/// one of the tags. Collective.
+RestartData read_restart(MPI_Comm comm, const std::string &path,
+                         const std::vector<std::uint64_t> &tags);
+
+} // namespace flexopt::io

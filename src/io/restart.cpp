@@ -1,0 +1,157 @@
+#include "flexopt/io/restart.hpp"
+
+#include "flexopt/core/context.hpp"
+#include "flexopt/core/error.hpp"
+
+#include <cstdio>
+#include <filesystem>
+#include <hdf5.h>
+#include <unordered_map>
+
+namespace flexopt::io {
+
+namespace {
+
+void check(herr_t status, const std::string &what) {
+  if (status < 0) throw Error("restart file: " + what + " failed");
+}
+
+hid_t open_parallel(MPI_Comm comm, const std::string &path, bool create) {
+  hid_t fapl = H5Pcreate(H5P_FILE_ACCESS);
+  H5Pset_fapl_mpio(fapl, comm, MPI_INFO_NULL);
+  hid_t f = create ? H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, fapl)
+                   : H5Fopen(path.c_str(), H5F_ACC_RDONLY, fapl);
+  H5Pclose(fapl);
+  return f;
+}
+
+/// Dataset of `global` entries of which this rank writes [start, start + n). Collective.
+void write_slab(hid_t file, const std::string &name, hid_t mem_type, hid_t file_type,
+                const void *data, long long global, long long start, long long n) {
+  hsize_t g = static_cast<hsize_t>(global), off = static_cast<hsize_t>(start),
+          cnt = static_cast<hsize_t>(n);
+  hid_t fspace = H5Screate_simple(1, &g, nullptr);
+  hid_t dset =
+      H5Dcreate2(file, name.c_str(), file_type, fspace, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+  if (dset < 0) throw Error("restart file: creating " + name + " failed");
+  hid_t mspace = H5Screate_simple(1, &cnt, nullptr);
+  if (n > 0) {
+    H5Sselect_hyperslab(fspace, H5S_SELECT_SET, &off, nullptr, &cnt, nullptr);
+  } else {
+    H5Sselect_none(fspace);
+    H5Sselect_none(mspace);
+  }
+  hid_t dxpl = H5Pcreate(H5P_DATASET_XFER);
+  H5Pset_dxpl_mpio(dxpl, H5FD_MPIO_COLLECTIVE);
+  check(H5Dwrite(dset, mem_type, mspace, fspace, dxpl, data), "writing " + name);
+  H5Pclose(dxpl);
+  H5Sclose(mspace);
+  H5Sclose(fspace);
+  H5Dclose(dset);
+}
+
+/// Reads a whole 1D dataset on every rank. Collective.
+template <class T> std::vector<T> read_all(hid_t file, const std::string &name, hid_t mem_type) {
+  hid_t dset = H5Dopen2(file, name.c_str(), H5P_DEFAULT);
+  if (dset < 0) throw Error("dataset " + name + " is missing");
+  hid_t space = H5Dget_space(dset);
+  hsize_t n = 0;
+  H5Sget_simple_extent_dims(space, &n, nullptr);
+  std::vector<T> v(static_cast<std::size_t>(n));
+  if (n > 0)
+    check(H5Dread(dset, mem_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, v.data()), "reading " + name);
+  H5Sclose(space);
+  H5Dclose(dset);
+  return v;
+}
+
+} // namespace
+
+void write_restart(MPI_Comm comm, const std::string &path, const RestartData &data) {
+  const std::string tmp = path + ".tmp";
+  long long n = static_cast<long long>(data.tags.size()), start = 0, global = 0;
+  MPI_Exscan(&n, &start, 1, MPI_LONG_LONG, MPI_SUM, comm);
+  if (comm_rank(comm) == 0) start = 0;
+  MPI_Allreduce(&n, &global, 1, MPI_LONG_LONG, MPI_SUM, comm);
+  hid_t file = open_parallel(comm, tmp, true);
+  if (file < 0) throw Error("cannot create restart file '" + tmp + "'", true);
+  H5Gclose(H5Gcreate2(file, "/fields", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT));
+  H5Gclose(H5Gcreate2(file, "/arrays", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT));
+  write_slab(file, "/tags", H5T_NATIVE_UINT64, H5T_STD_U64LE, data.tags.data(), global, start, n);
+  for (const auto &[name, values] : data.fields)
+    write_slab(file, "/fields/" + name, H5T_NATIVE_DOUBLE, H5T_IEEE_F64LE, values.data(), global,
+               start, n);
+  const bool root = comm_rank(comm) == 0;
+  for (const auto &[name, values] : data.arrays) {
+    const long long len = static_cast<long long>(values.size());
+    write_slab(file, "/arrays/" + name, H5T_NATIVE_DOUBLE, H5T_IEEE_F64LE, values.data(), len, 0,
+               root ? len : 0);
+  }
+  check(H5Fclose(file), "closing " + tmp);
+  run_on_root(comm, 0, [&] {
+    if (std::rename(tmp.c_str(), path.c_str()) != 0)
+      throw Error("cannot rename '" + tmp + "' to '" + path + "'");
+  });
+}
+
+RestartData read_restart(MPI_Comm comm, const std::string &path,
+                         const std::vector<std::uint64_t> &tags) {
+  int exists = 0;
+  if (comm_rank(comm) == 0) exists = std::filesystem::is_regular_file(path) ? 1 : 0;
+  MPI_Bcast(&exists, 1, MPI_INT, 0, comm);
+  if (!exists) throw Error(path + ": restart file not found (run without --restart first)", true);
+  hid_t file = open_parallel(comm, path, false);
+  if (file < 0) throw Error(path + ": cannot open the restart file", true);
+  RestartData out;
+  out.tags = tags;
+  int ok = 1;
+  std::string message;
+  try {
+    const auto all_tags = read_all<std::uint64_t>(file, "/tags", H5T_NATIVE_UINT64);
+    std::unordered_map<std::uint64_t, std::size_t> where;
+    for (std::size_t k = 0; k < all_tags.size(); ++k) where[all_tags[k]] = k;
+    std::vector<std::size_t> index(tags.size());
+    for (std::size_t k = 0; k < tags.size(); ++k) {
+      auto it = where.find(tags[k]);
+      if (it == where.end())
+        throw Error("element " + std::to_string(tags[k]) +
+                    " is not in the restart file (was it written for another mesh?)");
+      index[k] = it->second;
+    }
+    for (const char *group : {"/fields", "/arrays"}) {
+      hid_t g = H5Gopen2(file, group, H5P_DEFAULT);
+      if (g < 0) throw Error(std::string("group ") + group + " is missing");
+      hsize_t count = 0;
+      H5Gget_num_objs(g, &count);
+      std::vector<std::string> names;
+      for (hsize_t i = 0; i < count; ++i) {
+        char name[256];
+        H5Gget_objname_by_idx(g, i, name, sizeof name);
+        names.emplace_back(name);
+      }
+      H5Gclose(g);
+      for (const auto &name : names) {
+        auto values = read_all<double>(file, std::string(group) + "/" + name, H5T_NATIVE_DOUBLE);
+        if (std::string(group) == "/arrays") {
+          out.arrays[name] = std::move(values);
+        } else {
+          auto &f = out.fields[name];
+          f.resize(tags.size());
+          for (std::size_t k = 0; k < tags.size(); ++k) f[k] = values[index[k]];
+        }
+      }
+    }
+  } catch (const std::exception &e) {
+    ok = 0;
+    message = e.what();
+  }
+  H5Fclose(file);
+  int all_ok = 0;
+  MPI_Allreduce(&ok, &all_ok, 1, MPI_INT, MPI_MIN, comm);
+  if (!all_ok)
+    throw Error(path + ": " + (message.empty() ? std::string("unreadable restart file") : message),
+                true);
+  return out;
+}
+
+} // namespace flexopt::io
