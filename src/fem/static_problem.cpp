@@ -47,8 +47,9 @@ void check_converged(KSP ksp, const std::string &what) {
     throw Error(what + ": the linear solver did not converge (" + KSPConvergedReasons[reason] +
                     " after " + std::to_string(its) +
                     " iterations). Is the body supported against rigid motion? Try "
-                    "-ksp_monitor_true_residual, or a direct solver: -ksp_type preonly -pc_type lu "
-                    "-pc_factor_mat_solver_type mumps",
+                    "-ksp_monitor_true_residual, a direct solver (-ksp_type preonly -pc_type lu "
+                    "-pc_factor_mat_solver_type mumps), or for SIMP designs with void regions the "
+                    "smoother -mg_levels_ksp_type richardson -mg_levels_pc_type sor",
                 true);
   }
 }
