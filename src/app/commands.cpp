@@ -489,7 +489,7 @@ int run_optimize(const Context &ctx, const Options &o, const io::Case &c, double
   write_summary(ctx, dir, s, t0);
   print0(
       ctx.comm(),
-      "wrote %s (densities per iteration: threshold filtered_density at 0.5 in ParaView), %s, %s\n",
+      "wrote %s (densities per iteration: threshold physical_density at 0.5 in ParaView), %s, %s\n",
       r.output.c_str(), (fs::path(dir) / "history.csv").c_str(),
       (fs::path(dir) / "summary.json").c_str());
   return 0;

@@ -333,13 +333,17 @@ void read_design(const Reader &r, const YAML::Node &v, Case &c) {
     const YAML::Node &p = v["projection"];
     const std::string pp = path + ".projection";
     r.require_map(p, pp);
-    r.check_keys(p, pp, {"beta", "eta"});
+    r.check_keys(p, pp, {"beta", "eta", "every"});
     const YAML::Node &b = r.require(p, "beta", pp);
     r.require_sequence(b, pp + ".beta");
     if (b.size() == 0) r.fail(b, pp + ".beta: give at least one value");
     for (std::size_t k = 0; k < b.size(); ++k) {
       d.beta.push_back(r.number(b[k], pp + ".beta[" + std::to_string(k) + "]"));
       if (!(d.beta.back() > 0)) r.fail(b[k], pp + ".beta: values must be positive");
+    }
+    if (p["every"]) {
+      d.beta_every = r.integer(p["every"], pp + ".every");
+      if (d.beta_every < 1) r.fail(p["every"], pp + ".every: must be >= 1");
     }
     if (p["eta"]) {
       d.eta = r.number(p["eta"], pp + ".eta");

@@ -26,6 +26,9 @@ void write_densities(io::XdmfWriter &writer, TopologyProblem &p, double step) {
   FX_PETSC(VecGetArrayRead(p.filtered_density(), &a));
   writer.cell_scalar("filtered_density", a);
   FX_PETSC(VecRestoreArrayRead(p.filtered_density(), &a));
+  FX_PETSC(VecGetArrayRead(p.physical_density(), &a));
+  writer.cell_scalar("physical_density", a);
+  FX_PETSC(VecRestoreArrayRead(p.physical_density(), &a));
 }
 
 /// Local values of a design-layout Vec.
@@ -99,6 +102,9 @@ OptimizationResult run_optimization(MPI_Comm comm, const io::Case &c, const std:
   const std::vector<std::uint64_t> tags(problem->design_tags().begin(),
                                         problem->design_tags().end());
   int first = 1;
+  // Projection continuation: stage index into design.projection.beta and its first iteration.
+  const std::vector<double> &betas = c.design->beta;
+  int stage = 0, stage_start = 1;
   std::vector<double> seconds_list;
   if (restart) {
     const io::RestartData r = io::read_restart(comm, restart_path, tags);
@@ -109,6 +115,10 @@ OptimizationResult run_optimization(MPI_Comm comm, const io::Case &c, const std:
                       " constraints; the case has " + std::to_string(m),
                   true);
     objective_scale = meta.at(1);
+    if (meta.size() >= 5) {
+      stage = static_cast<int>(meta.at(3));
+      stage_start = static_cast<int>(meta.at(4));
+    }
     set_local_values(x, r.fields.at("x"));
     Mma::State st;
     st.iteration = done;
@@ -149,6 +159,7 @@ OptimizationResult run_optimization(MPI_Comm comm, const io::Case &c, const std:
   Evaluation e;
   for (int k = first; k <= c.optimizer.max_iterations; ++k) {
     const double t0 = wall_time();
+    if (!betas.empty()) problem->set_beta(betas[static_cast<std::size_t>(stage)]);
     problem->evaluate(x, true, e);
     if (!std::isfinite(e.objective))
       throw Error("optimize: iteration " + std::to_string(k) + ": the objective is not finite",
@@ -199,7 +210,18 @@ OptimizationResult run_optimization(MPI_Comm comm, const io::Case &c, const std:
     rd.fields["xold2"] = local_values(st.xold2);
     rd.fields["low"] = local_values(st.low);
     rd.fields["upp"] = local_values(st.upp);
-    rd.arrays["meta"] = {static_cast<double>(k), objective_scale, static_cast<double>(m)};
+    // Advance the projection continuation: after `every` iterations at this beta, or when
+    // the design has settled at it.
+    const bool last_stage = betas.empty() || stage + 1 == static_cast<int>(betas.size());
+    const bool settled = change < c.optimizer.tolerance;
+    if (!last_stage && (settled || k - stage_start + 1 >= c.design->beta_every)) {
+      ++stage;
+      stage_start = k + 1;
+      print0(comm, "optimize: projection beta -> %g from iteration %d\n",
+             betas[static_cast<std::size_t>(stage)], k + 1);
+    }
+    rd.arrays["meta"] = {static_cast<double>(k), objective_scale, static_cast<double>(m),
+                         static_cast<double>(stage), static_cast<double>(stage_start)};
     rd.arrays["objective"] = result.objective;
     rd.arrays["max_change"] = result.max_change;
     rd.arrays["seconds"] = seconds_list;
@@ -207,7 +229,7 @@ OptimizationResult run_optimization(MPI_Comm comm, const io::Case &c, const std:
     for (const auto &row : result.constraints) flat.insert(flat.end(), row.begin(), row.end());
     rd.arrays["constraints"] = flat;
     io::write_restart(comm, restart_path, rd);
-    if (change < c.optimizer.tolerance) {
+    if (change < c.optimizer.tolerance && last_stage) {
       result.converged = true;
       result.stop_reason = "max design change " + std::to_string(change) + " < tolerance " +
                            std::to_string(c.optimizer.tolerance);

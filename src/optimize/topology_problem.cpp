@@ -66,6 +66,8 @@ std::unique_ptr<TopologyProblem> TopologyProblem::create(MPI_Comm comm, const io
   p->filter_ = HelmholtzFilter::create(m, d.filter_radius);
   p->rho_ = p->filter_->create_element_vector();
   FX_PETSC(VecDuplicate(p->rho_, &p->filtered_));
+  FX_PETSC(VecDuplicate(p->rho_, &p->physical_));
+  if (!d.beta.empty()) p->beta_ = d.beta.front();
   FX_PETSC(VecDuplicate(p->rho_, &p->grad_filtered_));
   FX_PETSC(VecDuplicate(p->rho_, &p->grad_full_));
   p->adjoint_ = fem::create_ghosted_vector(m);
@@ -76,6 +78,7 @@ std::unique_ptr<TopologyProblem> TopologyProblem::create(MPI_Comm comm, const io
 TopologyProblem::~TopologyProblem() {
   VecDestroy(&rho_);
   VecDestroy(&filtered_);
+  VecDestroy(&physical_);
   VecDestroy(&grad_filtered_);
   VecDestroy(&grad_full_);
   VecDestroy(&adjoint_);
@@ -124,10 +127,10 @@ double TopologyProblem::response_value(const io::ResponseSpec &r) {
   if (r.type == "compliance") return static_->compliance();
   if (r.type == "volume_fraction") {
     const PetscScalar *rt;
-    FX_PETSC(VecGetArrayRead(filtered_, &rt));
+    FX_PETSC(VecGetArrayRead(physical_, &rt));
     double local = 0;
     for (PetscInt e : design_elements_) local += rt[e] * volume_[static_cast<std::size_t>(e)];
-    FX_PETSC(VecRestoreArrayRead(filtered_, &rt));
+    FX_PETSC(VecRestoreArrayRead(physical_, &rt));
     double total = 0;
     MPI_Allreduce(&local, &total, 1, MPI_DOUBLE, MPI_SUM, mesh().comm);
     return total / design_volume_;
@@ -193,13 +196,28 @@ void TopologyProblem::evaluate(Vec x, bool gradients, Evaluation &out) {
   const io::DesignSpec &d = *case_.design;
   embed(x, rho_);
   filter_->apply(rho_, filtered_);
+  // Heaviside projection (Wang, Lazarov & Sigmund 2011), or the identity.
+  const PetscInt n_el = m.local_elements();
+  dprojection_.assign(static_cast<std::size_t>(n_el), 1.0);
+  FX_PETSC(VecCopy(filtered_, physical_));
+  if (beta_ > 0) {
+    const double eta = d.eta, den = std::tanh(beta_ * eta) + std::tanh(beta_ * (1.0 - eta));
+    PetscScalar *ph;
+    FX_PETSC(VecGetArray(physical_, &ph));
+    for (PetscInt e = 0; e < n_el; ++e) {
+      const double th = std::tanh(beta_ * (ph[e] - eta));
+      dprojection_[static_cast<std::size_t>(e)] = beta_ * (1.0 - th * th) / den;
+      ph[e] = (std::tanh(beta_ * eta) + th) / den;
+    }
+    FX_PETSC(VecRestoreArray(physical_, &ph));
+  }
 
   // SIMP: s = e_min + rho~^p (1 - e_min) on design elements; solid (s = 1) elsewhere.
   const PetscInt ne = m.local_elements();
   factor_.assign(static_cast<std::size_t>(ne), 1.0);
   dfactor_.assign(static_cast<std::size_t>(ne), 0.0);
   const PetscScalar *rt;
-  FX_PETSC(VecGetArrayRead(filtered_, &rt));
+  FX_PETSC(VecGetArrayRead(physical_, &rt));
   for (PetscInt e : design_elements_) {
     const double r = std::max(rt[e], 0.0);
     factor_[static_cast<std::size_t>(e)] =
@@ -207,7 +225,7 @@ void TopologyProblem::evaluate(Vec x, bool gradients, Evaluation &out) {
     dfactor_[static_cast<std::size_t>(e)] =
         r > 0 ? d.penalty * std::pow(r, d.penalty - 1.0) * (1.0 - d.min_stiffness) : 0.0;
   }
-  FX_PETSC(VecRestoreArrayRead(filtered_, &rt));
+  FX_PETSC(VecRestoreArrayRead(physical_, &rt));
   static_->assemble_operator(factor_);
   static_->solve();
   ++solves_;
@@ -226,7 +244,12 @@ void TopologyProblem::evaluate(Vec x, bool gradients, Evaluation &out) {
       out.d_constraints.push_back(create_design_vector());
   }
   for (std::size_t i = 0; i < specs.size(); ++i) {
-    response_gradient(*specs[i], i, grad_filtered_);
+    response_gradient(*specs[i], i, grad_filtered_); // d/d(physical density)
+    PetscScalar *g;
+    FX_PETSC(VecGetArray(grad_filtered_, &g));
+    for (PetscInt e = 0; e < m.local_elements(); ++e)
+      g[e] *= dprojection_[static_cast<std::size_t>(e)];
+    FX_PETSC(VecRestoreArray(grad_filtered_, &g));
     filter_->apply_transpose(grad_filtered_, grad_full_);
     restrict_to_design(grad_full_, i == 0 ? out.d_objective : out.d_constraints[i - 1]);
   }

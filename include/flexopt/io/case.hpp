@@ -80,6 +80,7 @@ struct DesignSpec {
   double filter_radius = 0;      ///< Helmholtz length scale r [m]
   std::vector<double> beta;      ///< Heaviside projection continuation (empty: no projection)
   double eta = 0.5;              ///< projection threshold
+  int beta_every = 25;           ///< iterations per beta value (continuation)
   Location where;
 };
 

@@ -47,8 +47,13 @@ public:
   const io::Case &case_spec() const { return case_; }
   const mesh::DistributedMesh &mesh() const { return static_->mesh(); }
   fem::StaticProblem &static_problem() { return *static_; }
-  /// Physical (filtered) densities of all local elements at the last evaluation.
+  /// Filtered densities of all local elements at the last evaluation.
   Vec filtered_density() const { return filtered_; }
+  /// Physical densities (projected filtered densities; = filtered without projection).
+  Vec physical_density() const { return physical_; }
+  /// Projection sharpness in use (0: no projection). Set by the optimizer's continuation.
+  void set_beta(double beta) { beta_ = beta; }
+  double beta() const { return beta_; }
   /// Design densities of all local elements at the last evaluation (1 outside the region).
   Vec density() const { return rho_; }
   /// Volume fraction of the design region at the last evaluation (filtered densities).
@@ -75,7 +80,10 @@ private:
   double design_volume_ = 0;       ///< total volume of the design region
   PetscInt global_design_ = 0;
   std::vector<fem::PointLocation> sensor_locations_; ///< per response (displacement only)
-  Vec rho_ = nullptr, filtered_ = nullptr, grad_filtered_ = nullptr, grad_full_ = nullptr;
+  Vec rho_ = nullptr, filtered_ = nullptr, physical_ = nullptr, grad_filtered_ = nullptr,
+      grad_full_ = nullptr;
+  double beta_ = 0;                 ///< 0: no projection
+  std::vector<double> dprojection_; ///< d physical / d filtered, all local elements
   Vec adjoint_rhs_ = nullptr, adjoint_ = nullptr;
   std::vector<double> factor_;  ///< SIMP modulus factors (all local elements)
   std::vector<double> dfactor_; ///< d factor / d filtered density
