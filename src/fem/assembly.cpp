@@ -168,7 +168,7 @@ void assemble_matrix(const mesh::DistributedMesh &mesh, Mat A, Kernel &&kernel) 
     try {
       Ke = kernel(e, mesh.element_coordinates(e));
     } catch (const std::exception &err) {
-      throw Error(element_context(mesh, e, err));
+      abort_local(element_context(mesh, e, err)); // only this rank holds the element
     }
     const PetscInt *idx = &mesh.connectivity[static_cast<std::size_t>(e * npe)];
     FX_PETSC(MatSetValuesBlockedLocal(A, npe, idx, npe, idx, Ke.data(), ADD_VALUES));

@@ -125,6 +125,7 @@ void StaticProblem::assemble_operator(const std::vector<double> &modulus_factor)
 }
 
 void StaticProblem::solve() {
+  LogScope log("FxStateSolve");
   FX_PETSC(VecCopy(f_, rhs_));
   std::vector<PetscScalar> zeros(fixed_.size(), 0.0);
   FX_PETSC(VecSetValues(rhs_, static_cast<PetscInt>(fixed_.size()), fixed_.data(), zeros.data(),
@@ -147,6 +148,7 @@ void StaticProblem::solve() {
 }
 
 void StaticProblem::solve_adjoint(Vec rhs, Vec lambda) {
+  LogScope log("FxAdjointSolve");
   std::vector<PetscScalar> zeros(fixed_.size(), 0.0);
   FX_PETSC(VecSetValues(rhs, static_cast<PetscInt>(fixed_.size()), fixed_.data(), zeros.data(),
                         INSERT_VALUES));

@@ -145,6 +145,7 @@ double TopologyProblem::response_value(const io::ResponseSpec &r) {
 }
 
 void TopologyProblem::response_gradient(const io::ResponseSpec &r, std::size_t index, Vec g) {
+  LogScope log("FxSensitivities");
   const mesh::DistributedMesh &m = mesh();
   PetscScalar *ga;
   if (r.type == "volume_fraction") {

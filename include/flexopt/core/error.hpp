@@ -23,8 +23,16 @@ private:
   bool collective_;
 };
 
-/// Throws flexopt::Error when a PETSc/SLEPc call fails; PETSc has already printed its trace.
-void throw_petsc_error(PetscErrorCode code, const char *call, const char *file, int line);
+/// Reports an error that only this rank has detected and ends the whole job at once
+/// (MPI_Abort, exit status 1 on every rank). It does not throw: unwinding the stack would run
+/// destructors that make collective calls (closing a parallel HDF5 file, destroying PETSc
+/// objects) while the other ranks wait elsewhere, which deadlocks.
+[[noreturn]] void abort_local(const std::string &message);
+
+/// A PETSc/SLEPc call failed (PETSc has already printed its trace): abort_local with the
+/// call, file and line. Whether the other ranks failed too is unknown, so this never throws.
+[[noreturn]] void throw_petsc_error(PetscErrorCode code, const char *call, const char *file,
+                                    int line);
 
 } // namespace flexopt
 
