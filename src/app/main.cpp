@@ -97,34 +97,31 @@ int main(int argc, char **argv) {
       }
       return argv[++i];
     };
+    // A positive integer option value; a malformed one is reported once.
+    auto positive_int = [&](const char *name, int &target) {
+      std::string v = value(name);
+      try {
+        std::size_t pos = 0;
+        target = std::stoi(v, &pos);
+        if (pos != v.size() || target < 1) throw std::invalid_argument(v);
+      } catch (...) {
+        if (arg_error.empty())
+          arg_error = std::string(name) + " needs a positive integer, got '" + v + "'";
+      }
+    };
     if (a == "--help" || a == "-h" || a == "help")
       want_help = true;
     else if (a == "--out")
       opts.out = value("--out");
-    else if (a == "--count") {
-      std::string v = value("--count");
-      try {
-        std::size_t pos = 0;
-        opts.count = std::stoi(v, &pos);
-        if (pos != v.size() || opts.count < 1) throw std::invalid_argument(v);
-      } catch (...) {
-        if (arg_error.empty()) arg_error = "--count needs a positive integer, got '" + v + "'";
-      }
-    } else if (a == "--free")
+    else if (a == "--count")
+      positive_int("--count", opts.count);
+    else if (a == "--free")
       opts.free = true;
     else if (a == "--restart")
       opts.restart = true;
-    else if (a == "--max-iterations") {
-      std::string v = value("--max-iterations");
-      try {
-        std::size_t pos = 0;
-        opts.max_iterations = std::stoi(v, &pos);
-        if (pos != v.size() || opts.max_iterations < 1) throw std::invalid_argument(v);
-      } catch (...) {
-        if (arg_error.empty())
-          arg_error = "--max-iterations needs a positive integer, got '" + v + "'";
-      }
-    } else if (a.rfind("--", 0) == 0)
+    else if (a == "--max-iterations")
+      positive_int("--max-iterations", opts.max_iterations);
+    else if (a.rfind("--", 0) == 0)
       arg_error = "unknown option '" + a + "'";
     else if (a[0] == '-') {
       petsc_argv.push_back(argv[i]);
