@@ -44,8 +44,7 @@ PointLocation locate(const mesh::DistributedMesh &mesh, const std::array<double,
 }
 
 std::array<double, 3> probe_vector(const mesh::DistributedMesh &mesh, Vec field_ghosted,
-                                   const std::array<double, 3> &point, const std::string &what) {
-  const PointLocation loc = locate(mesh, point, what);
+                                   const PointLocation &loc) {
   double value[3] = {0, 0, 0};
   if (loc.element >= 0) {
     Vec local;
@@ -61,6 +60,11 @@ std::array<double, 3> probe_vector(const mesh::DistributedMesh &mesh, Vec field_
   }
   MPI_Bcast(value, 3, MPI_DOUBLE, loc.owner, mesh.comm);
   return {value[0], value[1], value[2]};
+}
+
+std::array<double, 3> probe_vector(const mesh::DistributedMesh &mesh, Vec field_ghosted,
+                                   const std::array<double, 3> &point, const std::string &what) {
+  return probe_vector(mesh, field_ghosted, locate(mesh, point, what));
 }
 
 void add_point_functional(const mesh::DistributedMesh &mesh, const PointLocation &loc,

@@ -124,14 +124,18 @@ void StaticProblem::assemble_operator(const std::vector<double> &modulus_factor)
                               nullptr, nullptr));
 }
 
+void StaticProblem::zero_supported(Vec rhs) const {
+  std::vector<PetscScalar> zeros(fixed_.size(), 0.0);
+  FX_PETSC(VecSetValues(rhs, static_cast<PetscInt>(fixed_.size()), fixed_.data(), zeros.data(),
+                        INSERT_VALUES));
+  FX_PETSC(VecAssemblyBegin(rhs));
+  FX_PETSC(VecAssemblyEnd(rhs));
+}
+
 void StaticProblem::solve() {
   LogScope log("FxStateSolve");
   FX_PETSC(VecCopy(f_, rhs_));
-  std::vector<PetscScalar> zeros(fixed_.size(), 0.0);
-  FX_PETSC(VecSetValues(rhs_, static_cast<PetscInt>(fixed_.size()), fixed_.data(), zeros.data(),
-                        INSERT_VALUES));
-  FX_PETSC(VecAssemblyBegin(rhs_));
-  FX_PETSC(VecAssemblyEnd(rhs_));
+  zero_supported(rhs_);
   double t = wall_time();
   FX_PETSC(KSPSetUp(ksp_));
   FX_PETSC(KSPSetUpOnBlocks(ksp_));
@@ -149,11 +153,7 @@ void StaticProblem::solve() {
 
 void StaticProblem::solve_adjoint(Vec rhs, Vec lambda) {
   LogScope log("FxAdjointSolve");
-  std::vector<PetscScalar> zeros(fixed_.size(), 0.0);
-  FX_PETSC(VecSetValues(rhs, static_cast<PetscInt>(fixed_.size()), fixed_.data(), zeros.data(),
-                        INSERT_VALUES));
-  FX_PETSC(VecAssemblyBegin(rhs));
-  FX_PETSC(VecAssemblyEnd(rhs));
+  zero_supported(rhs);
   FX_PETSC(KSPSolve(ksp_, rhs, lambda));
   check_converged(ksp_, "adjoint solve");
   FX_PETSC(VecGhostUpdateBegin(lambda, INSERT_VALUES, SCATTER_FORWARD));

@@ -108,17 +108,16 @@ OptimizationResult run_optimization(MPI_Comm comm, const io::Case &c, const std:
   std::vector<double> seconds_list;
   if (restart) {
     const io::RestartData r = io::read_restart(comm, restart_path, tags);
-    const auto &meta = r.arrays.at("meta"); // iteration, objective scale, m
+    const auto &meta =
+        r.arrays.at("meta"); // iteration, objective scale, m, beta stage, its first iteration
     const int done = static_cast<int>(meta.at(0));
     if (static_cast<std::size_t>(meta.at(2)) != m)
       throw Error(restart_path + ": written for " + std::to_string(static_cast<int>(meta.at(2))) +
                       " constraints; the case has " + std::to_string(m),
                   true);
     objective_scale = meta.at(1);
-    if (meta.size() >= 5) {
-      stage = static_cast<int>(meta.at(3));
-      stage_start = static_cast<int>(meta.at(4));
-    }
+    stage = static_cast<int>(meta.at(3));
+    stage_start = static_cast<int>(meta.at(4));
     set_local_values(x, r.fields.at("x"));
     Mma::State st;
     st.iteration = done;

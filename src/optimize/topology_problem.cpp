@@ -132,10 +132,10 @@ void TopologyProblem::restrict_to_design(Vec full, Vec x) const {
 double TopologyProblem::volume_fraction() {
   io::ResponseSpec v;
   v.type = "volume_fraction";
-  return response_value(v);
+  return response_value(v, 0);
 }
 
-double TopologyProblem::response_value(const io::ResponseSpec &r) {
+double TopologyProblem::response_value(const io::ResponseSpec &r, std::size_t index) {
   if (r.type == "compliance") return static_->compliance();
   if (r.type == "volume_fraction") {
     const PetscScalar *rt;
@@ -147,13 +147,31 @@ double TopologyProblem::response_value(const io::ResponseSpec &r) {
     MPI_Allreduce(&local, &total, 1, MPI_DOUBLE, MPI_SUM, mesh().comm);
     return total / design_volume_;
   }
-  // displacement: d . u(sensor point)
-  for (const auto &s : case_.sensors)
-    if (s.name == r.sensor) {
-      const auto u = fem::probe_vector(mesh(), static_->displacement(), s.point, s.where.str());
-      return u[0] * r.direction[0] + u[1] * r.direction[1] + u[2] * r.direction[2];
-    }
-  throw Error(r.where.str() + ": unknown response", true);
+  // displacement: d . u(sensor point), at the location found once in create()
+  const auto u = fem::probe_vector(mesh(), static_->displacement(), sensor_locations_[index]);
+  return u[0] * r.direction[0] + u[1] * r.direction[1] + u[2] * r.direction[2];
+}
+
+const std::vector<double> &TopologyProblem::element_ku() {
+  if (element_ku_current_) return element_ku_;
+  const mesh::DistributedMesh &m = mesh();
+  const int nd = 3 * m.nodes_per_element();
+  element_ku_.assign(static_cast<std::size_t>(m.local_elements() * nd), 0.0);
+  Vec ul;
+  const PetscScalar *u;
+  FX_PETSC(VecGhostGetLocalForm(static_->displacement(), &ul));
+  FX_PETSC(VecGetArrayRead(ul, &u));
+  for (PetscInt e = 0; e < m.local_elements(); ++e) {
+    if (dfactor_[static_cast<std::size_t>(e)] == 0.0) continue; // no sensitivity there
+    const fem::ElementMatrix Ke =
+        fem::element_stiffness(m.type, m.element_coordinates(e), static_->material(), 1.0);
+    const fem::ElementVector ku = Ke * fem::gather_element(m, e, u);
+    std::copy(ku.data(), ku.data() + nd, element_ku_.begin() + static_cast<std::ptrdiff_t>(e * nd));
+  }
+  FX_PETSC(VecRestoreArrayRead(ul, &u));
+  FX_PETSC(VecGhostRestoreLocalForm(static_->displacement(), &ul));
+  element_ku_current_ = true;
+  return element_ku_;
 }
 
 void TopologyProblem::response_gradient(const io::ResponseSpec &r, std::size_t index, Vec g) {
@@ -178,29 +196,23 @@ void TopologyProblem::response_gradient(const io::ResponseSpec &r, std::size_t i
     ++solves_;
     lambda = adjoint_;
   }
-  Vec ul, ll;
-  const PetscScalar *u, *l;
-  FX_PETSC(VecGhostGetLocalForm(static_->displacement(), &ul));
+  const std::vector<double> &ku = element_ku();
+  const int nd = 3 * m.nodes_per_element();
+  Vec ll;
+  const PetscScalar *l;
   FX_PETSC(VecGhostGetLocalForm(lambda, &ll));
-  FX_PETSC(VecGetArrayRead(ul, &u));
   FX_PETSC(VecGetArrayRead(ll, &l));
   FX_PETSC(VecGetArray(g, &ga));
   for (PetscInt e = 0; e < m.local_elements(); ++e) {
     const double ds = dfactor_[static_cast<std::size_t>(e)];
-    if (ds == 0.0) {
-      ga[e] = 0.0;
-      continue;
-    }
-    const fem::ElementMatrix Ke =
-        fem::element_stiffness(m.type, m.element_coordinates(e), static_->material(), 1.0);
-    const fem::ElementVector ue = fem::gather_element(m, e, u), le = fem::gather_element(m, e, l);
-    ga[e] = -ds * le.dot(Ke * ue);
+    const fem::ElementVector le = fem::gather_element(m, e, l);
+    double dot = 0;
+    for (int k = 0; k < nd; ++k) dot += le(k) * ku[static_cast<std::size_t>(e * nd + k)];
+    ga[e] = ds == 0.0 ? 0.0 : -ds * dot;
   }
   FX_PETSC(VecRestoreArray(g, &ga));
   FX_PETSC(VecRestoreArrayRead(ll, &l));
-  FX_PETSC(VecRestoreArrayRead(ul, &u));
   FX_PETSC(VecGhostRestoreLocalForm(lambda, &ll));
-  FX_PETSC(VecGhostRestoreLocalForm(static_->displacement(), &ul));
 }
 
 void TopologyProblem::evaluate(Vec x, bool gradients, Evaluation &out) {
@@ -241,13 +253,14 @@ void TopologyProblem::evaluate(Vec x, bool gradients, Evaluation &out) {
   FX_PETSC(VecRestoreArrayRead(physical_, &rt));
   static_->assemble_operator(factor_);
   static_->solve();
+  element_ku_current_ = false;
   ++solves_;
 
   std::vector<const io::ResponseSpec *> specs{&*case_.objective};
   for (const auto &r : case_.constraints) specs.push_back(&r);
   out.constraints.assign(case_.constraints.size(), 0.0);
   for (std::size_t i = 0; i < specs.size(); ++i) {
-    const double v = response_value(*specs[i]);
+    const double v = response_value(*specs[i], i);
     (i == 0 ? out.objective : out.constraints[i - 1]) = v;
   }
   if (!gradients) return;

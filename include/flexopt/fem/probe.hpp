@@ -22,6 +22,11 @@ struct PointLocation {
 PointLocation locate(const mesh::DistributedMesh &mesh, const std::array<double, 3> &point,
                      const std::string &what);
 
+/// FE interpolation of a ghosted nodal vector field (ghosts up to date) at a located point;
+/// the value is returned on every rank. Collective.
+std::array<double, 3> probe_vector(const mesh::DistributedMesh &mesh, Vec field_ghosted,
+                                   const PointLocation &location);
+
 /// Adds to c (global, block size 3) the vector of the functional u -> d . u(point), i.e.
 /// c_{3a+k} += N_a(point) d_k: the adjoint load of a displacement response. Collective.
 void add_point_functional(const mesh::DistributedMesh &mesh, const PointLocation &location,

@@ -48,6 +48,8 @@ public:
 
 private:
   StaticProblem() = default;
+  /// Sets the supported DOFs of a right-hand side to zero (all prescribed values are 0).
+  void zero_supported(Vec rhs) const;
   mesh::DistributedMesh mesh_;
   IsotropicMaterial material_{};
   std::vector<double> factor_;

@@ -65,7 +65,11 @@ private:
   TopologyProblem() = default;
   void embed(Vec x, Vec rho) const;
   void restrict_to_design(Vec full, Vec x) const;
-  double response_value(const io::ResponseSpec &r);
+  /// Value of response `index` (0: objective, i: constraint i - 1).
+  double response_value(const io::ResponseSpec &r, std::size_t index);
+  /// K_e^0 u_e of every local element, computed once per evaluation for all stiffness
+  /// responses (their gradients are -ds_e lambda_e . K_e^0 u_e).
+  const std::vector<double> &element_ku();
   /// d(response)/d(filtered density) of all local elements into g.
   void response_gradient(const io::ResponseSpec &r, std::size_t index, Vec g);
 
@@ -87,6 +91,8 @@ private:
   Vec adjoint_rhs_ = nullptr, adjoint_ = nullptr;
   std::vector<double> factor_;  ///< SIMP modulus factors (all local elements)
   std::vector<double> dfactor_; ///< d factor / d filtered density
+  std::vector<double> element_ku_;   ///< K_e^0 u_e, 3 * nodes_per_element per element
+  bool element_ku_current_ = false;  ///< element_ku_ belongs to the current state
   int solves_ = 0;
 };
 
