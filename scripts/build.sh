@@ -3,6 +3,7 @@
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 build="${FLEXOPT_BUILD_DIR:-$root/build}"
-cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE="${CMAKE_BUILD_TYPE:-Release}" > "$build.configure.log" 2>&1 || {
-  cat "$build.configure.log"; echo "build.sh: CMake configuration failed" >&2; exit 1; }
+mkdir -p "$build"
+cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE="${CMAKE_BUILD_TYPE:-Release}" > "$build/configure.log" 2>&1 || {
+  cat "$build/configure.log"; echo "build.sh: CMake configuration failed" >&2; exit 1; }
 cmake --build "$build" -j "$(nproc)"
