@@ -13,7 +13,7 @@ reads the run's summary.json and compares each check:
           - {path: compliance, value: 37.9, abs_tol: 0.5}
           - {path: frequencies_hz[0:6], max_abs: 0.2}      # every selected |value| <= max_abs
 
-Usage: check_case.py CASE_DIR [--flexopt build/flexopt] [--ranks 2] [--out DIR]
+Usage: check_case.py CASE_DIR [--flexopt build/flexopt] [--ranks 2] [--out DIR] [--reference FILE]
 Exit status 0 if every check passes.
 """
 import argparse
@@ -100,9 +100,11 @@ def main():
     ap.add_argument("--flexopt", default=os.path.join(here, "..", "build", "flexopt"))
     ap.add_argument("--ranks", type=int, default=2)
     ap.add_argument("--out", default=None, help="output directory (default: CASE/out)")
+    ap.add_argument("--reference", default=None,
+                    help="reference file (default: CASE/reference.yaml)")
     args = ap.parse_args()
 
-    with open(os.path.join(args.case, "reference.yaml")) as f:
+    with open(args.reference or os.path.join(args.case, "reference.yaml")) as f:
         ref = yaml.safe_load(f)
     runs = ref.get("runs") or [{"command": ref["command"], "args": ref.get("args", []), "checks": ref["checks"]}]
     env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",

@@ -5,18 +5,21 @@
     floor (2 exactly for a correct gradient; 1 for a wrong one); a linear response (volume
     fraction) has all remainders at round-off;
   - central differences (fourth order, step 1e-2) on 5 design elements agree with the adjoint
-    gradient to FD_TOL. The difference quotients carry the evaluation's round-off, measured
-    at eps * cond(K) ~ 5e-12 relative in the responses, divided by the step and the entry:
-    on the test case the errors measured 1e-9 ... 8e-6 over 1 and 2 ranks, hence 2e-5.
-Usage: check_gradient.py FLEXOPT CASE OUT RANKS
+    gradient to FD_TOL (default 1e-6, the issue's requirement). The difference quotients carry
+    the round-off of the response evaluation divided by the step and the entry. That round-off
+    is set by the cancellation in the strain energy (eps |u|^T |K| |u| / u^T K u, docs/theory.md
+    section 5): about 1e-14 relative on the stubby block cases (measured FD errors <= 3.3e-9,
+    1 and 2 ranks), about 1e-10 on the slender beam (length / depth 10, large rigid-like
+    displacements: 1e-9 ... 1.5e-5 measured), which is therefore checked at 2e-5.
+Usage: check_gradient.py FLEXOPT CASE OUT RANKS [FD_TOL]
 """
 import json
 import os
 import subprocess
 import sys
 
-FD_TOL = 2e-5
 flexopt, case, out, ranks = sys.argv[1:5]
+FD_TOL = float(sys.argv[5]) if len(sys.argv) > 5 else 1e-6
 env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
            OMPI_MCA_rmaps_base_oversubscribe="1")
 p = subprocess.run(["mpirun", "-n", ranks, flexopt, "check-gradient", case, "--out", out], env=env,

@@ -368,7 +368,8 @@ int run_check_gradient(const Context &ctx, const Options &o, const io::Case &c, 
   // quotient measures the evaluation's round-off (eps cond(K) |R| / step), not the gradient.
   // Fourth order: D = (4 D(h/2) - D(h)) / 3 with D(h) the central difference of step h.
   constexpr int kSamples = 5;
-  constexpr double kStep = 1e-2, kSignificant = 1e-2;
+  const double kStep = o.fd_step;
+  constexpr double kSignificant = 1e-2;
   PetscReal gmax = 0;
   FX_PETSC(VecNorm(base.d_objective, NORM_INFINITY, &gmax));
   std::vector<std::pair<double, unsigned long long>> mine;

@@ -326,7 +326,8 @@ void read_design(const Reader &r, const YAML::Node &v, Case &c) {
   }
   const YAML::Node &f = r.require(v, "filter", path);
   r.require_map(f, path + ".filter");
-  r.check_keys(f, path + ".filter", {"radius"});
+  r.check_keys(f, path + ".filter", {"type", "radius"});
+  if (f["type"]) d.filter_type = r.choice(f["type"], path + ".filter.type", {"helmholtz", "cone"});
   d.filter_radius = r.number(r.require(f, "radius", path + ".filter"), path + ".filter.radius");
   if (!(d.filter_radius > 0)) r.fail(f["radius"], path + ".filter.radius: must be positive");
   if (v["projection"]) {

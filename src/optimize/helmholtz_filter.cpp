@@ -7,6 +7,7 @@
 
 #include <Eigen/Dense>
 #include <cmath>
+#include <sstream>
 
 namespace flexopt::optimize {
 
@@ -204,6 +205,12 @@ void HelmholtzFilter::apply_transpose(Vec g_filtered, Vec g) const {
   element_to_nodes(scaled_, rhs_);
   solve(rhs_, phi_);
   nodes_to_element(phi_, g);
+}
+
+std::string HelmholtzFilter::describe() const {
+  std::ostringstream s;
+  s << "Helmholtz filter r = " << radius_;
+  return s.str();
 }
 
 } // namespace flexopt::optimize

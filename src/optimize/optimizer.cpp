@@ -49,6 +49,24 @@ void set_local_values(Vec v, const std::vector<double> &values) {
   FX_PETSC(VecRestoreArray(v, &a));
 }
 
+/// The outer move-limit box: xmin_j = max(0, x_j - move), xmax_j = min(1, x_j + move).
+void set_move_box(Vec x, double move, Vec xmin, Vec xmax) {
+  PetscInt n = 0;
+  FX_PETSC(VecGetLocalSize(x, &n));
+  const PetscScalar *xa;
+  PetscScalar *lo, *hi;
+  FX_PETSC(VecGetArrayRead(x, &xa));
+  FX_PETSC(VecGetArray(xmin, &lo));
+  FX_PETSC(VecGetArray(xmax, &hi));
+  for (PetscInt j = 0; j < n; ++j) {
+    lo[j] = std::max(0.0, xa[j] - move);
+    hi[j] = std::min(1.0, xa[j] + move);
+  }
+  FX_PETSC(VecRestoreArray(xmax, &hi));
+  FX_PETSC(VecRestoreArray(xmin, &lo));
+  FX_PETSC(VecRestoreArrayRead(x, &xa));
+}
+
 } // namespace
 
 OptimizationResult run_optimization(MPI_Comm comm, const io::Case &c, const std::string &out_dir,
@@ -66,10 +84,11 @@ OptimizationResult run_optimization(MPI_Comm comm, const io::Case &c, const std:
   FX_PETSC(VecDuplicate(x, &xold));
   FX_PETSC(VecDuplicate(x, &xmin));
   FX_PETSC(VecDuplicate(x, &xmax));
-  FX_PETSC(VecSet(xmin, 0.0));
-  FX_PETSC(VecSet(xmax, 1.0));
+  // The move limit is applied as an outer box [max(0, x - m), min(1, x + m)] handed to MMA as
+  // its bounds (Aage & Lazarov 2013), so that the initial asymptotes x -+ 0.5 (xmax - xmin) and
+  // their clamps scale with the move limit rather than with [0, 1] (docs/theory-mma.md §5).
   MmaSettings settings;
-  settings.move_limit = c.optimizer.move_limit;
+  settings.move_limit = 1.0;
   auto mma = Mma::create(x, static_cast<int>(m), settings);
 
   // MMA works best with an objective of order 1 ... 100 and constraints of order 1 (Svanberg
@@ -89,9 +108,10 @@ OptimizationResult run_optimization(MPI_Comm comm, const io::Case &c, const std:
 
   print0(
       comm,
-      "optimize: %lld design variables, %zu constraint(s), at most %d iterations, move limit %g\n",
+      "optimize: %lld design variables, %zu constraint(s), at most %d iterations, move limit %g, "
+      "%s\n",
       static_cast<long long>(problem->design_size()), m, c.optimizer.max_iterations,
-      c.optimizer.move_limit);
+      c.optimizer.move_limit, problem->filter().describe().c_str());
   print0(comm, "%5s %16s", "it", "objective");
   for (std::size_t i = 0; i < m; ++i)
     print0(comm, " %16s",
@@ -177,6 +197,7 @@ OptimizationResult run_optimization(MPI_Comm comm, const io::Case &c, const std:
       FX_PETSC(VecScale(dg[i], 1.0 / bound));
     }
     FX_PETSC(VecCopy(x, xold));
+    set_move_box(x, c.optimizer.move_limit, xmin, xmax);
     mma->update(x, xmin, xmax, e.objective * objective_scale, df0, g, dg);
     const double change = max_abs_change(x, xold);
     const double seconds = wall_time() - t0;

@@ -75,7 +75,7 @@ std::unique_ptr<TopologyProblem> TopologyProblem::create(MPI_Comm comm, const io
   p->sensor_locations_.push_back(locate(*c.objective));
   for (const auto &r : c.constraints) p->sensor_locations_.push_back(locate(r));
 
-  p->filter_ = HelmholtzFilter::create(m, d.filter_radius);
+  p->filter_ = create_density_filter(m, d.filter_type, d.filter_radius);
   p->rho_ = p->filter_->create_element_vector();
   FX_PETSC(VecDuplicate(p->rho_, &p->filtered_));
   FX_PETSC(VecDuplicate(p->rho_, &p->physical_));

@@ -14,6 +14,7 @@ struct Options {
   bool free = false;      ///< modes: ignore supports
   bool restart = false;   ///< optimize: continue from out/restart.h5
   int max_iterations = 0; ///< optimize: overrides optimizer.max_iterations when > 0
+  double fd_step = 1e-2;  ///< check-gradient: finite-difference step h
 };
 
 /// Runs one command. Collective. Returns the process exit status; throws flexopt::Error.

@@ -77,7 +77,8 @@ struct DesignSpec {
   double penalty = 3.0;          ///< SIMP exponent p
   double min_stiffness = 1e-9;   ///< E_min / E_0
   std::string mass = "linear";   ///< mass interpolation (dynamic analyses): linear | pedersen
-  double filter_radius = 0;      ///< Helmholtz length scale r [m]
+  std::string filter_type = "helmholtz"; ///< helmholtz | cone
+  double filter_radius = 0;      ///< Helmholtz length scale r, or cone radius R [m]
   std::vector<double> beta;      ///< Heaviside projection continuation (empty: no projection)
   double eta = 0.5;              ///< projection threshold
   int beta_every = 25;           ///< iterations per beta value (continuation)

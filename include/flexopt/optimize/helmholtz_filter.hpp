@@ -1,6 +1,6 @@
 #pragma once
 /// \file Helmholtz (PDE) density filter and its exact transpose (docs/theory.md, section 4).
-#include "flexopt/mesh/distributed_mesh.hpp"
+#include "flexopt/optimize/density_filter.hpp"
 
 #include <memory>
 #include <petscksp.h>
@@ -11,22 +11,23 @@ namespace flexopt::optimize {
 /// rho_filtered = F rho, F = V^-1 T^T (r^2 K + M)^-1 T, on a P1 field over the corner nodes of
 /// the mesh. Element vectors have one entry per local element (local size
 /// mesh.local_elements(), global order = element_start + local index).
-class HelmholtzFilter {
+class HelmholtzFilter : public DensityFilter {
 public:
   /// Assembles the filter operator for length scale `radius` [m] (> 0); `mesh` must outlive
   /// the filter. Collective.
   /// Solver options take the prefix `filter_` (e.g. -filter_ksp_rtol 1e-12).
   static std::unique_ptr<HelmholtzFilter> create(const mesh::DistributedMesh &mesh, double radius);
-  ~HelmholtzFilter();
+  ~HelmholtzFilter() override;
   HelmholtzFilter(const HelmholtzFilter &) = delete;
   HelmholtzFilter &operator=(const HelmholtzFilter &) = delete;
 
   /// A new element vector (caller destroys it). Collective.
-  Vec create_element_vector() const;
+  Vec create_element_vector() const override;
   /// rho_filtered = F rho. Collective.
-  void apply(Vec rho, Vec rho_filtered) const;
+  void apply(Vec rho, Vec rho_filtered) const override;
   /// g = F^T g_filtered (sensitivities through the filter). Collective.
-  void apply_transpose(Vec g_filtered, Vec g) const;
+  void apply_transpose(Vec g_filtered, Vec g) const override;
+  std::string describe() const override;
   /// Krylov iterations of the last solve.
   int last_iterations() const { return iterations_; }
   double radius() const { return radius_; }

@@ -4,7 +4,7 @@
 #include "flexopt/fem/probe.hpp"
 #include "flexopt/fem/static_problem.hpp"
 #include "flexopt/io/case.hpp"
-#include "flexopt/optimize/helmholtz_filter.hpp"
+#include "flexopt/optimize/density_filter.hpp"
 
 #include <memory>
 #include <string>
@@ -49,6 +49,7 @@ public:
   fem::StaticProblem &static_problem() { return *static_; }
   /// Filtered densities of all local elements at the last evaluation.
   Vec filtered_density() const { return filtered_; }
+  const DensityFilter &filter() const { return *filter_; }
   /// Physical densities (projected filtered densities; = filtered without projection).
   Vec physical_density() const { return physical_; }
   /// Projection sharpness in use (0: no projection). Set by the optimizer's continuation.
@@ -75,7 +76,7 @@ private:
 
   io::Case case_;
   std::unique_ptr<fem::StaticProblem> static_;
-  std::unique_ptr<HelmholtzFilter> filter_;
+  std::unique_ptr<DensityFilter> filter_;
   std::vector<PetscInt> design_elements_; ///< local element index of each local design variable
   std::vector<char> is_design_;           ///< per local element
   std::vector<std::size_t> design_tags_;
