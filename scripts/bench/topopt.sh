@@ -5,8 +5,11 @@
 # events of -log_view), and peak memory. Each size runs a few iterations (the per-iteration
 # cost is nearly constant; the first iteration includes set-up).
 #
-#   scripts/bench/topopt.sh              # 48x24x24 (~92k DOFs) and 104x52x52 (~1.2M DOFs)
+#   scripts/bench/topopt.sh              # 48x24x24 (~92k DOFs), 64x32x32 (212k DOFs, the
+#                                        # reference code's default size), 104x52x52 (~1.2M)
 #   scripts/bench/topopt.sh --quick      # the ~92k size only
+# Environment: FLEXOPT_BENCH_GRIDS="64x32x32", FLEXOPT_BENCH_ITERATIONS=30 (default 4),
+# FLEXOPT_BENCH_OPTIONS="-ksp_rtol 1e-5" (appended PETSc options).
 # Results: build/bench/topopt/results.md
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
@@ -15,7 +18,7 @@ flexopt="$root/build/flexopt"
 [ -x "$flexopt" ] || { echo "build flexopt first (scripts/build.sh)" >&2; exit 1; }
 work="$root/build/bench/topopt"
 mkdir -p "$work"
-grids="48x24x24 104x52x52"; [ "${1:-}" = "--quick" ] && grids="48x24x24"
+grids="${FLEXOPT_BENCH_GRIDS:-48x24x24 64x32x32 104x52x52}"; [ "${1:-}" = "--quick" ] && grids="48x24x24"
 iterations="${FLEXOPT_BENCH_ITERATIONS:-4}"
 results="$work/results.md"
 echo "| grid | DOFs | iterations | s/iteration | assembly | state solve | adjoint | filter | sensitivities | MMA | peak memory GiB |" > "$results"
@@ -24,10 +27,11 @@ for g in $grids; do
   IFS=x read -r nx ny nz <<< "$g"
   d="$work/$g"; mkdir -p "$d"
   sed -e "s/^nx = 32; ny = 16; nz = 16;.*/nx = $nx; ny = $ny; nz = $nz;/" "$root/meshes/box_2x1x1_hex.geo" > "$d/box.geo"
-  # Same problem; the load keeps 0.001 per node (q = 0.001 ny N/m) as in the reference code.
+  # Same problem; the load keeps 0.001 per node (q = 0.001 ny N/m) and the cone filter radius
+  # 2.56 elements (R = 0.16 at ny = 16, 0.08 at ny = 32), as in the reference code.
   sed -e "s#../../meshes/box_2x1x1_hex.geo#box.geo#" -e "s#value: \[0, 0, -0.016\]#value: [0, 0, -$(python3 -c "print(0.001*$ny)")]#" \
-      -e "s/radius: 0.046188/radius: $(python3 -c "print(0.046188*16/$ny)")/" "$root/cases/cantilever_topopt/case.yaml" > "$d/case.yaml"
-  mpirun -n 2 /usr/bin/time -f "rss_kb %M" "$flexopt" optimize "$d" --out "$d/out" --max-iterations "$iterations" -log_view > "$d/log.txt" 2>&1 || { tail -30 "$d/log.txt"; exit 1; }
+      -e "s/type: cone, radius: 0.16/type: cone, radius: $(python3 -c "print(0.16*16/$ny)")/" "$root/cases/cantilever_topopt/case.yaml" > "$d/case.yaml"
+  mpirun -n 2 /usr/bin/time -f "rss_kb %M" "$flexopt" optimize "$d" --out "$d/out" --max-iterations "$iterations" -log_view ${FLEXOPT_BENCH_OPTIONS:-} > "$d/log.txt" 2>&1 || { tail -30 "$d/log.txt"; exit 1; }
   /usr/bin/python3 - "$g" "$d" "$iterations" >> "$results" <<'PY'
 import json, re, sys
 g, d, its = sys.argv[1], sys.argv[2], int(sys.argv[3])

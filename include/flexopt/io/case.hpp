@@ -33,6 +33,17 @@ struct MeshSpec {
   bool given = false; ///< true if the `mesh:` key was present
 };
 
+/// Placement of a body frame at t = 0 and its velocity (`bodies[].initial`, dynamic analyses).
+/// The body's mesh coordinates are body-frame coordinates; the frame is placed at `position`
+/// and rotated by `angle` about `axis` (world frame).
+struct InitialSpec {
+  std::array<double, 3> position{0, 0, 0};         ///< [m]
+  std::array<double, 3> axis{0, 0, 1};             ///< unit vector (normalized when read)
+  double angle = 0;                                ///< [rad]
+  std::array<double, 3> velocity{0, 0, 0};         ///< of the body-frame origin [m/s]
+  std::array<double, 3> angular_velocity{0, 0, 0}; ///< world frame [rad/s]
+};
+
 struct BodySpec {
   std::string name;
   std::string model = "auto"; ///< rigid | ffrf | acf | auto
@@ -41,6 +52,50 @@ struct BodySpec {
   MeshSpec mesh;
   std::string material;
   std::vector<std::string> interfaces;
+  InitialSpec initial;
+  Location where;
+};
+
+/// A named point of the fixed frame (`ground: {interfaces: {NAME: [x, y, z]}}`); its frame is
+/// the world frame.
+struct GroundInterfaceSpec {
+  std::string name;
+  std::array<double, 3> origin{0, 0, 0};
+  Location where;
+};
+
+/// A joint between two interfaces (`joints:`). `a` or `b` may be "ground".
+struct JointSpec {
+  std::string name;
+  std::string type; ///< revolute | spherical | prismatic | fixed
+  std::string a, a_interface, b, b_interface;
+  std::array<double, 3> axis{0, 0, 0}; ///< revolute, prismatic: unit axis, world frame at t = 0
+  Location where;
+};
+
+/// A prescribed joint coordinate (`drivers:`): revolute angle [rad] or prismatic displacement
+/// [m] from the initial configuration, as a muParser expression in t.
+struct DriverSpec {
+  std::string joint;
+  std::string expression;
+  Location where;
+};
+
+/// A force [N] at an interface (`loads.forces`), world frame; each component a number or a
+/// muParser expression in t (stored as text; numbers as their decimal text).
+struct ForceSpec {
+  std::string body;
+  std::string interface;
+  std::array<std::string, 3> value;
+  Location where;
+};
+
+/// Time integration (`time:`).
+struct TimeSpec {
+  double end = 0;      ///< [s], > 0
+  double step = 0;     ///< [s], > 0, <= end
+  double rho_inf = 0.8; ///< generalized-alpha spectral radius at infinity, in [0, 1]
+  bool given = false;
   Location where;
 };
 
@@ -114,6 +169,11 @@ struct Case {
   std::vector<TractionSpec>
       line_loads; ///< force per length [N/m] on physical curves (`surface` = curve name)
   std::vector<SensorSpec> sensors;
+  std::vector<GroundInterfaceSpec> ground; ///< dynamic: named points of the fixed frame
+  std::vector<JointSpec> joints;           ///< dynamic
+  std::vector<DriverSpec> drivers;         ///< dynamic
+  std::vector<ForceSpec> forces;           ///< dynamic: loads.forces
+  TimeSpec time;                           ///< dynamic
   std::string solver; ///< PETSc options applied before the command line's
   int output_every = 1;
   std::optional<DesignSpec> design;      ///< topology optimization: the design field
