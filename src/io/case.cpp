@@ -1,6 +1,7 @@
 #include "flexopt/io/case.hpp"
 
 #include "flexopt/core/error.hpp"
+#include "flexopt/core/expression.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -30,9 +31,17 @@ const BodySpec &Case::body(const std::string &n) const {
 
 namespace {
 
-/// Keys of CASE_FORMAT.md that belong to later stages (mechanisms, optimization): recognised so
-/// that the message says they are not available yet rather than "unknown".
-const std::set<std::string> kNotYetSupported = {"ground", "joints", "drivers", "time", "adjoint"};
+/// Keys of CASE_FORMAT.md that belong to later stages (dynamic optimization): recognised so that
+/// the message says they are not available yet rather than "unknown".
+const std::set<std::string> kNotYetSupported = {"adjoint"};
+
+/// Top-level keys that only a dynamic analysis takes.
+const char *const kDynamicOnly[] = {"ground", "joints", "drivers", "time"};
+
+/// Top-level keys of the static analysis and the (static) topology optimization that a dynamic
+/// analysis does not take yet.
+const char *const kStaticOnly[] = {"supports",  "tractions",   "line_loads", "design",
+                                   "objective", "constraints", "optimizer"};
 
 /// Validating reader over one YAML document: every failure names file, line and column.
 class Reader {
@@ -125,6 +134,34 @@ public:
     return {number(n[0], path + "[0]"), number(n[1], path + "[1]"), number(n[2], path + "[2]")};
   }
 
+  /// A nonzero 3-vector, normalized.
+  std::array<double, 3> direction(const YAML::Node &n, const std::string &path) const {
+    std::array<double, 3> d = vector3(n, path);
+    const double norm = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    if (!(norm > 0)) fail(n, path + ": must not be zero");
+    for (double &x : d) x /= norm;
+    return d;
+  }
+
+  /// A number or a muParser expression in t (docs/case-format.md, "Expressions"), compiled to
+  /// check it; returns the text as written.
+  std::string expression(const YAML::Node &n, const std::string &path) const {
+    if (!n.IsScalar()) fail(n, path + ": expected a number or an expression in t (a string)");
+    try {
+      const Expression compiled(n.Scalar());
+    } catch (const ExpressionError &e) {
+      fail(n, path + ": " + e.what());
+    }
+    return n.Scalar();
+  }
+
+  /// The key node (not the value) of `key` in the mapping `map`, for messages about the key.
+  YAML::Node key_node(const YAML::Node &map, const std::string &key) const {
+    for (const auto &kv : map)
+      if (kv.first.as<std::string>() == key) return kv.first;
+    return map;
+  }
+
   std::vector<std::string> string_list(const YAML::Node &n, const std::string &path) const {
     require_sequence(n, path);
     std::vector<std::string> out;
@@ -161,7 +198,32 @@ void read_materials(const Reader &r, const YAML::Node &node, Case &c) {
   if (c.materials.empty()) r.fail(node, "materials: at least one material is required");
 }
 
+/// "a, b, c", or `none` for an empty list.
+std::string join(const std::vector<std::string> &names, const char *none = "none") {
+  std::string out;
+  for (const auto &n : names) out += (out.empty() ? "" : ", ") + n;
+  return out.empty() ? none : out;
+}
+
+void read_initial(const Reader &r, const YAML::Node &v, const std::string &path, InitialSpec &s) {
+  r.require_map(v, path);
+  r.check_keys(v, path, {"position", "rotation", "velocity", "angular_velocity"});
+  if (v["position"]) s.position = r.vector3(v["position"], path + ".position");
+  if (v["rotation"]) {
+    const YAML::Node &rot = v["rotation"];
+    const std::string rp = path + ".rotation";
+    r.require_map(rot, rp);
+    r.check_keys(rot, rp, {"axis", "angle"});
+    s.axis = r.direction(r.require(rot, "axis", rp), rp + ".axis");
+    s.angle = r.number(r.require(rot, "angle", rp), rp + ".angle");
+  }
+  if (v["velocity"]) s.velocity = r.vector3(v["velocity"], path + ".velocity");
+  if (v["angular_velocity"])
+    s.angular_velocity = r.vector3(v["angular_velocity"], path + ".angular_velocity");
+}
+
 void read_bodies(const Reader &r, const YAML::Node &node, const fs::path &dir, Case &c) {
+  const bool dynamic = c.analysis == "dynamic";
   r.require_sequence(node, "bodies");
   if (node.size() == 0) r.fail(node, "bodies: at least one body is required");
   for (std::size_t i = 0; i < node.size(); ++i) {
@@ -171,19 +233,27 @@ void read_bodies(const Reader &r, const YAML::Node &node, const fs::path &dir, C
     r.check_keys(v, path,
                  {"name", "model", "geometry", "mesh", "material", "interfaces", "reduction",
                   "damping", "initial"});
-    for (const char *later : {"reduction", "damping", "initial"})
+    for (const char *later : {"reduction", "damping"})
       if (v[later])
         r.fail(v[later], path + "." + later +
-                             ": not supported yet by this version of flexopt (mechanisms and "
-                             "flexible bodies come with the dynamic analysis)");
+                             ": not supported yet by this version of flexopt (it simulates rigid "
+                             "bodies; flexible bodies come later)");
     BodySpec b;
     b.where = r.where(v);
     b.name = r.string(r.require(v, "name", path), path + ".name");
+    if (b.name == "ground")
+      r.fail(v["name"], path + ".name: 'ground' is reserved for the fixed frame (joints name it as "
+                               "a or b); choose another body name");
     for (const auto &other : c.bodies)
       if (other.name == b.name)
         r.fail(v["name"], path + ".name: duplicate body name '" + b.name + "'");
-    if (v["model"])
+    if (v["model"]) {
       b.model = r.choice(v["model"], path + ".model", {"rigid", "ffrf", "acf", "auto"});
+      if (dynamic && (b.model == "ffrf" || b.model == "acf"))
+        r.fail(v["model"], path + ".model: '" + b.model +
+                               "' is not supported yet (this version simulates rigid bodies; "
+                               "ffrf/acf come later)");
+    }
     b.geometry_key = r.string(r.require(v, "geometry", path), path + ".geometry");
     b.geometry = (dir / b.geometry_key).string();
     const std::string ext = fs::path(b.geometry).extension().string();
@@ -214,7 +284,21 @@ void read_bodies(const Reader &r, const YAML::Node &node, const fs::path &dir, C
     bool found = std::any_of(c.materials.begin(), c.materials.end(),
                              [&](const MaterialSpec &m) { return m.name == b.material; });
     if (!found) r.fail(v["material"], path + ".material: no material named '" + b.material + "'");
-    if (v["interfaces"]) b.interfaces = r.string_list(v["interfaces"], path + ".interfaces");
+    if (v["interfaces"]) {
+      b.interfaces = r.string_list(v["interfaces"], path + ".interfaces");
+      for (std::size_t k = 0; k < b.interfaces.size(); ++k)
+        if (std::count(b.interfaces.begin(), b.interfaces.begin() + static_cast<std::ptrdiff_t>(k),
+                       b.interfaces[k]) > 0)
+          r.fail(v["interfaces"][k],
+                 path + ".interfaces: '" + b.interfaces[k] + "' is listed twice");
+    }
+    if (v["initial"]) {
+      if (!dynamic)
+        r.fail(r.key_node(v, "initial"),
+               path + ".initial: needs analysis: dynamic (a static analysis does not place or "
+                      "move bodies)");
+      read_initial(r, v["initial"], path + ".initial", b.initial);
+    }
     c.bodies.push_back(b);
   }
 }
@@ -271,6 +355,183 @@ void read_tractions(const Reader &r, const YAML::Node &node, Case &c, const char
   }
 }
 
+void read_ground(const Reader &r, const YAML::Node &node, Case &c) {
+  r.require_map(node, "ground");
+  r.check_keys(node, "ground", {"interfaces"});
+  const YAML::Node &l = r.require(node, "interfaces", "ground");
+  r.require_map(l, "ground.interfaces");
+  for (const auto &kv : l) {
+    GroundInterfaceSpec g;
+    g.name = r.string(kv.first, "ground.interfaces");
+    g.where = r.where(kv.first);
+    const std::string path = "ground.interfaces." + g.name;
+    for (const auto &other : c.ground)
+      if (other.name == g.name) r.fail(kv.first, path + ": duplicate ground interface name");
+    g.origin = r.vector3(kv.second, path);
+    c.ground.push_back(g);
+  }
+  if (c.ground.empty()) r.fail(l, "ground.interfaces: name at least one point (NAME: [x, y, z])");
+}
+
+/// Checks that `side` ("a" or "b") of a joint names ground or a body, and that its interface
+/// is one of that body's `interfaces:` (or a ground interface).
+void check_joint_side(const Reader &r, const YAML::Node &v, const std::string &path,
+                      const JointSpec &j, const char *side, const Case &c) {
+  const std::string &who = side[0] == 'a' ? j.a : j.b;
+  const std::string &iface = side[0] == 'a' ? j.a_interface : j.b_interface;
+  const std::string ikey = std::string(side) + "_interface";
+  const std::string head = "joint '" + j.name + "': ";
+  if (who == "ground") {
+    std::vector<std::string> names;
+    for (const auto &g : c.ground) names.push_back(g.name);
+    if (std::find(names.begin(), names.end(), iface) != names.end()) return;
+    if (names.empty())
+      r.fail(v[ikey], path + "." + ikey + ": " + head + "ground has no interface '" + iface +
+                          "' (there is no ground: section; add ground: {interfaces: {" + iface +
+                          ": [x, y, z]}})");
+    r.fail(v[ikey], path + "." + ikey + ": " + head + "ground has no interface '" + iface +
+                        "' (ground interfaces: " + join(names) + ")");
+  }
+  const BodySpec *body = nullptr;
+  std::vector<std::string> bodies;
+  for (const auto &b : c.bodies) {
+    bodies.push_back(b.name);
+    if (b.name == who) body = &b;
+  }
+  if (!body)
+    r.fail(v[side], path + "." + side + ": " + head + "no body named '" + who +
+                        "' (bodies: " + join(bodies) + "; or ground)");
+  if (std::find(body->interfaces.begin(), body->interfaces.end(), iface) != body->interfaces.end())
+    return;
+  if (body->interfaces.empty())
+    r.fail(v[ikey], path + "." + ikey + ": " + head + "body '" + who + "' has no interface '" +
+                        iface + "' (it lists none; add interfaces: [" + iface +
+                        "] to the body, a physical surface of its geometry)");
+  r.fail(v[ikey], path + "." + ikey + ": " + head + "body '" + who + "' has no interface '" +
+                      iface + "' (its interfaces: " + join(body->interfaces) + ")");
+}
+
+void read_joints(const Reader &r, const YAML::Node &node, Case &c) {
+  r.require_sequence(node, "joints");
+  for (std::size_t i = 0; i < node.size(); ++i) {
+    const YAML::Node &v = node[i];
+    const std::string path = "joints[" + std::to_string(i) + "]";
+    r.require_map(v, path);
+    r.check_keys(v, path, {"name", "type", "a", "a_interface", "b", "b_interface", "axis"});
+    JointSpec j;
+    j.where = r.where(v);
+    j.name = r.string(r.require(v, "name", path), path + ".name");
+    for (const auto &other : c.joints)
+      if (other.name == j.name)
+        r.fail(v["name"], path + ".name: duplicate joint name '" + j.name + "'");
+    j.type = r.choice(r.require(v, "type", path), path + ".type",
+                      {"revolute", "spherical", "prismatic", "fixed"});
+    j.a = r.string(r.require(v, "a", path), path + ".a");
+    j.a_interface = r.string(r.require(v, "a_interface", path), path + ".a_interface");
+    j.b = r.string(r.require(v, "b", path), path + ".b");
+    j.b_interface = r.string(r.require(v, "b_interface", path), path + ".b_interface");
+    check_joint_side(r, v, path, j, "a", c);
+    check_joint_side(r, v, path, j, "b", c);
+    if (j.a == "ground" && j.b == "ground")
+      r.fail(v["b"], path + ".b: joint '" + j.name + "': a and b are both ground");
+    if (j.a == j.b)
+      r.fail(v["b"], path + ".b: joint '" + j.name + "': a and b are the same body '" + j.a +
+                         "' (a joint connects two bodies, or a body and ground)");
+    const bool has_axis = j.type == "revolute" || j.type == "prismatic";
+    if (has_axis) {
+      if (!v["axis"])
+        r.fail(v, path + ": joint '" + j.name + "': a " + j.type +
+                      " joint needs axis: [x, y, z] (world frame, t = 0)");
+      j.axis = r.direction(v["axis"], path + ".axis");
+    } else if (v["axis"]) {
+      r.fail(v["axis"], path + ".axis: a " + j.type + " joint has no axis");
+    }
+    c.joints.push_back(j);
+  }
+}
+
+void read_drivers(const Reader &r, const YAML::Node &node, Case &c) {
+  r.require_sequence(node, "drivers");
+  for (std::size_t i = 0; i < node.size(); ++i) {
+    const YAML::Node &v = node[i];
+    const std::string path = "drivers[" + std::to_string(i) + "]";
+    r.require_map(v, path);
+    r.check_keys(v, path, {"joint", "value"});
+    DriverSpec d;
+    d.where = r.where(v);
+    d.joint = r.string(r.require(v, "joint", path), path + ".joint");
+    const JointSpec *joint = nullptr;
+    std::vector<std::string> names;
+    for (const auto &j : c.joints) {
+      names.push_back(j.name);
+      if (j.name == d.joint) joint = &j;
+    }
+    if (!joint)
+      r.fail(v["joint"],
+             path + ".joint: no joint named '" + d.joint + "' (joints: " + join(names) + ")");
+    if (joint->type != "revolute" && joint->type != "prismatic")
+      r.fail(v["joint"], path + ".joint: joint '" + d.joint + "' is " + joint->type +
+                             "; a driver prescribes the coordinate of a revolute or prismatic "
+                             "joint");
+    for (std::size_t k = 0; k < c.drivers.size(); ++k)
+      if (c.drivers[k].joint == d.joint)
+        r.fail(v["joint"], path + ".joint: joint '" + d.joint + "' already has a driver (drivers[" +
+                               std::to_string(k) + "])");
+    d.expression = r.expression(r.require(v, "value", path), path + ".value");
+    c.drivers.push_back(d);
+  }
+}
+
+void read_forces(const Reader &r, const YAML::Node &node, Case &c) {
+  const std::string key = "loads.forces";
+  r.require_sequence(node, key);
+  for (std::size_t i = 0; i < node.size(); ++i) {
+    const YAML::Node &v = node[i];
+    const std::string path = key + "[" + std::to_string(i) + "]";
+    r.require_map(v, path);
+    r.check_keys(v, path, {"body", "interface", "value"});
+    ForceSpec f;
+    f.where = r.where(v);
+    f.body = r.string(r.require(v, "body", path), path + ".body");
+    if (f.body == "ground")
+      r.fail(v["body"], path + ".body: the ground is fixed; a force acts on a body");
+    if (!has_body(c, f.body)) r.fail(v["body"], path + ".body: no body named '" + f.body + "'");
+    const BodySpec &b = c.body(f.body);
+    f.interface = r.string(r.require(v, "interface", path), path + ".interface");
+    if (std::find(b.interfaces.begin(), b.interfaces.end(), f.interface) == b.interfaces.end())
+      r.fail(v["interface"], path + ".interface: body '" + f.body + "' has no interface '" +
+                                 f.interface + "' (its interfaces: " + join(b.interfaces) + ")");
+    const YAML::Node &val = r.require(v, "value", path);
+    if (!val.IsSequence() || val.size() != 3)
+      r.fail(val, path + ".value: expected a list of 3 components [x, y, z], each a number or an "
+                         "expression in t");
+    for (std::size_t k = 0; k < 3; ++k)
+      f.value[k] = r.expression(val[k], path + ".value[" + std::to_string(k) + "]");
+    c.forces.push_back(f);
+  }
+}
+
+void read_time(const Reader &r, const YAML::Node &v, Case &c) {
+  const std::string path = "time";
+  r.require_map(v, path);
+  r.check_keys(v, path, {"end", "step", "rho_inf"});
+  TimeSpec &t = c.time;
+  t.where = r.where(v);
+  t.end = r.number(r.require(v, "end", path), path + ".end");
+  if (!(t.end > 0)) r.fail(v["end"], path + ".end: must be positive");
+  t.step = r.number(r.require(v, "step", path), path + ".step");
+  if (!(t.step > 0)) r.fail(v["step"], path + ".step: must be positive");
+  if (!(t.step <= t.end))
+    r.fail(v["step"], path + ".step: must not exceed time.end (" + v["end"].Scalar() + ")");
+  if (v["rho_inf"]) {
+    t.rho_inf = r.number(v["rho_inf"], path + ".rho_inf");
+    if (!(t.rho_inf >= 0 && t.rho_inf <= 1))
+      r.fail(v["rho_inf"], path + ".rho_inf: must lie in [0, 1] (1: no numerical damping; 0: "
+                                  "the strongest)");
+  }
+  t.given = true;
+}
+
 void read_sensors(const Reader &r, const YAML::Node &node, Case &c) {
   r.require_sequence(node, "sensors");
   for (std::size_t i = 0; i < node.size(); ++i) {
@@ -287,9 +548,17 @@ void read_sensors(const Reader &r, const YAML::Node &node, Case &c) {
     s.body = r.string(r.require(v, "body", path), path + ".body");
     if (!has_body(c, s.body)) r.fail(v["body"], path + ".body: no body named '" + s.body + "'");
     s.point = r.vector3(r.require(v, "point", path), path + ".point");
-    if (v["quantity"])
-      s.quantity = r.choice(v["quantity"], path + ".quantity",
+    if (v["quantity"]) {
+      const YAML::Node &q = v["quantity"];
+      s.quantity = r.choice(q, path + ".quantity",
                             {"displacement", "position", "elastic_displacement", "rotation_angle"});
+      if (c.analysis == "static" && s.quantity != "displacement" && s.quantity != "position")
+        r.fail(q, path + ".quantity: '" + s.quantity +
+                      "' needs a dynamic analysis; a static one has displacement and position");
+      if (c.analysis == "dynamic" && s.quantity == "elastic_displacement")
+        r.fail(q, path + ".quantity: 'elastic_displacement' is not supported yet (it needs "
+                         "flexible bodies; this version simulates rigid bodies)");
+    }
     c.sensors.push_back(s);
   }
 }
@@ -370,11 +639,7 @@ ResponseSpec read_response(const Reader &r, const YAML::Node &v, const std::stri
     bool found = false;
     for (const auto &sensor : c.sensors) found = found || sensor.name == s.sensor;
     if (!found) r.fail(v["sensor"], path + ".sensor: no sensor named '" + s.sensor + "'");
-    s.direction = r.vector3(r.require(v, "direction", path), path + ".direction");
-    const double n = std::sqrt(s.direction[0] * s.direction[0] + s.direction[1] * s.direction[1] +
-                               s.direction[2] * s.direction[2]);
-    if (!(n > 0)) r.fail(v["direction"], path + ".direction: must not be zero");
-    for (double &x : s.direction) x /= n;
+    s.direction = r.direction(r.require(v, "direction", path), path + ".direction");
   } else {
     for (const char *k : {"sensor", "direction"})
       if (v[k]) r.fail(v[k], path + "." + k + ": only a displacement response takes it");
@@ -423,25 +688,41 @@ Case load_case(const std::string &directory) {
     if (kNotYetSupported.count(key))
       r.fail(kv.first, "key '" + key +
                            "' is part of the case format but not supported yet by this version of "
-                           "flexopt (static and modal analysis and static topology optimization)");
+                           "flexopt");
   }
   r.check_keys(root, "",
-               {"analysis", "materials", "bodies", "loads", "supports", "tractions", "line_loads",
-                "sensors", "output", "solver", "design", "objective", "constraints", "optimizer"});
+               {"analysis", "materials", "bodies", "ground", "joints", "drivers", "loads",
+                "supports", "tractions", "line_loads", "time", "sensors", "output", "solver",
+                "design", "objective", "constraints", "optimizer"});
 
   c.analysis = r.choice(r.require(root, "analysis", ""), "analysis", {"static", "dynamic"});
+  const bool dynamic = c.analysis == "dynamic";
+  for (const char *key : kDynamicOnly)
+    if (!dynamic && root[key])
+      r.fail(r.key_node(root, key),
+             std::string(key) + ": needs analysis: dynamic (this case is static)");
+  for (const char *key : kStaticOnly)
+    if (dynamic && root[key])
+      r.fail(r.key_node(root, key), std::string(key) + ": not supported yet in a dynamic analysis");
   read_materials(r, r.require(root, "materials", ""), c);
   read_bodies(r, r.require(root, "bodies", ""), dir, c);
+  if (root["ground"]) read_ground(r, root["ground"], c);
+  if (root["joints"]) read_joints(r, root["joints"], c);
+  if (root["drivers"]) read_drivers(r, root["drivers"], c);
 
   if (root["loads"]) {
     const YAML::Node &l = root["loads"];
     r.require_map(l, "loads");
     r.check_keys(l, "loads", {"gravity", "forces"});
-    if (l["forces"])
-      r.fail(l["forces"],
-             "loads.forces: interface forces are not supported yet (dynamic analysis)");
     if (l["gravity"]) c.gravity = r.vector3(l["gravity"], "loads.gravity");
+    if (l["forces"]) {
+      if (!dynamic)
+        r.fail(r.key_node(l, "forces"),
+               "loads.forces: needs analysis: dynamic (this case is static)");
+      read_forces(r, l["forces"], c);
+    }
   }
+  if (root["time"]) read_time(r, root["time"], c);
   if (root["supports"]) read_supports(r, root["supports"], c);
   if (root["tractions"])
     read_tractions(r, root["tractions"], c, "tractions", "surface", c.tractions);
@@ -492,16 +773,11 @@ Case load_case(const std::string &directory) {
   if (c.design && !c.objective)
     r.fail(root["design"], "design: an optimization needs an objective:");
 
-  if (c.analysis == "static") {
-    if (c.bodies.size() != 1)
-      r.fail(root["bodies"], "bodies: a static analysis takes exactly one body (got " +
-                                 std::to_string(c.bodies.size()) + ")");
-    for (const auto &s : c.sensors)
-      if (s.quantity != "displacement" && s.quantity != "position")
-        throw Error(s.where.str() + ": sensors: quantity '" + s.quantity +
-                        "' needs a dynamic analysis; a static one has displacement and position",
-                    true);
-  }
+  if (c.analysis == "static" && c.bodies.size() != 1)
+    r.fail(root["bodies"], "bodies: a static analysis takes exactly one body (got " +
+                               std::to_string(c.bodies.size()) + ")");
+  if (dynamic && !c.time.given)
+    r.fail(root["analysis"], "analysis: a dynamic analysis needs time: {end: T, step: h}");
   return c;
 }
 

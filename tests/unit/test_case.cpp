@@ -215,3 +215,454 @@ TEST_F(CaseFiles, ObjectiveWithoutDesignRejected) {
   write(std::string(kValid) + "objective: {type: compliance}\n");
   EXPECT_NE(error().find("need a design: section"), std::string::npos);
 }
+
+// ---------------------------------------------------------------------------------------------
+// Dynamic analysis: bodies[].initial, ground, joints, drivers, loads.forces, time.
+
+namespace {
+
+/// A slider-crank-like scene touching every dynamic key (line numbers matter: see the tests).
+const char *kDynamic = R"yaml(analysis: dynamic
+materials:
+  steel: {E: 2.1e11, nu: 0.3, density: 7850}
+bodies:
+  - name: crank
+    model: rigid
+    geometry: beam.geo
+    material: steel
+    interfaces: [hub, pin]
+  - name: rod
+    geometry: beam.geo
+    material: steel
+    interfaces: [pin_a, pin_b]
+    initial:
+      position: [0.1, 0.2, 0.3]
+      rotation: {axis: [0, 0, 2], angle: 0.5}
+      velocity: [1, 2, 3]
+      angular_velocity: [0, 0, -3]
+  - name: slider
+    model: auto
+    geometry: beam.geo
+    material: steel
+    interfaces: [pin, guide]
+ground: {interfaces: {origin: [0, 0, 0], rail: [0.4, 0, 0]}}
+joints:
+  - {name: j0, type: revolute, a: ground, a_interface: origin, b: crank, b_interface: hub, axis: [0, 0, 1]}
+  - {name: j1, type: revolute, a: crank, a_interface: pin, b: rod, b_interface: pin_a, axis: [0, 0, 1]}
+  - {name: j2, type: spherical, a: rod, a_interface: pin_b, b: slider, b_interface: pin}
+  - {name: j3, type: prismatic, a: ground, a_interface: rail, b: slider, b_interface: guide, axis: [3, 4, 0]}
+drivers:
+  - {joint: j0, value: "t < 1 ? _pi*t^2 : 2*_pi*t - _pi"}
+  - {joint: j3, value: 0.25}
+loads:
+  gravity: [0, -9.81, 0]
+  forces:
+    - {body: slider, interface: guide, value: [-100, "10*sin(2*_pi*t)", 1.5e-3]}
+time: {end: 2.0, step: 1.0e-3, rho_inf: 0.7}
+sensors:
+  - {name: s, body: slider, point: [0, 0, 0], quantity: position}
+  - {name: c, body: crank, point: [0.1, 0, 0], quantity: rotation_angle}
+  - {name: d, body: rod, point: [0, 0, 0]}
+output: {every: 10}
+)yaml";
+
+/// kDynamic with the first occurrence of `from` replaced by `to` (which must occur).
+std::string dynamic_with(const std::string &from, const std::string &to) {
+  std::string y = kDynamic;
+  const auto at = y.find(from);
+  EXPECT_NE(at, std::string::npos) << "test set-up: '" << from << "' not in kDynamic";
+  if (at != std::string::npos) y.replace(at, from.size(), to);
+  return y;
+}
+
+} // namespace
+
+/// Writes `yaml`, expects load_case to fail, and checks that the message holds every part.
+#define EXPECT_CASE_ERROR(yaml, ...)                                                               \
+  do {                                                                                             \
+    write(yaml);                                                                                   \
+    const std::string msg_ = error();                                                              \
+    EXPECT_FALSE(msg_.empty()) << "the case loaded";                                               \
+    for (const std::string &part_ : std::initializer_list<std::string>{__VA_ARGS__})               \
+      EXPECT_NE(msg_.find(part_), std::string::npos) << "'" << part_ << "' not in:\n" << msg_;     \
+  } while (0)
+
+TEST_F(CaseFiles, DynamicCaseParsesFieldByField) {
+  write(kDynamic);
+  const auto c = load_case(dir_.string());
+  EXPECT_EQ(c.analysis, "dynamic");
+  ASSERT_EQ(c.bodies.size(), 3u);
+  EXPECT_EQ(c.bodies[0].model, "rigid");
+  EXPECT_EQ(c.bodies[1].model, "auto"); // default
+  EXPECT_EQ(c.bodies[2].model, "auto");
+  EXPECT_EQ(c.bodies[0].interfaces, (std::vector<std::string>{"hub", "pin"}));
+  // crank: no initial: identity placement at rest
+  const auto &i0 = c.bodies[0].initial;
+  EXPECT_EQ(i0.position, (std::array<double, 3>{0, 0, 0}));
+  EXPECT_EQ(i0.axis, (std::array<double, 3>{0, 0, 1}));
+  EXPECT_EQ(i0.angle, 0.0);
+  EXPECT_EQ(i0.velocity, (std::array<double, 3>{0, 0, 0}));
+  EXPECT_EQ(i0.angular_velocity, (std::array<double, 3>{0, 0, 0}));
+  const auto &i1 = c.bodies[1].initial;
+  EXPECT_EQ(i1.position, (std::array<double, 3>{0.1, 0.2, 0.3}));
+  EXPECT_EQ(i1.axis, (std::array<double, 3>{0, 0, 1})); // normalized from [0, 0, 2]
+  EXPECT_DOUBLE_EQ(i1.angle, 0.5);
+  EXPECT_EQ(i1.velocity, (std::array<double, 3>{1, 2, 3}));
+  EXPECT_EQ(i1.angular_velocity, (std::array<double, 3>{0, 0, -3}));
+
+  ASSERT_EQ(c.ground.size(), 2u);
+  EXPECT_EQ(c.ground[0].name, "origin"); // order as written
+  EXPECT_EQ(c.ground[1].name, "rail");
+  EXPECT_EQ(c.ground[1].origin, (std::array<double, 3>{0.4, 0, 0}));
+  EXPECT_EQ(c.ground[1].where.line, 24);
+
+  ASSERT_EQ(c.joints.size(), 4u);
+  const auto &j0 = c.joints[0];
+  EXPECT_EQ(j0.name, "j0");
+  EXPECT_EQ(j0.type, "revolute");
+  EXPECT_EQ(j0.a, "ground");
+  EXPECT_EQ(j0.a_interface, "origin");
+  EXPECT_EQ(j0.b, "crank");
+  EXPECT_EQ(j0.b_interface, "hub");
+  EXPECT_EQ(j0.axis, (std::array<double, 3>{0, 0, 1}));
+  EXPECT_EQ(j0.where.line, 26);
+  EXPECT_EQ(j0.where.column, 5);
+  EXPECT_EQ(c.joints[1].a, "crank");
+  EXPECT_EQ(c.joints[1].b_interface, "pin_a");
+  EXPECT_EQ(c.joints[2].type, "spherical");
+  EXPECT_EQ(c.joints[2].axis, (std::array<double, 3>{0, 0, 0})); // none
+  EXPECT_EQ(c.joints[3].type, "prismatic");
+  EXPECT_DOUBLE_EQ(c.joints[3].axis[0], 0.6); // normalized from [3, 4, 0]
+  EXPECT_DOUBLE_EQ(c.joints[3].axis[1], 0.8);
+  EXPECT_DOUBLE_EQ(c.joints[3].axis[2], 0.0);
+
+  ASSERT_EQ(c.drivers.size(), 2u);
+  EXPECT_EQ(c.drivers[0].joint, "j0");
+  EXPECT_EQ(c.drivers[0].expression, "t < 1 ? _pi*t^2 : 2*_pi*t - _pi");
+  EXPECT_EQ(c.drivers[0].where.line, 31);
+  EXPECT_EQ(c.drivers[1].joint, "j3");
+  EXPECT_EQ(c.drivers[1].expression, "0.25");
+
+  ASSERT_TRUE(c.gravity.has_value());
+  EXPECT_DOUBLE_EQ((*c.gravity)[1], -9.81);
+  ASSERT_EQ(c.forces.size(), 1u);
+  EXPECT_EQ(c.forces[0].body, "slider");
+  EXPECT_EQ(c.forces[0].interface, "guide");
+  EXPECT_EQ(c.forces[0].value, (std::array<std::string, 3>{"-100", "10*sin(2*_pi*t)", "1.5e-3"}));
+  EXPECT_EQ(c.forces[0].where.line, 36);
+
+  EXPECT_TRUE(c.time.given);
+  EXPECT_DOUBLE_EQ(c.time.end, 2.0);
+  EXPECT_DOUBLE_EQ(c.time.step, 1.0e-3);
+  EXPECT_DOUBLE_EQ(c.time.rho_inf, 0.7);
+  EXPECT_EQ(c.time.where.line, 37);
+
+  ASSERT_EQ(c.sensors.size(), 3u);
+  EXPECT_EQ(c.sensors[0].quantity, "position");
+  EXPECT_EQ(c.sensors[1].quantity, "rotation_angle");
+  EXPECT_EQ(c.sensors[2].quantity, "displacement");
+  EXPECT_EQ(c.output_every, 10);
+  EXPECT_TRUE(c.supports.empty());
+  EXPECT_FALSE(c.design.has_value());
+}
+
+TEST_F(CaseFiles, TimeRhoInfDefaultsTo08) {
+  write(dynamic_with("time: {end: 2.0, step: 1.0e-3, rho_inf: 0.7}", "time: {end: 1, step: 1}"));
+  const auto c = load_case(dir_.string());
+  EXPECT_DOUBLE_EQ(c.time.rho_inf, 0.8);
+  EXPECT_DOUBLE_EQ(c.time.step, 1.0); // step == end is allowed
+}
+
+TEST_F(CaseFiles, MinimalDynamicCaseParses) {
+  // One body, no joints: a free body (e.g. falling or spinning).
+  write(R"(analysis: dynamic
+materials: {steel: {E: 2.1e11, nu: 0.3, density: 7850}}
+bodies:
+  - {name: block, geometry: beam.geo, material: steel}
+time: {end: 0.5, step: 0.01}
+)");
+  const auto c = load_case(dir_.string());
+  EXPECT_TRUE(c.joints.empty() && c.drivers.empty() && c.forces.empty() && c.ground.empty());
+  EXPECT_TRUE(c.time.given);
+  EXPECT_FALSE(c.gravity.has_value());
+}
+
+// bodies[].initial, model, name
+
+TEST_F(CaseFiles, InitialRotationAxisMustNotBeZero) {
+  EXPECT_CASE_ERROR(dynamic_with("axis: [0, 0, 2]", "axis: [0, 0, 0]"),
+                    "case.yaml:16:24:", "bodies[1].initial.rotation.axis: must not be zero");
+}
+
+TEST_F(CaseFiles, InitialRotationNeedsAxisAndAngle) {
+  EXPECT_CASE_ERROR(dynamic_with("{axis: [0, 0, 2], angle: 0.5}", "{angle: 0.5}"),
+                    "case.yaml:16:", "missing required key 'bodies[1].initial.rotation.axis'");
+}
+
+TEST_F(CaseFiles, InitialValuesMustBeFinite) {
+  EXPECT_CASE_ERROR(dynamic_with("velocity: [1, 2, 3]", "velocity: [1, .nan, 3]"),
+                    "case.yaml:17:", "bodies[1].initial.velocity[1]: expected a finite number");
+  EXPECT_CASE_ERROR(dynamic_with("angle: 0.5", "angle: .inf"),
+                    "case.yaml:16:", "bodies[1].initial.rotation.angle: expected a finite number");
+  EXPECT_CASE_ERROR(dynamic_with("position: [0.1, 0.2, 0.3]", "position: [0.1, 0.2]"),
+                    "case.yaml:15:", "bodies[1].initial.position: expected a list of 3 numbers");
+}
+
+TEST_F(CaseFiles, InitialUnknownKeyRejected) {
+  EXPECT_CASE_ERROR(
+      dynamic_with("      velocity:", "      acceleration: [0, 0, 0]\n      velocity:"),
+      "case.yaml:17:7:", "unknown key 'bodies[1].initial.acceleration'");
+}
+
+TEST_F(CaseFiles, InitialNeedsDynamicAnalysis) {
+  std::string y = kValid;
+  y.replace(y.find("    material: steel"), 19,
+            "    material: steel\n    initial: {position: [0, 0, 0]}");
+  EXPECT_CASE_ERROR(y, "case.yaml:9:5:", "bodies[0].initial: needs analysis: dynamic");
+}
+
+TEST_F(CaseFiles, ReductionAndDampingStillNotSupported) {
+  EXPECT_CASE_ERROR(dynamic_with("    interfaces: [pin_a, pin_b]\n",
+                                 "    interfaces: [pin_a, pin_b]\n    reduction: {modes: 8}\n"),
+                    "case.yaml:14:", "bodies[1].reduction: not supported yet");
+  EXPECT_CASE_ERROR(
+      dynamic_with("    interfaces: [pin_a, pin_b]\n",
+                   "    interfaces: [pin_a, pin_b]\n    damping: {rayleigh: [0, 1]}\n"),
+      "case.yaml:14:", "bodies[1].damping: not supported yet");
+}
+
+TEST_F(CaseFiles, FlexibleModelsNotSupportedYetInDynamicAnalysis) {
+  for (const std::string model : {"ffrf", "acf"})
+    EXPECT_CASE_ERROR(dynamic_with("model: rigid", "model: " + model),
+                      "case.yaml:6:12:", "bodies[0].model: '" + model + "' is not supported yet",
+                      "this version simulates rigid bodies; ffrf/acf come later");
+}
+
+TEST_F(CaseFiles, StaticAnalysisIgnoresModel) {
+  std::string y = kValid;
+  y.replace(y.find("    geometry: beam.geo"), 22, "    model: ffrf\n    geometry: beam.geo");
+  write(y);
+  EXPECT_EQ(load_case(dir_.string()).bodies[0].model, "ffrf");
+}
+
+TEST_F(CaseFiles, BodyNamedGroundRejected) {
+  EXPECT_CASE_ERROR(dynamic_with("name: slider", "name: ground"),
+                    "case.yaml:19:11:", "bodies[2].name: 'ground' is reserved for the fixed frame");
+}
+
+TEST_F(CaseFiles, DuplicateBodyInterfaceRejected) {
+  EXPECT_CASE_ERROR(dynamic_with("[pin, guide]", "[pin, pin]"),
+                    "case.yaml:23:23:", "bodies[2].interfaces: 'pin' is listed twice");
+}
+
+// ground
+
+TEST_F(CaseFiles, GroundInterfaceNamesUnique) {
+  EXPECT_CASE_ERROR(dynamic_with("rail: [0.4, 0, 0]", "origin: [0.4, 0, 0]"),
+                    "case.yaml:24:", "ground.interfaces.origin: duplicate ground interface name");
+}
+
+TEST_F(CaseFiles, GroundInterfaceNeedsAPoint) {
+  EXPECT_CASE_ERROR(dynamic_with("rail: [0.4, 0, 0]", "rail: [0.4, 0]"),
+                    "case.yaml:24:", "ground.interfaces.rail: expected a list of 3 numbers");
+  EXPECT_CASE_ERROR(dynamic_with("ground: {interfaces: {origin: [0, 0, 0], rail: [0.4, 0, 0]}}",
+                                 "ground: {points: {}}"),
+                    "case.yaml:24:", "unknown key 'ground.points'");
+}
+
+// joints
+
+TEST_F(CaseFiles, JointInterfaceMustBeListedByTheBody) {
+  EXPECT_CASE_ERROR(dynamic_with("b: rod, b_interface: pin_a", "b: rod, b_interface: pin_c"),
+                    "case.yaml:27:",
+                    "joints[1].b_interface: joint 'j1': body 'rod' has no "
+                    "interface 'pin_c' (its interfaces: pin_a, pin_b)");
+}
+
+TEST_F(CaseFiles, JointInterfaceOfABodyWithoutInterfaces) {
+  EXPECT_CASE_ERROR(dynamic_with("    interfaces: [hub, pin]\n", ""), "case.yaml:25:",
+                    "joints[0].b_interface: joint 'j0': body 'crank' has no interface 'hub' (it "
+                    "lists none; add interfaces: [hub]");
+}
+
+TEST_F(CaseFiles, JointGroundInterfaceMustExist) {
+  EXPECT_CASE_ERROR(dynamic_with("a: ground, a_interface: origin", "a: ground, a_interface: orig"),
+                    "case.yaml:26:",
+                    "joints[0].a_interface: joint 'j0': ground has no interface "
+                    "'orig' (ground interfaces: origin, rail)");
+  EXPECT_CASE_ERROR(
+      dynamic_with("ground: {interfaces: {origin: [0, 0, 0], rail: [0.4, 0, 0]}}\n", ""),
+      "joints[0].a_interface: joint 'j0': ground has no interface 'origin' (there "
+      "is no ground: section");
+}
+
+TEST_F(CaseFiles, JointBodyMustExist) {
+  EXPECT_CASE_ERROR(dynamic_with("b: rod,", "b: rood,"), "case.yaml:27:",
+                    "joints[1].b: joint 'j1': no body named 'rood' (bodies: crank, rod, slider; "
+                    "or ground)");
+}
+
+TEST_F(CaseFiles, JointNotBetweenTheSameBodyOrGroundTwice) {
+  EXPECT_CASE_ERROR(dynamic_with("b: crank, b_interface: hub", "b: ground, b_interface: rail"),
+                    "case.yaml:26:", "joints[0].b: joint 'j0': a and b are both ground");
+  EXPECT_CASE_ERROR(dynamic_with("b: rod, b_interface: pin_a", "b: crank, b_interface: hub"),
+                    "case.yaml:27:", "joints[1].b: joint 'j1': a and b are the same body 'crank'");
+}
+
+TEST_F(CaseFiles, JointNamesUniqueAndTypesKnown) {
+  EXPECT_CASE_ERROR(dynamic_with("name: j1", "name: j0"),
+                    "case.yaml:27:", "joints[1].name: duplicate joint name 'j0'");
+  EXPECT_CASE_ERROR(dynamic_with("type: spherical", "type: universal"), "case.yaml:28:",
+                    "joints[2].type: 'universal' is not one of revolute | spherical | prismatic | "
+                    "fixed");
+  EXPECT_CASE_ERROR(dynamic_with("{name: j2, ", "{"),
+                    "case.yaml:28:", "missing required key 'joints[2].name'");
+}
+
+TEST_F(CaseFiles, JointAxisRules) {
+  EXPECT_CASE_ERROR(dynamic_with(", axis: [0, 0, 1]}", "}"), "case.yaml:26:5:",
+                    "joints[0]: joint 'j0': a revolute joint needs axis: [x, y, z]");
+  EXPECT_CASE_ERROR(dynamic_with("axis: [3, 4, 0]", "axis: [0, 0, 0]"),
+                    "case.yaml:29:", "joints[3].axis: must not be zero");
+  EXPECT_CASE_ERROR(dynamic_with("b_interface: pin}", "b_interface: pin, axis: [1, 0, 0]}"),
+                    "case.yaml:28:", "joints[2].axis: a spherical joint has no axis");
+  EXPECT_CASE_ERROR(dynamic_with("type: spherical, a: rod, a_interface: pin_b, b: slider, "
+                                 "b_interface: pin}",
+                                 "type: fixed, a: rod, a_interface: pin_b, b: slider, "
+                                 "b_interface: pin, axis: [1, 0, 0]}"),
+                    "case.yaml:28:", "joints[2].axis: a fixed joint has no axis");
+}
+
+// drivers
+
+TEST_F(CaseFiles, DriverBadExpressionShowsExpressionAndPosition) {
+  EXPECT_CASE_ERROR(dynamic_with("\"t < 1 ? _pi*t^2 : 2*_pi*t - _pi\"", "\"t <* 2\""),
+                    "case.yaml:31:24: drivers[0].value: cannot parse \"t <* 2\": ", "at position 3",
+                    "\n    t <* 2\n       ^");
+}
+
+TEST_F(CaseFiles, DriverUnknownVariableNamed) {
+  EXPECT_CASE_ERROR(dynamic_with("\"t < 1 ? _pi*t^2 : 2*_pi*t - _pi\"", "\"omega*t\""),
+                    "case.yaml:31:24: drivers[0].value: cannot parse \"omega*t\": unknown name "
+                    "\"omega\" at position 0");
+}
+
+TEST_F(CaseFiles, DriverValueMustBeFiniteAtZeroAndAScalar) {
+  EXPECT_CASE_ERROR(dynamic_with("\"t < 1 ? _pi*t^2 : 2*_pi*t - _pi\"", "\"1/t\""),
+                    "case.yaml:31:24: drivers[0].value: \"1/t\" evaluates to inf at t = 0");
+  EXPECT_CASE_ERROR(dynamic_with("value: 0.25", "value: [0.25]"),
+                    "case.yaml:32:", "drivers[1].value: expected a number or an expression in t");
+  EXPECT_CASE_ERROR(dynamic_with("value: 0.25", "value: \"\""),
+                    "case.yaml:32:", "drivers[1].value: empty expression");
+}
+
+TEST_F(CaseFiles, DriverJointRules) {
+  EXPECT_CASE_ERROR(dynamic_with("joint: j0", "joint: j9"), "case.yaml:31:13:",
+                    "drivers[0].joint: no joint named 'j9' (joints: j0, j1, j2, j3)");
+  EXPECT_CASE_ERROR(dynamic_with("joint: j3", "joint: j2"), "case.yaml:32:",
+                    "drivers[1].joint: joint 'j2' is spherical; a driver prescribes the "
+                    "coordinate of a revolute or prismatic joint");
+  EXPECT_CASE_ERROR(dynamic_with("joint: j3", "joint: j0"), "case.yaml:32:",
+                    "drivers[1].joint: joint 'j0' already has a driver (drivers[0])");
+}
+
+// loads.forces
+
+TEST_F(CaseFiles, ForceComponentsAreNumbersOrExpressions) {
+  EXPECT_CASE_ERROR(dynamic_with("\"10*sin(2*_pi*t)\"", "\"10*sin(2*pi*t)\""), "case.yaml:36:",
+                    "loads.forces[0].value[1]: cannot parse \"10*sin(2*pi*t)\": unknown name "
+                    "\"pi\" at position 9");
+  EXPECT_CASE_ERROR(dynamic_with("value: [-100, \"10*sin(2*_pi*t)\", 1.5e-3]", "value: [-100, 0]"),
+                    "case.yaml:36:", "loads.forces[0].value: expected a list of 3 components");
+}
+
+TEST_F(CaseFiles, ForceBodyAndInterfaceMustExist) {
+  EXPECT_CASE_ERROR(
+      dynamic_with("{body: slider, interface: guide", "{body: slider, interface: hub"),
+      "case.yaml:36:",
+      "loads.forces[0].interface: body 'slider' has no interface 'hub' (its "
+      "interfaces: pin, guide)");
+  EXPECT_CASE_ERROR(dynamic_with("{body: slider, interface", "{body: piston, interface"),
+                    "case.yaml:36:", "loads.forces[0].body: no body named 'piston'");
+  EXPECT_CASE_ERROR(
+      dynamic_with("{body: slider, interface: guide", "{body: ground, interface: rail"),
+      "case.yaml:36:", "loads.forces[0].body: the ground is fixed");
+}
+
+// time
+
+TEST_F(CaseFiles, TimeRules) {
+  EXPECT_CASE_ERROR(dynamic_with("step: 1.0e-3", "step: 0"),
+                    "case.yaml:37:", "time.step: must be positive");
+  EXPECT_CASE_ERROR(dynamic_with("step: 1.0e-3", "step: -1.0e-3"), "time.step: must be positive");
+  EXPECT_CASE_ERROR(dynamic_with("step: 1.0e-3", "step: 3"),
+                    "case.yaml:37:", "time.step: must not exceed time.end (2.0)");
+  EXPECT_CASE_ERROR(dynamic_with("end: 2.0", "end: 0"),
+                    "case.yaml:37:13:", "time.end: must be positive");
+  EXPECT_CASE_ERROR(dynamic_with("rho_inf: 0.7", "rho_inf: 1.1"),
+                    "case.yaml:37:", "time.rho_inf: must lie in [0, 1]");
+  EXPECT_CASE_ERROR(dynamic_with("rho_inf: 0.7", "rho_inf: -0.1"),
+                    "time.rho_inf: must lie in [0, 1]");
+  EXPECT_CASE_ERROR(dynamic_with("{end: 2.0, step: 1.0e-3, rho_inf: 0.7}", "{end: 2.0}"),
+                    "case.yaml:37:", "missing required key 'time.step'");
+  EXPECT_CASE_ERROR(dynamic_with("rho_inf: 0.7", "rho: 0.7"),
+                    "case.yaml:37:", "unknown key 'time.rho'");
+}
+
+TEST_F(CaseFiles, DynamicAnalysisNeedsTime) {
+  EXPECT_CASE_ERROR(dynamic_with("time: {end: 2.0, step: 1.0e-3, rho_inf: 0.7}\n", ""),
+                    "case.yaml:1:11:", "analysis: a dynamic analysis needs time:");
+}
+
+// sensors
+
+TEST_F(CaseFiles, SensorQuantitiesPerAnalysis) {
+  EXPECT_CASE_ERROR(dynamic_with("quantity: rotation_angle", "quantity: elastic_displacement"),
+                    "case.yaml:40:58:",
+                    "sensors[1].quantity: 'elastic_displacement' is not "
+                    "supported yet");
+  std::string y = kValid;
+  y.replace(y.find("point: [1, 0, 0]"), 16, "point: [1, 0, 0], quantity: rotation_angle");
+  EXPECT_CASE_ERROR(y, "case.yaml:16:57:",
+                    "sensors[0].quantity: 'rotation_angle' needs a dynamic "
+                    "analysis; a static one has displacement and position");
+  y = kValid;
+  y.replace(y.find("point: [1, 0, 0]"), 16, "point: [1, 0, 0], quantity: position");
+  write(y);
+  EXPECT_EQ(load_case(dir_.string()).sensors[0].quantity, "position");
+}
+
+// analysis cross-checks
+
+TEST_F(CaseFiles, StaticAnalysisRejectsDynamicKeys) {
+  const std::string extra[] = {"ground: {interfaces: {o: [0, 0, 0]}}\n", "joints: []\n",
+                               "drivers: []\n", "time: {end: 1, step: 0.1}\n"};
+  for (const auto &e : extra) {
+    const std::string key = e.substr(0, e.find(':'));
+    EXPECT_CASE_ERROR(std::string(kValid) + e,
+                      "case.yaml:18:1: " + key + ": needs analysis: dynamic");
+  }
+  std::string y = kValid;
+  y.replace(y.find("  gravity:"), 10, "  forces: []\n  gravity:");
+  EXPECT_CASE_ERROR(y, "case.yaml:14:3: loads.forces: needs analysis: dynamic");
+}
+
+TEST_F(CaseFiles, DynamicAnalysisRejectsStaticOnlyKeys) {
+  const std::string extra[] = {"supports: [{body: crank, surface: hub, fix: [x]}]\n",
+                               "tractions: [{body: crank, surface: hub, value: [0, 0, 1]}]\n",
+                               "line_loads: [{body: crank, curve: e, value: [0, 0, 1]}]\n",
+                               "design: {body: crank, filter: {radius: 0.1}}\n",
+                               "objective: {type: compliance}\n",
+                               "constraints: [{type: volume_fraction, max: 0.5}]\n",
+                               "optimizer: {max_iterations: 10}\n"};
+  for (const auto &e : extra) {
+    const std::string key = e.substr(0, e.find(':'));
+    EXPECT_CASE_ERROR(std::string(kDynamic) + e,
+                      "case.yaml:43:1: " + key + ": not supported yet in a dynamic analysis");
+  }
+}
+
+TEST_F(CaseFiles, AdjointStillNotSupported) {
+  EXPECT_CASE_ERROR(std::string(kDynamic) + "adjoint: {checkpoints: 32}\n", "case.yaml:43:1:",
+                    "key 'adjoint' is part of the case format but not supported yet");
+}

@@ -46,13 +46,13 @@ struct InitialSpec {
 
 struct BodySpec {
   std::string name;
-  std::string model = "auto"; ///< rigid | ffrf | acf | auto
+  std::string model = "auto"; ///< rigid | ffrf | acf | auto (dynamic: rigid | auto for now)
   std::string geometry;       ///< path, resolved against the case directory
   std::string geometry_key;   ///< as written in case.yaml
   MeshSpec mesh;
   std::string material;
-  std::vector<std::string> interfaces;
-  InitialSpec initial;
+  std::vector<std::string> interfaces; ///< physical surfaces for joints and forces, unique
+  InitialSpec initial;                 ///< dynamic only (identity at rest if not given)
   Location where;
 };
 
@@ -74,7 +74,8 @@ struct JointSpec {
 };
 
 /// A prescribed joint coordinate (`drivers:`): revolute angle [rad] or prismatic displacement
-/// [m] from the initial configuration, as a muParser expression in t.
+/// [m] from the initial configuration, as a muParser expression in t (flexopt::Expression;
+/// compiled once when read, so it does not throw).
 struct DriverSpec {
   std::string joint;
   std::string expression;
@@ -82,7 +83,8 @@ struct DriverSpec {
 };
 
 /// A force [N] at an interface (`loads.forces`), world frame; each component a number or a
-/// muParser expression in t (stored as text; numbers as their decimal text).
+/// muParser expression in t, stored as written in case.yaml (compiled once when read, so
+/// `flexopt::Expression(value[k])` does not throw).
 struct ForceSpec {
   std::string body;
   std::string interface;
