@@ -12,6 +12,10 @@ reads the run's summary.json and compares each check:
           - {path: sensors.tip.value[1], value: -7.634e-3, rel_tol: 0.02, source: "..."}
           - {path: compliance, value: 37.9, abs_tol: 0.5}
           - {path: frequencies_hz[0:6], max_abs: 0.2}      # every selected |value| <= max_abs
+          # time series (a sensor's t/value, or a list against output_times):
+          - {path: sensors.tip, component: 1, period: 1.9339, rel_tol: 1.0e-4}
+          - {path: sensors.s, component: 0, formula: "0.2*np.cos(t)", max_abs_err: 1.0e-8}
+          - {path: energy, max_relative_change: 1.0e-6}
 
 Usage: check_case.py CASE_DIR [--flexopt build/flexopt] [--ranks 2] [--out DIR] [--reference FILE]
 Exit status 0 if every check passes.
@@ -43,13 +47,81 @@ def select(summary, path):
     return value
 
 
+def series(summary, check):
+    """The time series a check names: times t and values (component `component` of vector
+    values, if given) of `path`, a sensor (with t and value) or a plain list (times from
+    output_times)."""
+    import numpy as np
+    got = select(summary, check["path"])
+    if isinstance(got, dict):
+        t, v = got["t"], got["value"]
+    else:
+        t, v = summary["output_times"], got
+    v = np.array(v, dtype=float)
+    if "component" in check:
+        v = v[:, int(check["component"])]
+    return np.array(t, dtype=float), v
+
+
+def first_period(t, v):
+    """Time between the first two interior maxima of v(t) (parabola through the three samples
+    around each), or None."""
+    import numpy as np
+    peaks = []
+    for i in range(1, len(v) - 1):
+        if v[i] >= v[i - 1] and v[i] > v[i + 1]:
+            a, b, _ = np.polyfit(t[i - 1:i + 2] - t[i], v[i - 1:i + 2], 2)
+            peaks.append(t[i] - b / (2 * a))
+        if len(peaks) == 2:
+            return peaks[1] - peaks[0]
+    return None
+
+
+def check_derived(summary, check):
+    """Checks on time series: `formula` (numpy expression in t; every sample within
+    max_abs_err), `period` (time between the first two maxima against value/rel_tol) and
+    `max_relative_change` (max |v - v[0]| / |v[0]| <= the given bound)."""
+    import numpy as np
+    path = check["path"]
+    try:
+        t, v = series(summary, check)
+    except (KeyError, IndexError, TypeError) as e:
+        return False, f"{path}: not in summary.json ({e})"
+    label = path + (f"[{check['component']}]" if "component" in check else "")
+    if "formula" in check:
+        ns = {"np": np, "t": t, "pi": np.pi}
+        if "value =" in check["formula"]:  # statements that set `value`
+            exec(check["formula"], ns)
+            expected = ns["value"]
+        else:
+            expected = eval(check["formula"], ns)
+        err = float(np.max(np.abs(v - expected)))
+        shown = check["formula"] if len(check["formula"]) < 60 else check.get("name", "formula")
+        return err <= check["max_abs_err"], (f"{label}: max |value - ({shown})| "
+                                             f"{err:.3g} <= {check['max_abs_err']:.3g} over {len(t)} samples")
+    if "period" in check:
+        T = first_period(t, v)
+        if T is None:
+            return False, f"{label}: fewer than two maxima, no period"
+        rel = abs(T - check["period"]) / abs(check["period"])
+        return rel <= check["rel_tol"], f"{label}: period {T:.10g} vs {check['period']:.10g}, rel err {rel:.3g} <= {check['rel_tol']:.3g}"
+    bound = check["max_relative_change"]
+    change = float(np.max(np.abs(v - v[0])) / abs(v[0]))
+    return change <= bound, f"{label}: max |v - v0| / |v0| {change:.3g} <= {bound:.3g}"
+
+
 def check_one(summary, check):
+    if any(k in check for k in ("formula", "period", "max_relative_change")):
+        return check_derived(summary, check)
     path = check["path"]
     try:
         got = select(summary, path)
     except (KeyError, IndexError, TypeError) as e:
         return False, f"{path}: not in summary.json ({e})"
     values = got if isinstance(got, list) else [got]
+    if "count" in check:
+        n = len(got) if isinstance(got, list) else -1
+        return n == check["count"], f"{path}: {n} entries, expected {check['count']}"
     if "max_abs" in check:
         worst = max(abs(v) for v in values)
         ok = worst <= check["max_abs"]

@@ -28,6 +28,16 @@ def run(flexopt, ranks, case, command, out, extra):
         return json.load(f)
 
 
+def flatten(v):
+    """Nested lists (e.g. a sensor's vector per output step) as one flat list."""
+    if not isinstance(v, list):
+        return [v]
+    out = []
+    for x in v:
+        out.extend(flatten(x))
+    return out
+
+
 def main():
     argv = sys.argv[1:]
     extra = []
@@ -47,8 +57,7 @@ def main():
     failures = 0
     for key in args.keys:
         a, b = select(one, key), select(two, key)
-        a = a if isinstance(a, list) else [a]
-        b = b if isinstance(b, list) else [b]
+        a, b = flatten(a), flatten(b)
         if len(a) != len(b):
             print(f"FAIL  {key}: {len(a)} values on 1 rank, {len(b)} on 2")
             failures += 1

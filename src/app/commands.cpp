@@ -1,4 +1,5 @@
 #include "flexopt/app/commands.hpp"
+#include "app_common.hpp"
 
 #include "flexopt/core/error.hpp"
 #include "flexopt/fem/probe.hpp"
@@ -19,11 +20,7 @@ namespace fs = std::filesystem;
 
 namespace flexopt::app {
 
-namespace {
-
-/// Shift for the modal solve [rad^2/s^2]: negative so that K - shift M stays non-singular for
-/// a free body (its rigid-body modes have omega^2 = 0).
-constexpr double kModalShift = -1.0;
+namespace detail {
 
 std::string output_directory(const Context &ctx, const Options &o) {
   const std::string dir = o.out.empty() ? (fs::path(o.case_dir) / "out").string() : o.out;
@@ -51,6 +48,18 @@ void write_summary(const Context &ctx, const std::string &dir, io::Json &s, doub
     io::write_file_atomic((fs::path(dir) / "summary.json").string(), s.dump() + "\n");
   });
 }
+
+} // namespace detail
+
+using detail::base_summary;
+using detail::output_directory;
+using detail::write_summary;
+
+namespace {
+
+/// Shift for the modal solve [rad^2/s^2]: negative so that K - shift M stays non-singular for
+/// a free body (its rigid-body modes have omega^2 = 0).
+constexpr double kModalShift = -1.0;
 
 io::Json rank_counts(const std::vector<PetscInt> &v) {
   io::Json a = io::Json::array();
@@ -503,7 +512,8 @@ int run(const Context &ctx, const Options &o) {
   io::Case c = io::load_case(o.case_dir);
   if (!c.solver.empty()) insert_default_petsc_options(c.solver, c.file + ": solver");
   if (o.command == "info") return run_info(ctx, o, c, t0);
-  if (o.command == "simulate") return run_static(ctx, o, c, t0);
+  if (o.command == "simulate")
+    return c.analysis == "dynamic" ? run_dynamic(ctx, o, c, t0) : run_static(ctx, o, c, t0);
   if (o.command == "modes") return run_modes(ctx, o, c, t0);
   if (o.command == "check-gradient") return run_check_gradient(ctx, o, c, t0);
   if (o.command == "optimize") return run_optimize(ctx, o, c, t0);

@@ -4,7 +4,8 @@
 
 namespace flexopt::mesh {
 
-DistributedMesh load_body_mesh(MPI_Comm comm, const io::BodySpec &body) {
+DistributedMesh load_body_mesh(MPI_Comm comm, const io::BodySpec &body,
+                               const std::function<void(const MeshData &)> &on_root) {
   MeshData data;
   const double t0 = wall_time();
   if (body.mesh.given)
@@ -16,6 +17,7 @@ DistributedMesh load_body_mesh(MPI_Comm comm, const io::BodySpec &body) {
   run_on_root(comm, 0, [&] {
     try {
       data = read_gmsh(body.geometry, MeshOptions{body.mesh.size, body.mesh.order});
+      if (on_root) on_root(data);
     } catch (const std::exception &e) {
       throw Error(body.where.str() + ": body '" + body.name + "': " + e.what());
     }

@@ -3,10 +3,16 @@
 #include "flexopt/io/case.hpp"
 #include "flexopt/mesh/distributed_mesh.hpp"
 
+#include <functional>
+
 namespace flexopt::mesh {
 
 /// Reads or meshes the body's geometry on rank 0 (Gmsh) and distributes it. Collective; any
 /// failure is raised on every rank with the body's case.yaml location.
-DistributedMesh load_body_mesh(MPI_Comm comm, const io::BodySpec &body);
+/// `on_root`, if given, is called on rank 0 with the whole mesh before it is distributed
+/// (e.g. to integrate mass properties in one fixed order, independent of the rank count); an
+/// exception it throws is raised on every rank like a meshing failure.
+DistributedMesh load_body_mesh(MPI_Comm comm, const io::BodySpec &body,
+                               const std::function<void(const MeshData &)> &on_root = {});
 
 } // namespace flexopt::mesh

@@ -1,0 +1,78 @@
+#pragma once
+/// \file A mechanism of rigid bodies: coordinates, equations of motion, constraints (joints,
+/// drivers, Euler-parameter normalization) and loads, evaluated densely (Eigen, replicated on
+/// every rank; docs/theory.md section 6).
+#include "flexopt/bodies/rigid_body.hpp"
+#include "flexopt/joints/equation.hpp"
+
+#include <array>
+#include <string>
+#include <vector>
+
+namespace flexopt::dynamics {
+
+using joints::Matrix;
+using joints::Vector;
+using bodies::Vec3;
+
+/// A force [N] (world frame, function of t) at a body point s (relative to the centre of mass,
+/// body axes).
+struct PointForce {
+  int body = 0;
+  Vec3 s{0, 0, 0};
+  std::array<Expression, 3> value;
+};
+
+class Mechanism {
+public:
+  std::vector<bodies::RigidBody> bodies;
+  std::vector<joints::Equation> equations; ///< all equations (normalizations first)
+  std::vector<PointForce> forces;
+  Vec3 gravity{0, 0, 0};
+
+  int coordinates() const { return 7 * static_cast<int>(bodies.size()); }
+  /// Number of enforced constraint rows (redundant rows excluded).
+  int constraints() const { return active_rows_; }
+  /// Total rows of all equations, enforced or not.
+  int all_rows() const { return all_rows_; }
+
+  /// Marks every row enforced; call after filling `equations`.
+  void finalize();
+  /// Finds rows of Phi_q(q, t) that are linear combinations of rows before them (tolerance
+  /// `tol` relative to the row norm, modified Gram-Schmidt in equation order) and stops
+  /// enforcing them. Returns one line per dropped row: "<owner> row k".
+  std::vector<std::string> drop_redundant_rows(const Vector &q, double t, double tol = 1e-9);
+  /// Whether row r (over all rows) is enforced.
+  bool enforced(int r) const { return enforced_[static_cast<std::size_t>(r)]; }
+
+  /// Enforced constraints: Phi (m) and, if J is non-null, Phi_q (m x n).
+  void constraint(const Vector &q, double t, Vector &phi, Matrix *J) const;
+  /// Every row (enforced or not): for the violation monitor and messages.
+  void all_constraint_values(const Vector &q, double t, Vector &phi) const;
+  /// H += d(Phi_q^T lambda)/dq for the enforced rows.
+  void add_constraint_hessian(const Vector &q, double t, const Vector &lambda, Matrix &H) const;
+  /// Enforced rows: Phi_t, Phi_tt and (Phi_q)_t v.
+  void constraint_time_terms(const Vector &q, const Vector &v, double t, Vector &phi_t,
+                             Vector &phi_tt, Vector &phi_qt_v) const;
+  /// (Phi_q v)_q v for the enforced rows (row by row: v^T H_i v).
+  Vector constraint_convective(const Vector &q, const Vector &v, double t) const;
+
+  /// The equations of motion without the constraint forces:
+  ///   r = M(q) a + Q_v(q, v) - Q_ext(q, t)
+  /// and its derivatives K = dr/dq, C = dr/dv, M = dr/da (each may be null).
+  void dynamics(const Vector &q, const Vector &v, const Vector &a, double t, Vector &r, Matrix *K,
+                Matrix *C, Matrix *M) const;
+  /// Kinetic energy plus the potential of gravity, -m g . r (the interface forces are not
+  /// conservative and are not included).
+  double energy(const Vector &q, const Vector &v) const;
+
+  /// Owner name and row within the owner of row r (over all rows).
+  std::string describe_row(int r) const;
+
+private:
+  std::vector<char> enforced_;
+  std::vector<int> row_equation_, row_index_; ///< per row: equation and row within it
+  int active_rows_ = 0, all_rows_ = 0;
+};
+
+} // namespace flexopt::dynamics

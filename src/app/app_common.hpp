@@ -1,0 +1,24 @@
+#pragma once
+/// \file Helpers shared by the commands (private to the app module).
+#include "flexopt/app/commands.hpp"
+#include "flexopt/io/case.hpp"
+#include "flexopt/io/json.hpp"
+
+#include <string>
+
+namespace flexopt::app {
+
+namespace detail {
+/// The command's output directory (created; a stale summary.json removed). Collective.
+std::string output_directory(const Context &ctx, const Options &o);
+/// The summary fields every command writes.
+io::Json base_summary(const Context &ctx, const Options &o, const io::Case &c);
+/// Adds wall_s and writes summary.json atomically on rank 0. Collective.
+void write_summary(const Context &ctx, const std::string &dir, io::Json &s, double t0);
+} // namespace detail
+
+/// `simulate` for `analysis: dynamic`: generalized-alpha run of the mechanism, motion.xdmf and
+/// summary.json. Collective.
+int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double t0);
+
+} // namespace flexopt::app

@@ -1,0 +1,181 @@
+// `flexopt simulate` for `analysis: dynamic`: a mechanism of rigid bodies integrated with
+// generalized-alpha; motion.xdmf (every body's mesh moving), summary.json (sensors, energy,
+// constraint violation, Newton statistics).
+#include "app_common.hpp"
+
+#include "flexopt/core/context.hpp"
+#include "flexopt/core/error.hpp"
+#include "flexopt/dynamics/generalized_alpha.hpp"
+#include "flexopt/dynamics/scene.hpp"
+#include "flexopt/io/motion_writer.hpp"
+
+#include <cmath>
+#include <sstream>
+
+namespace flexopt::app {
+
+namespace {
+
+/// Current world coordinates of the owned nodes of body b.
+std::vector<double> body_positions(const dynamics::Scene &scene, std::size_t b,
+                                   const dynamics::Vector &q) {
+  const mesh::DistributedMesh &m = scene.meshes[b];
+  const auto &body = scene.mechanism.bodies[b];
+  const auto qb = q.segment<7>(7 * static_cast<int>(b));
+  const bodies::Mat3 A = bodies::rotation(qb.tail<4>());
+  std::vector<double> x(3 * static_cast<std::size_t>(m.owned_nodes));
+  for (PetscInt i = 0; i < m.owned_nodes; ++i) {
+    const bodies::Vec3 X(m.coordinates[3 * static_cast<std::size_t>(i)],
+                         m.coordinates[3 * static_cast<std::size_t>(i) + 1],
+                         m.coordinates[3 * static_cast<std::size_t>(i) + 2]);
+    const bodies::Vec3 p = qb.head<3>() + A * (X - body.center());
+    for (int k = 0; k < 3; ++k) x[3 * static_cast<std::size_t>(i) + static_cast<std::size_t>(k)] = p(k);
+  }
+  return x;
+}
+
+io::Json vec3_json(const bodies::Vec3 &v) { return io::Json(std::vector<double>{v.x(), v.y(), v.z()}); }
+
+} // namespace
+
+int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double t0) {
+  const std::string dir = detail::output_directory(ctx, o);
+  io::Json s = detail::base_summary(ctx, o, c);
+  s["analysis"] = "dynamic";
+  print0(ctx.comm(), "case %s (%s), analysis: dynamic, %d rank(s)\n", c.name.c_str(),
+         c.file.c_str(), ctx.size());
+  dynamics::Scene scene = dynamics::build_scene(ctx.comm(), c);
+  const dynamics::Mechanism &mech = scene.mechanism;
+  print0(ctx.comm(), "mechanism: %zu bodies, %d coordinates, %d constraint rows enforced of %d\n",
+         mech.bodies.size(), mech.coordinates(), mech.constraints(), mech.all_rows());
+  io::Json redundant = io::Json::array();
+  for (const auto &r : scene.redundant_rows) {
+    print0(ctx.comm(),
+           "mechanism: redundant constraint %s is implied by the others and is not enforced "
+           "(its residual is monitored)\n",
+           r.c_str());
+    redundant.push_back(r);
+  }
+  s["redundant_constraints"] = redundant;
+
+  const auto par = dynamics::AlphaParameters::from_rho_inf(c.time.rho_inf);
+  const dynamics::GeneralizedAlpha ga(mech, par);
+  dynamics::State state = ga.initial_state(scene.q0, scene.v0, 0.0);
+  const double h = c.time.step;
+  const long long steps = std::llround(c.time.end / h);
+  print0(ctx.comm(),
+         "integrate: generalized-alpha rho_inf = %g (alpha_m %.4f, alpha_f %.4f, gamma %.4f, beta "
+         "%.4f), %lld steps of %g s to t = %g s\n",
+         par.rho_inf, par.alpha_m, par.alpha_f, par.gamma, par.beta, steps, h,
+         static_cast<double>(steps) * h);
+
+  std::vector<io::MotionBody> mb;
+  for (std::size_t b = 0; b < mech.bodies.size(); ++b)
+    mb.push_back({mech.bodies[b].name(), mesh::grid_layout(scene.meshes[b])});
+  io::MotionWriter writer(mb, dir, "motion");
+
+  std::vector<double> out_t, energy;
+  std::vector<std::vector<bodies::Vec3>> sensor_values(scene.sensors.size());
+  double max_violation = 0;
+  dynamics::Vector all;
+  auto violation = [&](const dynamics::State &st) {
+    mech.all_constraint_values(st.q, st.t, all);
+    return all.size() ? all.cwiseAbs().maxCoeff() : 0.0;
+  };
+  auto record = [&](const dynamics::State &st) {
+    out_t.push_back(st.t);
+    energy.push_back(mech.energy(st.q, st.v));
+    for (std::size_t k = 0; k < scene.sensors.size(); ++k)
+      sensor_values[k].push_back(dynamics::sensor_value(scene, scene.sensors[k], st.q));
+    writer.begin_step(st.t);
+    for (std::size_t b = 0; b < mech.bodies.size(); ++b) {
+      const auto x = body_positions(scene, b, st.q);
+      writer.positions(b, x.data());
+    }
+  };
+  max_violation = violation(state);
+  record(state);
+
+  long long newton_total = 0;
+  int newton_max = 0, halvings_max = 0;
+  const double t_start = wall_time();
+  double last_print = t_start;
+  dynamics::State next;
+  for (long long n = 0; n < steps; ++n) {
+    dynamics::StepInfo info;
+    if (!ga.advance(state, h, next, info)) {
+      std::ostringstream msg;
+      msg << "integrate: Newton did not converge in step " << n + 1 << " (t = " << state.t
+          << " s -> " << state.t + h << " s) after " << (1 << dynamics::NewtonSettings{}.max_halvings)
+          << "-fold step halving; increments of the last attempt:";
+      for (double v : info.increment) msg << ' ' << v;
+      msg << "; constraint residuals:";
+      for (double v : info.violation) msg << ' ' << v;
+      msg << ". Reduce time.step or check the scene (a singular configuration, a driver "
+             "demanding impossible motion).";
+      throw Error(msg.str(), true); // replicated computation: every rank fails here
+    }
+    next.t = static_cast<double>(n + 1) * h; // no drift of t over many steps
+    state = next;
+    newton_total += info.iterations;
+    newton_max = std::max(newton_max, info.iterations);
+    halvings_max = std::max(halvings_max, info.halvings);
+    max_violation = std::max(max_violation, violation(state));
+    if ((n + 1) % c.output_every == 0 || n + 1 == steps) record(state);
+    const double now = wall_time();
+    if (now - last_print > 2.0 || n + 1 == steps) {
+      const double rate = static_cast<double>(n + 1) / std::max(now - t_start, 1e-9);
+      print0(ctx.comm(), "  t = %-10.6g step %lld/%lld  Newton %.2f/step  %.0f steps/s  ETA %.1f s\n",
+             state.t, n + 1, steps, static_cast<double>(newton_total) / static_cast<double>(n + 1),
+             rate, static_cast<double>(steps - n - 1) / rate);
+      last_print = now;
+    }
+  }
+  const double t_int = wall_time() - t_start;
+  const std::string xdmf = writer.close();
+
+  s["steps"] = steps;
+  s["time_step"] = h;
+  s["t_end"] = static_cast<double>(steps) * h;
+  s["rho_inf"] = par.rho_inf;
+  s["output_times"] = io::Json(out_t);
+  s["energy"] = io::Json(energy);
+  s["constraint_violation_max"] = max_violation;
+  s["newton_iterations_total"] = newton_total;
+  s["newton_iterations_max"] = newton_max;
+  s["step_halvings_max"] = halvings_max;
+  s["integration_s"] = t_int;
+  s["steps_per_second"] = static_cast<double>(steps) / std::max(t_int, 1e-9);
+  io::Json sensors = io::Json::object();
+  for (std::size_t k = 0; k < scene.sensors.size(); ++k) {
+    io::Json one = io::Json::object();
+    one["quantity"] = scene.sensors[k].quantity;
+    one["t"] = io::Json(out_t);
+    io::Json vals = io::Json::array();
+    for (const auto &v : sensor_values[k]) vals.push_back(vec3_json(v));
+    one["value"] = vals;
+    sensors[scene.sensors[k].name] = one;
+  }
+  s["sensors"] = sensors;
+  io::Json bl = io::Json::array();
+  for (const auto &b : mech.bodies) {
+    io::Json j = io::Json::object();
+    j["name"] = b.name();
+    j["mass"] = b.mass();
+    j["center"] = vec3_json(b.center());
+    j["inertia"] = io::Json(std::vector<double>(b.inertia().data(), b.inertia().data() + 9));
+    bl.push_back(j);
+  }
+  s["bodies"] = bl;
+  print0(ctx.comm(),
+         "integrate: %lld steps in %.3f s (%.0f steps/s), %lld Newton iterations (max %d per "
+         "step), max constraint violation %.3e, energy %.9g -> %.9g\n",
+         steps, t_int, static_cast<double>(steps) / std::max(t_int, 1e-9), newton_total,
+         newton_max, max_violation, energy.front(), energy.back());
+  detail::write_summary(ctx, dir, s, t0);
+  print0(ctx.comm(), "wrote %s (open in ParaView and press play) and %s/summary.json\n",
+         xdmf.c_str(), dir.c_str());
+  return 0;
+}
+
+} // namespace flexopt::app

@@ -1,0 +1,280 @@
+#include "flexopt/dynamics/generalized_alpha.hpp"
+
+#include "flexopt/core/error.hpp"
+
+#include <Eigen/LU>
+#include <Eigen/SparseLU>
+#include <algorithm>
+#include <cmath>
+#include <functional>
+#include <sstream>
+
+namespace flexopt::dynamics {
+
+AlphaParameters AlphaParameters::from_rho_inf(double rho) {
+  AlphaParameters p;
+  p.rho_inf = rho;
+  p.alpha_m = (2 * rho - 1) / (rho + 1);
+  p.alpha_f = rho / (rho + 1);
+  p.gamma = 0.5 + p.alpha_f - p.alpha_m;
+  p.beta = 0.25 * (p.gamma + 0.5) * (p.gamma + 0.5);
+  return p;
+}
+
+Vector State::pack() const {
+  const auto n = q.size(), m = lambda.size();
+  Vector s(4 * n + m);
+  s << q, v, a, acc, lambda;
+  return s;
+}
+
+void State::unpack(const Vector &s, int n, int m) {
+  q = s.segment(0, n);
+  v = s.segment(n, n);
+  a = s.segment(2 * n, n);
+  acc = s.segment(3 * n, n);
+  lambda = s.segment(4 * n, m);
+}
+
+namespace {
+/// Systems up to this size are solved densely (LU with partial pivoting); larger ones (long
+/// chains of bodies, whose matrices are block-banded) with a sparse LU.
+constexpr Eigen::Index kDenseLimit = 96;
+
+} // namespace
+
+GeneralizedAlpha::GeneralizedAlpha(const Mechanism &mechanism, AlphaParameters parameters,
+                                   NewtonSettings settings)
+    : mech_(mechanism), par_(parameters), settings_(settings) {
+  const int n = mech_.coordinates(), m = mech_.constraints();
+  if (n + m <= kDenseLimit) return;
+  // Structural pattern: body blocks coupled through an equation (and each body with itself),
+  // the constraint rows' body columns and their transposes.
+  const int nb = static_cast<int>(mech_.bodies.size());
+  std::vector<std::vector<char>> coupled(static_cast<std::size_t>(nb),
+                                         std::vector<char>(static_cast<std::size_t>(nb), 0));
+  for (int b = 0; b < nb; ++b) coupled[static_cast<std::size_t>(b)][static_cast<std::size_t>(b)] = 1;
+  std::vector<Eigen::Triplet<double>> t;
+  int row = 0, k = 0;
+  for (const auto &e : mech_.equations) {
+    if (e.a >= 0 && e.b >= 0)
+      coupled[static_cast<std::size_t>(e.a)][static_cast<std::size_t>(e.b)] =
+          coupled[static_cast<std::size_t>(e.b)][static_cast<std::size_t>(e.a)] = 1;
+    for (int i = 0; i < e.rows(); ++i, ++row) {
+      if (!mech_.enforced(row)) continue;
+      for (int b : {e.a, e.b})
+        if (b >= 0)
+          for (int j = 0; j < 7; ++j) {
+            t.emplace_back(n + k, 7 * b + j, 1.0);
+            t.emplace_back(7 * b + j, n + k, 1.0);
+          }
+      ++k;
+    }
+  }
+  for (int a = 0; a < nb; ++a)
+    for (int b = 0; b < nb; ++b)
+      if (coupled[static_cast<std::size_t>(a)][static_cast<std::size_t>(b)])
+        for (int i = 0; i < 7; ++i)
+          for (int j = 0; j < 7; ++j) t.emplace_back(7 * a + i, 7 * b + j, 1.0);
+  sparse_ = std::make_unique<SparseSolver>();
+  sparse_->S.resize(n + m, n + m);
+  sparse_->S.setFromTriplets(t.begin(), t.end(), [](double x, double) { return x; });
+  sparse_->S.makeCompressed();
+  sparse_->lu.analyzePattern(sparse_->S);
+}
+
+Vector GeneralizedAlpha::solve(const Matrix &A, const Vector &rhs) const {
+  if (!sparse_) return A.partialPivLu().solve(rhs);
+  Eigen::SparseMatrix<double> &S = sparse_->S;
+  for (int c = 0; c < S.outerSize(); ++c)
+    for (Eigen::SparseMatrix<double>::InnerIterator it(S, c); it; ++it)
+      it.valueRef() = A(it.row(), it.col());
+  sparse_->lu.factorize(S);
+  if (sparse_->lu.info() != Eigen::Success) return Vector::Constant(rhs.size(), std::nan(""));
+  return sparse_->lu.solve(rhs);
+}
+
+namespace {
+
+/// Minimum-norm solution x of J x = b (J full row rank), x = J^T (J J^T)^-1 b.
+Vector min_norm(const Matrix &J, const Vector &b) {
+  const Matrix JJt = J * J.transpose();
+  return J.transpose() * JJt.partialPivLu().solve(b);
+}
+
+} // namespace
+
+State GeneralizedAlpha::initial_state(const Vector &q0, const Vector &v0, double t0) const {
+  const int n = mech_.coordinates(), m = mech_.constraints();
+  State s;
+  s.t = t0;
+  s.q = q0;
+  Vector phi;
+  Matrix J;
+  // Positions: Gauss-Newton on the smallest correction, q <- q - J^T (J J^T)^-1 Phi.
+  double scale = 1;
+  for (int b = 0; b < static_cast<int>(mech_.bodies.size()); ++b)
+    scale = std::max(scale, q0.segment<3>(7 * b).cwiseAbs().maxCoeff());
+  const double tol = 1e-13 * scale;
+  int it = 0;
+  for (; it < 50; ++it) {
+    mech_.constraint(s.q, t0, phi, &J);
+    if (m == 0 || phi.cwiseAbs().maxCoeff() <= tol) break;
+    s.q -= min_norm(J, phi);
+  }
+  Vector all;
+  mech_.all_constraint_values(s.q, t0, all);
+  std::ostringstream bad;
+  int nbad = 0;
+  for (int r = 0; r < all.size(); ++r)
+    if (!(std::abs(all(r)) <= 1e-9 * scale)) {
+      if (nbad++ < 6) bad << "\n  " << mech_.describe_row(r) << ": residual " << all(r);
+    }
+  if (nbad > 0 || it == 50)
+    throw Error("initial conditions: the joints cannot all be satisfied by the initial placement "
+                "(an over-constrained mechanism whose redundant joints disagree, or bodies placed "
+                "too far from an assembled configuration); after " +
+                    std::to_string(it) + " position corrections these constraints remain violated:" +
+                    bad.str(),
+                true);
+  // Velocities: smallest correction onto Phi_q v + Phi_t = 0.
+  s.v = v0;
+  mech_.constraint(s.q, t0, phi, &J);
+  Vector phi_t, phi_tt, phi_qt_v;
+  mech_.constraint_time_terms(s.q, s.v, t0, phi_t, phi_tt, phi_qt_v);
+  if (m > 0) s.v -= min_norm(J, J * s.v + phi_t);
+  mech_.constraint_time_terms(s.q, s.v, t0, phi_t, phi_tt, phi_qt_v);
+  // Accelerations and multipliers: [M J^T; J 0] [acc; lambda] = [-r0; -(J v)_q v - 2 Phi_qt v - Phi_tt].
+  Vector r;
+  Matrix M;
+  mech_.dynamics(s.q, s.v, Vector::Zero(n), t0, r, nullptr, nullptr, &M);
+  Matrix A = Matrix::Zero(n + m, n + m);
+  A.topLeftCorner(n, n) = M;
+  A.topRightCorner(n, m) = J.transpose();
+  A.bottomLeftCorner(m, n) = J;
+  Vector rhs(n + m);
+  rhs.head(n) = -r;
+  rhs.tail(m) = -mech_.constraint_convective(s.q, s.v, t0) - 2 * phi_qt_v - phi_tt;
+  const Vector x = A.partialPivLu().solve(rhs);
+  if (!x.allFinite())
+    throw Error("initial conditions: the acceleration system is singular (a body without mass "
+                "or inertia, or a mechanism whose joints leave no consistent acceleration)",
+                true);
+  s.acc = x.head(n);
+  s.lambda = x.tail(m);
+  s.a = s.acc;
+  return s;
+}
+
+bool GeneralizedAlpha::step(const State &s, double h, State &next, StepInfo &info) const {
+  return step_once(s, h, next, info);
+}
+
+bool GeneralizedAlpha::step_once(const State &s, double h, State &next, StepInfo &info) const {
+  const int n = mech_.coordinates(), m = mech_.constraints();
+  const double am = par_.alpha_m, af = par_.alpha_f, g = par_.gamma, b = par_.beta;
+  const double bp = (1 - am) / (b * h * h * (1 - af)), gp = g / (b * h);
+  next.t = s.t + h;
+  // Predictor: acc1 = acc0, lambda1 = lambda0.
+  next.acc = s.acc;
+  next.lambda = s.lambda;
+  next.a = (af * s.acc - am * s.a + (1 - af) * next.acc) / (1 - am);
+  next.v = s.v + h * (1 - g) * s.a + h * g * next.a;
+  next.q = s.q + h * s.v + h * h * (0.5 - b) * s.a + h * h * b * next.a;
+  info.increment.clear();
+  info.violation.clear();
+  Vector r, phi, rhs(n + m);
+  Matrix K, C, M, J, A(n + m, n + m);
+  for (int it = 0; it < settings_.max_iterations; ++it) {
+    mech_.dynamics(next.q, next.v, next.acc, next.t, r, &K, &C, &M);
+    mech_.constraint(next.q, next.t, phi, &J);
+    r.noalias() += J.transpose() * next.lambda;
+    mech_.add_constraint_hessian(next.q, next.t, next.lambda, K);
+    A.topLeftCorner(n, n) = M + (gp / bp) * C + (1.0 / bp) * K;
+    A.topRightCorner(n, m) = J.transpose();
+    A.bottomLeftCorner(m, n) = J;
+    A.bottomRightCorner(m, m).setZero();
+    rhs.head(n) = -r / bp;
+    rhs.tail(m) = -phi;
+    const Vector x = solve(A, rhs);
+    ++info.iterations;
+    if (!x.allFinite()) return false;
+    const auto dq = x.head(n);
+    next.q += dq;
+    next.v += gp * dq;
+    next.acc += bp * dq;
+    next.a += (1 - af) / (1 - am) * bp * dq;
+    next.lambda += bp * x.tail(m);
+    const double inc = dq.cwiseAbs().maxCoeff() / (1 + next.q.cwiseAbs().maxCoeff());
+    info.increment.push_back(inc);
+    info.violation.push_back(m > 0 ? phi.cwiseAbs().maxCoeff() : 0.0);
+    if (!std::isfinite(inc)) return false;
+    if (inc <= settings_.tolerance) return true;
+  }
+  return false;
+}
+
+bool GeneralizedAlpha::advance(const State &s, double h, State &next, StepInfo &info) const {
+  info.converged = step_once(s, h, next, info);
+  if (info.converged) return true;
+  // Halving: two half steps, each of which may halve again.
+  std::function<bool(const State &, double, State &, int)> split = [&](const State &from,
+                                                                       double dt, State &to,
+                                                                       int depth) -> bool {
+    if (depth > settings_.max_halvings) return false;
+    info.halvings = std::max(info.halvings, depth);
+    State mid;
+    if (!step_once(from, dt, mid, info) && !split(from, 0.5 * dt, mid, depth + 1)) return false;
+    if (!step_once(mid, dt, to, info) && !split(mid, 0.5 * dt, to, depth + 1)) return false;
+    return true;
+  };
+  info.converged = split(s, 0.5 * h, next, 1);
+  return info.converged;
+}
+
+void GeneralizedAlpha::residual(const State &next, const State &prev, double h, Vector &R,
+                                Matrix *dR_dnext, Matrix *dR_dprev) const {
+  const int n = mech_.coordinates(), m = mech_.constraints();
+  const double am = par_.alpha_m, af = par_.alpha_f, g = par_.gamma, b = par_.beta;
+  R.resize(4 * n + m);
+  R.segment(0, n) = next.q - prev.q - h * prev.v - h * h * (0.5 - b) * prev.a - h * h * b * next.a;
+  R.segment(n, n) = next.v - prev.v - h * (1 - g) * prev.a - h * g * next.a;
+  R.segment(2 * n, n) = (1 - am) * next.a + am * prev.a - (1 - af) * next.acc - af * prev.acc;
+  Vector r, phi;
+  Matrix K, C, M, J;
+  mech_.dynamics(next.q, next.v, next.acc, next.t, r, dR_dnext ? &K : nullptr,
+                 dR_dnext ? &C : nullptr, dR_dnext ? &M : nullptr);
+  mech_.constraint(next.q, next.t, phi, &J);
+  R.segment(3 * n, n) = r + J.transpose() * next.lambda;
+  R.segment(4 * n, m) = phi;
+  const Matrix I = Matrix::Identity(n, n);
+  if (dR_dnext) {
+    mech_.add_constraint_hessian(next.q, next.t, next.lambda, K);
+    Matrix &D = *dR_dnext;
+    D.setZero(4 * n + m, 4 * n + m);
+    D.block(0, 0, n, n) = I;
+    D.block(0, 2 * n, n, n) = -h * h * b * I;
+    D.block(n, n, n, n) = I;
+    D.block(n, 2 * n, n, n) = -h * g * I;
+    D.block(2 * n, 2 * n, n, n) = (1 - am) * I;
+    D.block(2 * n, 3 * n, n, n) = -(1 - af) * I;
+    D.block(3 * n, 0, n, n) = K;
+    D.block(3 * n, n, n, n) = C;
+    D.block(3 * n, 3 * n, n, n) = M;
+    D.block(3 * n, 4 * n, n, m) = J.transpose();
+    D.block(4 * n, 0, m, n) = J;
+  }
+  if (dR_dprev) {
+    Matrix &D = *dR_dprev;
+    D.setZero(4 * n + m, 4 * n + m);
+    D.block(0, 0, n, n) = -I;
+    D.block(0, n, n, n) = -h * I;
+    D.block(0, 2 * n, n, n) = -h * h * (0.5 - b) * I;
+    D.block(n, n, n, n) = -I;
+    D.block(n, 2 * n, n, n) = -h * (1 - g) * I;
+    D.block(2 * n, 2 * n, n, n) = am * I;
+    D.block(2 * n, 3 * n, n, n) = -af * I;
+  }
+}
+
+} // namespace flexopt::dynamics

@@ -1,0 +1,177 @@
+#include "flexopt/dynamics/mechanism.hpp"
+
+#include <cmath>
+
+namespace flexopt::dynamics {
+
+void Mechanism::finalize() {
+  row_equation_.clear();
+  row_index_.clear();
+  for (std::size_t e = 0; e < equations.size(); ++e)
+    for (int k = 0; k < equations[e].rows(); ++k) {
+      row_equation_.push_back(static_cast<int>(e));
+      row_index_.push_back(k);
+    }
+  all_rows_ = static_cast<int>(row_equation_.size());
+  enforced_.assign(static_cast<std::size_t>(all_rows_), 1);
+  active_rows_ = all_rows_;
+}
+
+std::string Mechanism::describe_row(int r) const {
+  const auto &e = equations[static_cast<std::size_t>(row_equation_[static_cast<std::size_t>(r)])];
+  return e.owner + " equation " +
+         std::to_string(e.row_in_owner + row_index_[static_cast<std::size_t>(r)] + 1);
+}
+
+std::vector<std::string> Mechanism::drop_redundant_rows(const Vector &q, double t, double tol) {
+  const int n = coordinates();
+  Matrix J = Matrix::Zero(all_rows_, n);
+  int row = 0;
+  for (const auto &e : equations) {
+    e.gradient(q, t, J, row);
+    row += e.rows();
+  }
+  std::vector<Vector> basis;
+  std::vector<std::string> dropped;
+  for (int r = 0; r < all_rows_; ++r) {
+    Vector g = J.row(r).transpose();
+    const double norm = g.norm();
+    for (const Vector &b : basis) g -= b.dot(g) * b; // modified Gram-Schmidt
+    for (const Vector &b : basis) g -= b.dot(g) * b; // and once more, for orthogonality
+    if (g.norm() <= tol * std::max(norm, 1e-300)) {
+      enforced_[static_cast<std::size_t>(r)] = 0;
+      dropped.push_back(describe_row(r));
+    } else {
+      basis.push_back(g / g.norm());
+    }
+  }
+  active_rows_ = static_cast<int>(basis.size());
+  return dropped;
+}
+
+void Mechanism::all_constraint_values(const Vector &q, double t, Vector &phi) const {
+  phi.resize(all_rows_);
+  int row = 0;
+  for (const auto &e : equations) {
+    e.value(q, t, phi.data() + row);
+    row += e.rows();
+  }
+}
+
+void Mechanism::constraint(const Vector &q, double t, Vector &phi, Matrix *J) const {
+  const int n = coordinates();
+  Vector all;
+  all_constraint_values(q, t, all);
+  phi.resize(active_rows_);
+  Matrix Jall;
+  if (J) Jall = Matrix::Zero(all_rows_, n);
+  int row = 0;
+  if (J)
+    for (const auto &e : equations) {
+      e.gradient(q, t, Jall, row);
+      row += e.rows();
+    }
+  if (J) J->resize(active_rows_, n);
+  int k = 0;
+  for (int r = 0; r < all_rows_; ++r) {
+    if (!enforced_[static_cast<std::size_t>(r)]) continue;
+    phi(k) = all(r);
+    if (J) J->row(k) = Jall.row(r);
+    ++k;
+  }
+}
+
+void Mechanism::add_constraint_hessian(const Vector &q, double t, const Vector &lambda,
+                                       Matrix &H) const {
+  int row = 0, k = 0;
+  double l[3];
+  for (const auto &e : equations) {
+    bool any = false;
+    for (int i = 0; i < e.rows(); ++i) {
+      const bool on = enforced_[static_cast<std::size_t>(row + i)];
+      l[i] = on ? lambda(k++) : 0.0;
+      any = any || on;
+    }
+    if (any) e.add_hessian(q, t, l, H);
+    row += e.rows();
+  }
+}
+
+void Mechanism::constraint_time_terms(const Vector &q, const Vector &v, double t, Vector &phi_t,
+                                      Vector &phi_tt, Vector &phi_qt_v) const {
+  phi_t.resize(active_rows_);
+  phi_tt.resize(active_rows_);
+  phi_qt_v.resize(active_rows_);
+  int row = 0, k = 0;
+  double a[3], b[3], c[3];
+  for (const auto &e : equations) {
+    e.time_derivatives(q, v, t, a, b, c);
+    for (int i = 0; i < e.rows(); ++i)
+      if (enforced_[static_cast<std::size_t>(row + i)]) {
+        phi_t(k) = a[i], phi_tt(k) = b[i], phi_qt_v(k) = c[i];
+        ++k;
+      }
+    row += e.rows();
+  }
+}
+
+Vector Mechanism::constraint_convective(const Vector &q, const Vector &v, double t) const {
+  const int n = coordinates();
+  Vector out(active_rows_);
+  Matrix H(n, n);
+  int row = 0, k = 0;
+  for (const auto &e : equations) {
+    for (int i = 0; i < e.rows(); ++i) {
+      if (!enforced_[static_cast<std::size_t>(row + i)]) continue;
+      double l[3] = {0, 0, 0};
+      l[i] = 1;
+      H.setZero();
+      e.add_hessian(q, t, l, H);
+      out(k++) = v.dot(H * v);
+    }
+    row += e.rows();
+  }
+  return out;
+}
+
+void Mechanism::dynamics(const Vector &q, const Vector &v, const Vector &a, double t, Vector &r,
+                         Matrix *K, Matrix *C, Matrix *M) const {
+  const int n = coordinates();
+  r.setZero(n);
+  if (K) K->setZero(n, n);
+  if (C) C->setZero(n, n);
+  if (M) M->setZero(n, n);
+  bodies::RigidBody::Vec7 f;
+  bodies::RigidBody::Mat7 dq, dv, mm;
+  for (std::size_t b = 0; b < bodies.size(); ++b) {
+    const int o = 7 * static_cast<int>(b);
+    bodies[b].inertial_force(q.segment<7>(o), v.segment<7>(o), a.segment<7>(o), &f,
+                             K ? &dq : nullptr, C ? &dv : nullptr, M ? &mm : nullptr);
+    r.segment<7>(o) = f;
+    r.segment<3>(o) -= bodies[b].mass() * gravity;
+    if (K) K->block<7, 7>(o, o) = dq;
+    if (C) C->block<7, 7>(o, o) = dv;
+    if (M) M->block<7, 7>(o, o) = mm;
+  }
+  for (const PointForce &pf : forces) {
+    const int o = 7 * pf.body;
+    const Vec3 F(pf.value[0](t), pf.value[1](t), pf.value[2](t));
+    const bodies::Vec4 p = q.segment<4>(o + 3);
+    // Q = [F; D(p, s)^T F] (virtual work of F on x = r + A(p) s); dQ_p/dp = K(s, F).
+    r.segment<3>(o) -= F;
+    r.segment<4>(o + 3) -= bodies::rotate_jacobian(p, pf.s).transpose() * F;
+    if (K) K->block<4, 4>(o + 3, o + 3) -= bodies::rotate_hessian(pf.s, F);
+  }
+}
+
+double Mechanism::energy(const Vector &q, const Vector &v) const {
+  double e = 0;
+  for (std::size_t b = 0; b < bodies.size(); ++b) {
+    const int o = 7 * static_cast<int>(b);
+    e += bodies[b].kinetic_energy(q.segment<7>(o), v.segment<7>(o));
+    e -= bodies[b].mass() * gravity.dot(q.segment<3>(o));
+  }
+  return e;
+}
+
+} // namespace flexopt::dynamics

@@ -1,0 +1,351 @@
+// Rigid-body dynamics: every derivative against central finite differences (rigid body inertial
+// force, each constraint primitive's gradient, Hessian contraction and time derivatives, the
+// loads, and the generalized-alpha step residual's Jacobians), and the quaternion helpers.
+//
+// Tolerances: central differences with step 1e-6 on functions of order 1 have truncation
+// ~1e-12 and round-off ~1e-10; the checks use 1e-7 relative to the largest entry.
+#include "flexopt/bodies/rigid_body.hpp"
+#include "flexopt/dynamics/generalized_alpha.hpp"
+#include "flexopt/dynamics/mechanism.hpp"
+
+#include <gtest/gtest.h>
+#include <memory>
+#include <random>
+
+using namespace flexopt;
+using bodies::Mat3;
+using bodies::Vec3;
+using bodies::Vec4;
+using dynamics::Matrix;
+using dynamics::Vector;
+
+namespace {
+
+constexpr double kStep = 1e-6, kTol = 1e-7;
+
+std::mt19937 &rng() {
+  static std::mt19937 g(20261122);
+  return g;
+}
+double uniform(double lo = -1, double hi = 1) {
+  return std::uniform_real_distribution<double>(lo, hi)(rng());
+}
+Vec3 random3() { return Vec3(uniform(), uniform(), uniform()); }
+/// Euler parameters near unit length (the derivatives hold for any p).
+Vec4 random_p() {
+  Vec4 p(uniform(), uniform(), uniform(), uniform());
+  return p / p.norm() * (1 + 0.05 * uniform());
+}
+
+/// Central-difference Jacobian of f: R^n -> R^k at x.
+template <class F> Matrix fd_jacobian(F f, const Vector &x, int k) {
+  Matrix J(k, x.size());
+  for (int j = 0; j < x.size(); ++j) {
+    Vector xp = x, xm = x;
+    xp(j) += kStep;
+    xm(j) -= kStep;
+    J.col(j) = (f(xp) - f(xm)) / (2 * kStep);
+  }
+  return J;
+}
+
+void expect_close(const Matrix &a, const Matrix &b, const char *what) {
+  ASSERT_EQ(a.rows(), b.rows()) << what;
+  ASSERT_EQ(a.cols(), b.cols()) << what;
+  const double scale = std::max(1.0, b.cwiseAbs().maxCoeff());
+  EXPECT_LE((a - b).cwiseAbs().maxCoeff(), kTol * scale) << what << "\nanalytic\n"
+                                                         << a << "\nfinite differences\n"
+                                                         << b;
+}
+
+bodies::MassProperties some_body() {
+  bodies::MassProperties p;
+  p.mass = 2.5;
+  p.center = Vec3(0.1, -0.2, 0.05);
+  Mat3 J;
+  J << 0.3, 0.02, -0.01, 0.02, 0.5, 0.03, -0.01, 0.03, 0.4;
+  p.inertia = J;
+  return p;
+}
+
+/// Two free bodies, random state.
+Vector random_q(int bodies) {
+  Vector q(7 * bodies);
+  for (int b = 0; b < bodies; ++b) {
+    q.segment<3>(7 * b) = random3();
+    q.segment<4>(7 * b + 3) = random_p();
+  }
+  return q;
+}
+
+} // namespace
+
+TEST(Quaternion, RotationIsOrthogonalAndMatchesAxisAngle) {
+  const Vec3 axis = random3().normalized();
+  const double angle = 1.234;
+  const Vec4 p = bodies::from_axis_angle(axis, angle);
+  const Mat3 A = bodies::rotation(p);
+  EXPECT_LT((A * A.transpose() - Mat3::Identity()).norm(), 1e-14);
+  EXPECT_NEAR(A.determinant(), 1, 1e-14);
+  // Rodrigues
+  const Mat3 K = bodies::skew(axis);
+  const Mat3 R = Mat3::Identity() + std::sin(angle) * K + (1 - std::cos(angle)) * K * K;
+  EXPECT_LT((A - R).norm(), 1e-14);
+  EXPECT_LT((bodies::from_matrix(A) - p).norm(), 1e-14);
+  EXPECT_LT((bodies::rotation_vector(A) - angle * axis).norm(), 1e-13);
+  // omega = 2 G p' for p' = d/dt p(axis, w t): omega = w axis.
+  const double w = 0.7;
+  const Vec4 pdot = 0.5 * w * Vec4(-std::sin(0.5 * angle), std::cos(0.5 * angle) * axis.x(),
+                                   std::cos(0.5 * angle) * axis.y(), std::cos(0.5 * angle) * axis.z());
+  EXPECT_LT((2 * bodies::g_matrix(p) * pdot - w * axis).norm(), 1e-14);
+}
+
+TEST(Quaternion, RotateJacobianAndHessian) {
+  const Vec4 p = random_p();
+  const Vec3 u = random3(), w = random3();
+  auto f = [&](const Vector &x) -> Vector { return bodies::rotation(x) * u; };
+  expect_close(bodies::rotate_jacobian(p, u), fd_jacobian(f, p, 3), "D(p, u)");
+  auto g = [&](const Vector &x) -> Vector {
+    return bodies::rotate_jacobian(x, u).transpose() * w;
+  };
+  expect_close(bodies::rotate_hessian(u, w), fd_jacobian(g, p, 4), "K(u, w)");
+  auto t = [&](const Vector &x) -> Vector { return bodies::gbar_matrix(x).transpose() * w; };
+  expect_close(bodies::gbar_transpose_matrix(w), fd_jacobian(t, p, 4), "T(w)");
+}
+
+TEST(RigidBody, InertialForceDerivatives) {
+  bodies::RigidBody body("b", some_body());
+  using V7 = bodies::RigidBody::Vec7;
+  V7 q, v, a;
+  q << random3(), random_p();
+  v << random3(), 0.5 * Vec4(uniform(), uniform(), uniform(), uniform());
+  a << random3(), Vec4(uniform(), uniform(), uniform(), uniform());
+  bodies::RigidBody::Mat7 dq, dv, M;
+  body.inertial_force(q, v, a, nullptr, &dq, &dv, &M);
+  auto fq = [&](const Vector &x) -> Vector {
+    V7 f;
+    body.inertial_force(x, v, a, &f, nullptr, nullptr, nullptr);
+    return f;
+  };
+  auto fv = [&](const Vector &x) -> Vector {
+    V7 f;
+    body.inertial_force(q, x, a, &f, nullptr, nullptr, nullptr);
+    return f;
+  };
+  auto fa = [&](const Vector &x) -> Vector {
+    V7 f;
+    body.inertial_force(q, v, x, &f, nullptr, nullptr, nullptr);
+    return f;
+  };
+  expect_close(dq, fd_jacobian(fq, q, 7), "df/dq");
+  expect_close(dv, fd_jacobian(fv, v, 7), "df/dv");
+  expect_close(M, fd_jacobian(fa, a, 7), "M");
+}
+
+// The rotational equation is Euler's: for unit p and p' _|_ p (so that w = 2 Gbar p' is the body
+// angular velocity), Gbar f_p / 2 = J w' + w x J w with w' = 2 Gbar p''.
+TEST(RigidBody, RotationalEquationIsEulers) {
+  bodies::RigidBody body("b", some_body());
+  using V7 = bodies::RigidBody::Vec7;
+  const Vec4 p = random_p().normalized();
+  const Vec3 w = random3(), wd = random3();
+  const bodies::Mat34 G = bodies::gbar_matrix(p);
+  const Vec4 pd = 0.5 * G.transpose() * w;
+  // p'' from w' = 2 Gbar p'' and d/dt(p.p') = 0: p'' = 1/2 Gbar^T w' - |p'|^2 p.
+  const Vec4 pdd = 0.5 * G.transpose() * wd - pd.squaredNorm() * p;
+  V7 q, v, a, f;
+  q << Vec3::Zero(), p;
+  v << Vec3::Zero(), pd;
+  a << Vec3::Zero(), pdd;
+  body.inertial_force(q, v, a, &f, nullptr, nullptr, nullptr);
+  const Mat3 &J = body.inertia();
+  const Vec3 euler = J * wd + w.cross(J * w);
+  EXPECT_LT((0.5 * G * f.tail<4>() - euler).norm(), 1e-12 * euler.norm());
+}
+
+namespace {
+
+/// One equation of each kind between body 0 and body 1 (and to the ground).
+std::vector<joints::Equation> all_kinds() {
+  using K = joints::Equation::Kind;
+  auto driver = std::make_shared<const Expression>("0.3 + 2*t + 0.5*sin(3*t)");
+  std::vector<joints::Equation> eqs;
+  for (int ground = 0; ground < 2; ++ground) {
+    const int a = ground ? -1 : 0, b = 1;
+    joints::Equation e;
+    e.a = a, e.b = b, e.sa = random3(), e.sb = random3(), e.ua = random3(), e.vb = random3(),
+    e.ua2 = random3(), e.c = 0.1;
+    for (K k : {K::Coincide, K::Perpendicular, K::PointOnPlane, K::RotationDriver,
+                K::TranslationDriver}) {
+      e.kind = k;
+      e.driver = driver;
+      e.owner = "test";
+      eqs.push_back(e);
+    }
+  }
+  joints::Equation n;
+  n.kind = K::Normalize;
+  n.a = 1;
+  eqs.push_back(n);
+  return eqs;
+}
+
+} // namespace
+
+TEST(Constraints, GradientsHessiansAndTimeDerivatives) {
+  const Vector q = random_q(2);
+  Vector v(14);
+  for (int i = 0; i < 14; ++i) v(i) = uniform();
+  const double t = 0.37;
+  for (const auto &e : all_kinds()) {
+    const int k = e.rows();
+    const std::string what = "kind " + std::to_string(static_cast<int>(e.kind)) + " a=" +
+                             std::to_string(e.a);
+    auto phi = [&](const Vector &x) -> Vector {
+      Vector out(k);
+      e.value(x, t, out.data());
+      return out;
+    };
+    Matrix J = Matrix::Zero(k, 14);
+    e.gradient(q, t, J, 0);
+    expect_close(J, fd_jacobian(phi, q, k), (what + ": gradient").c_str());
+    Vector lambda(k);
+    for (int i = 0; i < k; ++i) lambda(i) = uniform();
+    Matrix H = Matrix::Zero(14, 14);
+    e.add_hessian(q, t, lambda.data(), H);
+    auto jtl = [&](const Vector &x) -> Vector {
+      Matrix Jx = Matrix::Zero(k, 14);
+      e.gradient(x, t, Jx, 0);
+      return Jx.transpose() * lambda;
+    };
+    expect_close(H, fd_jacobian(jtl, q, 14), (what + ": Hessian").c_str());
+    // Time derivatives (drivers) against differences in t.
+    double pt[3], ptt[3], pqtv[3];
+    e.time_derivatives(q, v, t, pt, ptt, pqtv);
+    Vector tt(1);
+    tt(0) = t;
+    auto phi_t = [&](const Vector &x) -> Vector {
+      Vector out(k);
+      e.value(q, x(0), out.data());
+      return out;
+    };
+    auto phit_t = [&](const Vector &x) -> Vector {
+      double a1[3], b1[3], c1[3];
+      e.time_derivatives(q, v, x(0), a1, b1, c1);
+      return Eigen::Map<Vector>(a1, k);
+    };
+    auto jv_t = [&](const Vector &x) -> Vector {
+      Matrix Jx = Matrix::Zero(k, 14);
+      e.gradient(q, x(0), Jx, 0);
+      return Jx * v;
+    };
+    expect_close(Eigen::Map<Vector>(pt, k), fd_jacobian(phi_t, tt, k), (what + ": phi_t").c_str());
+    expect_close(Eigen::Map<Vector>(ptt, k), fd_jacobian(phit_t, tt, k), (what + ": phi_tt").c_str());
+    expect_close(Eigen::Map<Vector>(pqtv, k), fd_jacobian(jv_t, tt, k), (what + ": phi_qt v").c_str());
+  }
+}
+
+namespace {
+
+/// Two bodies, a spherical joint between them, a revolute to the ground, a driver, gravity and
+/// a time-dependent point force: every term of the dynamics residual.
+dynamics::Mechanism two_body_mechanism() {
+  dynamics::Mechanism m;
+  m.bodies.emplace_back("a", some_body());
+  auto p2 = some_body();
+  p2.mass = 1.3;
+  m.bodies.emplace_back("b", p2);
+  m.gravity = Vec3(0, -9.81, 0.5);
+  for (int b = 0; b < 2; ++b) {
+    joints::Equation n;
+    n.kind = joints::Equation::Kind::Normalize;
+    n.a = b;
+    n.owner = "body";
+    m.equations.push_back(n);
+  }
+  for (const auto &e : all_kinds())
+    if (e.kind != joints::Equation::Kind::Normalize) m.equations.push_back(e);
+  dynamics::PointForce f;
+  f.body = 1;
+  f.s = random3();
+  f.value = {Expression("3*sin(t)"), Expression("1 + t"), Expression("-2")};
+  m.forces.push_back(f);
+  m.finalize();
+  return m;
+}
+
+} // namespace
+
+TEST(Mechanism, DynamicsDerivatives) {
+  const auto m = two_body_mechanism();
+  const Vector q = random_q(2);
+  Vector v(14), a(14);
+  for (int i = 0; i < 14; ++i) v(i) = uniform(), a(i) = uniform();
+  const double t = 0.6;
+  Vector r;
+  Matrix K, C, M;
+  m.dynamics(q, v, a, t, r, &K, &C, &M);
+  auto rq = [&](const Vector &x) -> Vector {
+    Vector out;
+    m.dynamics(x, v, a, t, out, nullptr, nullptr, nullptr);
+    return out;
+  };
+  auto rv = [&](const Vector &x) -> Vector {
+    Vector out;
+    m.dynamics(q, x, a, t, out, nullptr, nullptr, nullptr);
+    return out;
+  };
+  auto ra = [&](const Vector &x) -> Vector {
+    Vector out;
+    m.dynamics(q, v, x, t, out, nullptr, nullptr, nullptr);
+    return out;
+  };
+  expect_close(K, fd_jacobian(rq, q, 14), "dr/dq");
+  expect_close(C, fd_jacobian(rv, v, 14), "dr/dv");
+  expect_close(M, fd_jacobian(ra, a, 14), "M");
+}
+
+TEST(GeneralizedAlpha, StepResidualJacobians) {
+  const auto m = two_body_mechanism();
+  const int n = m.coordinates(), mm = m.constraints();
+  dynamics::GeneralizedAlpha ga(m, dynamics::AlphaParameters::from_rho_inf(0.7));
+  dynamics::State s0, s1;
+  auto fill = [&](dynamics::State &s, double t) {
+    s.t = t;
+    s.q = random_q(2);
+    s.v = Vector::Random(n);
+    s.a = Vector::Random(n);
+    s.acc = Vector::Random(n);
+    s.lambda = Vector::Random(mm);
+  };
+  fill(s0, 0.2);
+  fill(s1, 0.25);
+  const double h = 0.05;
+  Vector R;
+  Matrix D1, D0;
+  ga.residual(s1, s0, h, R, &D1, &D0);
+  auto r1 = [&](const Vector &x) -> Vector {
+    dynamics::State s = s1;
+    s.unpack(x, n, mm);
+    Vector out;
+    ga.residual(s, s0, h, out, nullptr, nullptr);
+    return out;
+  };
+  auto r0 = [&](const Vector &x) -> Vector {
+    dynamics::State s = s0;
+    s.unpack(x, n, mm);
+    Vector out;
+    ga.residual(s1, s, h, out, nullptr, nullptr);
+    return out;
+  };
+  expect_close(D1, fd_jacobian(r1, s1.pack(), static_cast<int>(R.size())), "dR/ds_{n+1}");
+  expect_close(D0, fd_jacobian(r0, s0.pack(), static_cast<int>(R.size())), "dR/ds_n");
+}
+
+TEST(GeneralizedAlpha, ParametersOfChungHulbert) {
+  const auto p = dynamics::AlphaParameters::from_rho_inf(1.0);
+  EXPECT_DOUBLE_EQ(p.alpha_m, 0.5);
+  EXPECT_DOUBLE_EQ(p.alpha_f, 0.5);
+  EXPECT_DOUBLE_EQ(p.gamma, 0.5);
+  EXPECT_DOUBLE_EQ(p.beta, 0.25);
+}
