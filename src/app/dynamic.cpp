@@ -16,6 +16,10 @@ namespace flexopt::app {
 
 namespace {
 
+/// Largest residual, relative to the scene's size, that a row left out as redundant may reach
+/// before the run stops (structurally redundant rows stay at round-off, ~1e-15).
+constexpr double kRedundantDriftTolerance = 1e-8;
+
 /// Current world coordinates of the owned nodes of body b.
 std::vector<double> body_positions(const dynamics::Scene &scene, std::size_t b,
                                    const dynamics::Vector &q) {
@@ -117,6 +121,19 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
     }
     next.t = static_cast<double>(n + 1) * h; // no drift of t over many steps
     state = next;
+    // Rows left out as redundant must stay satisfied: if one does not, it was only dependent
+    // in the initial configuration (a singular position such as a dead point), not
+    // structurally, and the mechanism is not what the case describes.
+    int bad_row = -1;
+    const double drift = mech.unenforced_violation(state.q, state.t, &bad_row);
+    if (drift > kRedundantDriftTolerance * scene.length_scale)
+      throw Error("integrate: at t = " + std::to_string(state.t) + " s (step " +
+                      std::to_string(n + 1) + ") the constraint " + mech.describe_row(bad_row) +
+                      ", left out as redundant at t = 0, is violated by " + std::to_string(drift) +
+                      ": the initial placement is a singular configuration of the mechanism (a "
+                      "dead point or aligned links), not a structural redundancy. Place the "
+                      "bodies away from it.",
+                  true);
     newton_total += info.iterations;
     newton_max = std::max(newton_max, info.iterations);
     halvings_max = std::max(halvings_max, info.halvings);

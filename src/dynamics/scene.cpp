@@ -118,10 +118,34 @@ Scene build_scene(MPI_Comm comm, const io::Case &c) {
     mech.equations.push_back(e);
   }
   std::map<std::string, const io::JointSpec *> joints_by_name;
+  for (const io::JointSpec &j : c.joints) joints_by_name[j.name] = &j;
+  // Drivers come before the joints: when rows are found redundant, joint rows are left out
+  // rather than a prescribed motion.
+  for (const io::DriverSpec &d : c.drivers) {
+    const io::JointSpec &j = *joints_by_name.at(d.joint);
+    const Attach A = attach(j.a, j.a_interface), B = attach(j.b, j.b_interface);
+    const Vec3 w = v3(j.axis);
+    Vec3 u1, u2;
+    complete_triad(w, u1, u2);
+    Equation e;
+    e.a = A.body, e.b = B.body;
+    e.owner = "driver of joint " + j.name;
+    e.driver = std::make_shared<const Expression>(d.expression);
+    if (j.type == "revolute") {
+      // angle = atan2(u2_a . u1_b, u1_a . u1_b) = f(t):  (sin f u1_a - cos f u2_a) . u1_b = 0
+      e.kind = K::RotationDriver;
+      e.ua = A.local(u1), e.ua2 = A.local(u2), e.vb = B.local(u1);
+    } else {
+      // displacement along the axis from the initial configuration = f(t)
+      e.kind = K::TranslationDriver;
+      e.ua = A.local(w), e.sa = A.s, e.sb = B.s;
+      e.c = w.dot(B.world - A.world);
+    }
+    mech.equations.push_back(e);
+  }
   double max_gap = 0;
   std::string gap_joint;
   for (const io::JointSpec &j : c.joints) {
-    joints_by_name[j.name] = &j;
     const Attach A = attach(j.a, j.a_interface), B = attach(j.b, j.b_interface);
     const double gap = (A.world - B.world).norm();
     if (gap > max_gap && (j.type != "prismatic")) max_gap = gap, gap_joint = j.name;
@@ -177,28 +201,6 @@ Scene build_scene(MPI_Comm comm, const io::Case &c) {
            "scene: the interfaces of joint %s are %.3g m apart in the initial placement; the "
            "initial conditions move the bodies to close the joints\n",
            gap_joint.c_str(), max_gap);
-  for (const io::DriverSpec &d : c.drivers) {
-    const io::JointSpec &j = *joints_by_name.at(d.joint);
-    const Attach A = attach(j.a, j.a_interface), B = attach(j.b, j.b_interface);
-    const Vec3 w = v3(j.axis);
-    Vec3 u1, u2;
-    complete_triad(w, u1, u2);
-    Equation e;
-    e.a = A.body, e.b = B.body;
-    e.owner = "driver of joint " + j.name;
-    e.driver = std::make_shared<const Expression>(d.expression);
-    if (j.type == "revolute") {
-      // angle = atan2(u2_a . u1_b, u1_a . u1_b) = f(t):  (sin f u1_a - cos f u2_a) . u1_b = 0
-      e.kind = K::RotationDriver;
-      e.ua = A.local(u1), e.ua2 = A.local(u2), e.vb = B.local(u1);
-    } else {
-      // displacement along the axis from the initial configuration = f(t)
-      e.kind = K::TranslationDriver;
-      e.ua = A.local(w), e.sa = A.s, e.sb = B.s;
-      e.c = w.dot(B.world - A.world);
-    }
-    mech.equations.push_back(e);
-  }
   if (c.gravity) mech.gravity = v3(*c.gravity);
   for (const io::ForceSpec &f : c.forces) {
     PointForce pf;

@@ -26,7 +26,7 @@ struct PointForce {
 class Mechanism {
 public:
   std::vector<bodies::RigidBody> bodies;
-  std::vector<joints::Equation> equations; ///< all equations (normalizations first)
+  std::vector<joints::Equation> equations; ///< normalizations, drivers, then joints
   std::vector<PointForce> forces;
   Vec3 gravity{0, 0, 0};
 
@@ -47,6 +47,8 @@ public:
 
   /// Enforced constraints: Phi (m) and, if J is non-null, Phi_q (m x n).
   void constraint(const Vector &q, double t, Vector &phi, Matrix *J) const;
+  /// Largest |phi| over the rows that are not enforced (0 if all are), and the row.
+  double unenforced_violation(const Vector &q, double t, int *row = nullptr) const;
   /// Every row (enforced or not): for the violation monitor and messages.
   void all_constraint_values(const Vector &q, double t, Vector &phi) const;
   /// H += d(Phi_q^T lambda)/dq for the enforced rows.
