@@ -37,9 +37,16 @@ Mat34 rotate_jacobian(const Vec4 &p, const Vec3 &u) {
 }
 
 Mat4 rotate_hessian(const Vec3 &u, const Vec3 &w) {
-  // D(p, u) is linear in p, so column k of d/dp (D^T w) is D(e_k, u)^T w.
+  // D(p, u)^T w = 2 [e0 (u.w) + e.(u x w) ; (e.u) w + (e.w) u - (u.w) e + e0 (u x w)], linear
+  // in p, so its derivative is the constant symmetric matrix
+  //   K = 2 [[u.w, (u x w)^T], [u x w, w u^T + u w^T - (u.w) I]].
+  const double uw = u.dot(w);
+  const Vec3 c = u.cross(w);
   Mat4 k;
-  for (int c = 0; c < 4; ++c) k.col(c) = rotate_jacobian(Vec4::Unit(c), u).transpose() * w;
+  k(0, 0) = 2 * uw;
+  k.block<1, 3>(0, 1) = 2 * c.transpose();
+  k.block<3, 1>(1, 0) = 2 * c;
+  k.block<3, 3>(1, 1) = 2 * (w * u.transpose() + u * w.transpose() - uw * Mat3::Identity());
   return k;
 }
 

@@ -36,18 +36,11 @@ void State::unpack(const Vector &s, int n, int m) {
   lambda = s.segment(4 * n, m);
 }
 
-namespace {
-/// Systems up to this size are solved densely (LU with partial pivoting); larger ones (long
-/// chains of bodies, whose matrices are block-banded) with a sparse LU.
-constexpr Eigen::Index kDenseLimit = 96;
-
-} // namespace
-
 GeneralizedAlpha::GeneralizedAlpha(const Mechanism &mechanism, AlphaParameters parameters,
                                    NewtonSettings settings)
     : mech_(mechanism), par_(parameters), settings_(settings) {
   const int n = mech_.coordinates(), m = mech_.constraints();
-  if (n + m <= kDenseLimit) return;
+  if (n + m <= settings_.dense_limit) return;
   // Structural pattern: body blocks coupled through an equation (and each body with itself),
   // the constraint rows' body columns and their transposes.
   const int nb = static_cast<int>(mech_.bodies.size());
@@ -77,11 +70,39 @@ GeneralizedAlpha::GeneralizedAlpha(const Mechanism &mechanism, AlphaParameters p
         for (int i = 0; i < 7; ++i)
           for (int j = 0; j < 7; ++j) t.emplace_back(7 * a + i, 7 * b + j, 1.0);
   sparse_ = std::make_unique<SparseSolver>();
-  sparse_->S.resize(n + m, n + m);
-  sparse_->S.setFromTriplets(t.begin(), t.end(), [](double x, double) { return x; });
-  sparse_->S.makeCompressed();
-  sparse_->lu.analyzePattern(sparse_->S);
+  SparseSolver &sp = *sparse_;
+  sp.S.resize(n + m, n + m);
+  sp.S.setFromTriplets(t.begin(), t.end(), [](double x, double) { return x; });
+  sp.S.makeCompressed();
+  sp.lu.analyzePattern(sp.S);
+  // Value indices of every block and row entry, so that assembly writes straight into S.
+  const double *base = sp.S.valuePtr();
+  auto index = [&](int i, int j) { return static_cast<int>(&sp.S.coeffRef(i, j) - base); };
+  sp.bodies = nb;
+  sp.block_offset.assign(static_cast<std::size_t>(nb * nb), -1);
+  for (int a = 0; a < nb; ++a)
+    for (int b = 0; b < nb; ++b)
+      if (coupled[static_cast<std::size_t>(a)][static_cast<std::size_t>(b)]) {
+        sp.block_offset[static_cast<std::size_t>(a * nb + b)] = static_cast<int>(sp.block_index.size());
+        for (int i = 0; i < 7; ++i)
+          for (int j = 0; j < 7; ++j) sp.block_index.push_back(index(7 * a + i, 7 * b + j));
+      }
+  sp.row_entries.assign(static_cast<std::size_t>(m), {});
+  row = 0, k = 0;
+  for (const auto &e : mech_.equations)
+    for (int i = 0; i < e.rows(); ++i, ++row) {
+      if (!mech_.enforced(row)) continue;
+      for (int b : {e.a, e.b})
+        if (b >= 0) {
+          sp.row_entries[static_cast<std::size_t>(k)].emplace_back(b, static_cast<int>(sp.row_index.size()));
+          for (int j = 0; j < 7; ++j) sp.row_index.push_back(index(n + k, 7 * b + j));
+          for (int j = 0; j < 7; ++j) sp.row_index.push_back(index(7 * b + j, n + k));
+        }
+      ++k;
+    }
 }
+
+
 
 Vector GeneralizedAlpha::solve(const Matrix &A, const Vector &rhs) const {
   if (!sparse_) return A.partialPivLu().solve(rhs);
@@ -171,6 +192,7 @@ bool GeneralizedAlpha::step(const State &s, double h, State &next, StepInfo &inf
 }
 
 bool GeneralizedAlpha::step_once(const State &s, double h, State &next, StepInfo &info) const {
+  if (sparse_) return step_once_sparse(s, h, next, info);
   const int n = mech_.coordinates(), m = mech_.constraints();
   const double am = par_.alpha_m, af = par_.alpha_f, g = par_.gamma, b = par_.beta;
   const double bp = (1 - am) / (b * h * h * (1 - af)), gp = g / (b * h);
@@ -198,6 +220,89 @@ bool GeneralizedAlpha::step_once(const State &s, double h, State &next, StepInfo
     rhs.tail(m) = -phi;
     const Vector x = solve(A, rhs);
     ++info.iterations;
+    if (!x.allFinite()) return false;
+    const auto dq = x.head(n);
+    next.q += dq;
+    next.v += gp * dq;
+    next.acc += bp * dq;
+    next.a += (1 - af) / (1 - am) * bp * dq;
+    next.lambda += bp * x.tail(m);
+    const double inc = dq.cwiseAbs().maxCoeff() / (1 + next.q.cwiseAbs().maxCoeff());
+    info.increment.push_back(inc);
+    info.violation.push_back(m > 0 ? phi.cwiseAbs().maxCoeff() : 0.0);
+    if (!std::isfinite(inc)) return false;
+    if (inc <= settings_.tolerance) return true;
+  }
+  return false;
+}
+
+bool GeneralizedAlpha::step_once_sparse(const State &s, double h, State &next,
+                                        StepInfo &info) const {
+  // The same Newton iteration as step_once, assembled block by block into the values of the
+  // sparse iteration matrix (no dense n x n work: the cost grows linearly with the bodies of a
+  // chain).
+  const int n = mech_.coordinates(), m = mech_.constraints();
+  const double am = par_.alpha_m, af = par_.alpha_f, g = par_.gamma, b = par_.beta;
+  const double bp = (1 - am) / (b * h * h * (1 - af)), gp = g / (b * h);
+  SparseSolver &sp = *sparse_;
+  double *values = sp.S.valuePtr();
+  struct Assembly : joints::Sink {
+    SparseSolver &sp;
+    double *values;
+    double block_scale;
+    const Vector &lambda;
+    Vector &jt_lambda;
+    Assembly(SparseSolver &s_, double *v, double scale, const Vector &l, Vector &jtl)
+        : sp(s_), values(v), block_scale(scale), lambda(l), jt_lambda(jtl) {}
+    void add_row(int row, int body, const joints::Row7 &gr) override {
+      for (const auto &[bb, start] : sp.row_entries[static_cast<std::size_t>(row)])
+        if (bb == body) {
+          for (int j = 0; j < 7; ++j) {
+            values[sp.row_index[static_cast<std::size_t>(start + j)]] += gr(j);
+            values[sp.row_index[static_cast<std::size_t>(start + 7 + j)]] += gr(j);
+          }
+          jt_lambda.segment<7>(7 * body) += gr.transpose() * lambda(row);
+          return;
+        }
+    }
+    void add_block(int bi, int bj, const joints::Block7 &B) override {
+      const int off = sp.block_offset[static_cast<std::size_t>(bi * sp.bodies + bj)];
+      for (int i = 0; i < 7; ++i)
+        for (int j = 0; j < 7; ++j)
+          values[sp.block_index[static_cast<std::size_t>(off + 7 * i + j)]] += block_scale * B(i, j);
+    }
+  };
+  next.t = s.t + h;
+  next.acc = s.acc;
+  next.lambda = s.lambda;
+  next.a = (af * s.acc - am * s.a + (1 - af) * next.acc) / (1 - am);
+  next.v = s.v + h * (1 - g) * s.a + h * g * next.a;
+  next.q = s.q + h * s.v + h * h * (0.5 - b) * s.a + h * h * b * next.a;
+  info.increment.clear();
+  info.violation.clear();
+  Vector r, phi, jtl(n), rhs(n + m);
+  std::vector<joints::Block7> K, C, M;
+  const int nb = sp.bodies;
+  for (int it = 0; it < settings_.max_iterations; ++it) {
+    std::fill(values, values + sp.S.nonZeros(), 0.0);
+    mech_.dynamics_blocks(next.q, next.v, next.acc, next.t, r, K, C, M);
+    for (int bb = 0; bb < nb; ++bb) {
+      const joints::Block7 D = M[static_cast<std::size_t>(bb)] + (gp / bp) * C[static_cast<std::size_t>(bb)] +
+                               (1.0 / bp) * K[static_cast<std::size_t>(bb)];
+      const int off = sp.block_offset[static_cast<std::size_t>(bb * nb + bb)];
+      for (int i = 0; i < 49; ++i) values[sp.block_index[static_cast<std::size_t>(off + i)]] += D(i / 7, i % 7);
+    }
+    jtl.setZero();
+    Assembly assembly(sp, values, 1.0 / bp, next.lambda, jtl);
+    mech_.constraint(next.q, next.t, phi, assembly);
+    mech_.add_constraint_hessian(next.q, next.t, next.lambda, assembly);
+    r += jtl;
+    rhs.head(n) = -r / bp;
+    rhs.tail(m) = -phi;
+    sp.lu.factorize(sp.S);
+    ++info.iterations;
+    if (sp.lu.info() != Eigen::Success) return false;
+    const Vector x = sp.lu.solve(rhs);
     if (!x.allFinite()) return false;
     const auto dq = x.head(n);
     next.q += dq;

@@ -110,6 +110,92 @@ void Mechanism::add_constraint_hessian(const Vector &q, double t, const Vector &
   }
 }
 
+namespace {
+
+/// Forwards gradient rows to another sink under their enforced-row number, dropping the rows
+/// that are not enforced.
+class EnforcedRows : public joints::Sink {
+public:
+  EnforcedRows(joints::Sink &inner, const std::vector<int> &map) : inner_(inner), map_(map) {}
+  void add_row(int row, int body, const joints::Row7 &g) override {
+    const int k = map_[static_cast<std::size_t>(row)];
+    if (k >= 0) inner_.add_row(k, body, g);
+  }
+  void add_block(int bi, int bj, const joints::Block7 &B) override { inner_.add_block(bi, bj, B); }
+
+private:
+  joints::Sink &inner_;
+  const std::vector<int> &map_;
+};
+
+} // namespace
+
+void Mechanism::constraint(const Vector &q, double t, Vector &phi, joints::Sink &sink) const {
+  std::vector<int> map(static_cast<std::size_t>(all_rows_), -1);
+  phi.resize(active_rows_);
+  double values[3];
+  int row = 0, k = 0;
+  for (const auto &e : equations) {
+    e.value(q, t, values);
+    for (int i = 0; i < e.rows(); ++i)
+      if (enforced_[static_cast<std::size_t>(row + i)]) {
+        map[static_cast<std::size_t>(row + i)] = k;
+        phi(k++) = values[i];
+      }
+    row += e.rows();
+  }
+  EnforcedRows forward(sink, map);
+  row = 0;
+  for (const auto &e : equations) {
+    e.gradient(q, t, forward, row);
+    row += e.rows();
+  }
+}
+
+void Mechanism::add_constraint_hessian(const Vector &q, double t, const Vector &lambda,
+                                       joints::Sink &sink) const {
+  int row = 0, k = 0;
+  double l[3];
+  for (const auto &e : equations) {
+    bool any = false;
+    for (int i = 0; i < e.rows(); ++i) {
+      const bool on = enforced_[static_cast<std::size_t>(row + i)];
+      l[i] = on ? lambda(k++) : 0.0;
+      any = any || on;
+    }
+    if (any) e.add_hessian(q, t, l, sink);
+    row += e.rows();
+  }
+}
+
+void Mechanism::dynamics_blocks(const Vector &q, const Vector &v, const Vector &a, double t,
+                                Vector &r, std::vector<joints::Block7> &K,
+                                std::vector<joints::Block7> &C,
+                                std::vector<joints::Block7> &M) const {
+  const int n = coordinates();
+  const std::size_t nb = bodies.size();
+  r.setZero(n);
+  K.resize(nb);
+  C.resize(nb);
+  M.resize(nb);
+  bodies::RigidBody::Vec7 f;
+  for (std::size_t b = 0; b < nb; ++b) {
+    const int o = 7 * static_cast<int>(b);
+    bodies[b].inertial_force(q.segment<7>(o), v.segment<7>(o), a.segment<7>(o), &f, &K[b], &C[b],
+                             &M[b]);
+    r.segment<7>(o) = f;
+    r.segment<3>(o) -= bodies[b].mass() * gravity;
+  }
+  for (const PointForce &pf : forces) {
+    const int o = 7 * pf.body;
+    const Vec3 F(pf.value[0](t), pf.value[1](t), pf.value[2](t));
+    const bodies::Vec4 p = q.segment<4>(o + 3);
+    r.segment<3>(o) -= F;
+    r.segment<4>(o + 3) -= bodies::rotate_jacobian(p, pf.s).transpose() * F;
+    K[static_cast<std::size_t>(pf.body)].bottomRightCorner<4, 4>() -= bodies::rotate_hessian(pf.s, F);
+  }
+}
+
 void Mechanism::constraint_time_terms(const Vector &q, const Vector &v, double t, Vector &phi_t,
                                       Vector &phi_tt, Vector &phi_qt_v) const {
   phi_t.resize(active_rows_);

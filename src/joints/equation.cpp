@@ -28,21 +28,23 @@ Mat37 vector_jacobian(const Vector &q, int b, const Vec3 &u) {
 }
 
 /// H_bb += d^2 (w . A(p_b) u) / dp_b^2 (points and vectors alike: r enters linearly).
-void add_rotation_hessian(Matrix &H, int b, const Vec3 &u, const Vec3 &w) {
+void add_rotation_hessian(Sink &H, int b, const Vec3 &u, const Vec3 &w) {
   if (b < 0) return;
-  H.block<4, 4>(7 * b + 3, 7 * b + 3) += bodies::rotate_hessian(u, w);
+  Block7 B = Block7::Zero();
+  B.bottomRightCorner<4, 4>() = bodies::rotate_hessian(u, w);
+  H.add_block(b, b, B);
 }
 
 /// H_ab += B, H_ba += B^T for a 7 x 7 cross block (both bodies moving).
-void add_cross(Matrix &H, int a, int b, const Eigen::Matrix<double, 7, 7> &B) {
+void add_cross(Sink &H, int a, int b, const Block7 &B) {
   if (a < 0 || b < 0) return;
-  H.block<7, 7>(7 * a, 7 * b) += B;
-  H.block<7, 7>(7 * b, 7 * a) += B.transpose();
+  H.add_block(a, b, B);
+  H.add_block(b, a, B.transpose());
 }
 
-void add_row(Matrix &J, int row, int b, const Eigen::Matrix<double, 1, 7> &g) {
+void add_row(Sink &J, int row, int b, const Row7 &g) {
   if (b < 0) return;
-  J.block<1, 7>(row, 7 * b) += g;
+  J.add_row(row, b, g);
 }
 
 /// The driver's rotating vector u(t) = sin f u1 - cos f u2 and its first two time derivatives.
@@ -97,12 +99,14 @@ void Equation::value(const Vector &q, double t, double *out) const {
   }
 }
 
-void Equation::gradient(const Vector &q, double t, Matrix &J, int row) const {
+void Equation::gradient(const Vector &q, double t, Sink &J, int row) const {
   switch (kind) {
   case Kind::Coincide: {
     const Mat37 ja = point_jacobian(q, a, sa), jb = point_jacobian(q, b, sb);
-    if (a >= 0) J.block<3, 7>(row, 7 * a) += ja;
-    if (b >= 0) J.block<3, 7>(row, 7 * b) -= jb;
+    for (int k = 0; k < 3; ++k) {
+      add_row(J, row + k, a, ja.row(k));
+      add_row(J, row + k, b, -jb.row(k));
+    }
     return;
   }
   case Kind::Perpendicular:
@@ -124,12 +128,14 @@ void Equation::gradient(const Vector &q, double t, Matrix &J, int row) const {
     return;
   }
   case Kind::Normalize:
-    J.block<1, 4>(row, 7 * a + 3) += euler(q, a).transpose();
+    Row7 g = Row7::Zero();
+    g.tail<4>() = euler(q, a).transpose();
+    J.add_row(row, a, g);
     return;
   }
 }
 
-void Equation::add_hessian(const Vector &q, double t, const double *lambda, Matrix &H) const {
+void Equation::add_hessian(const Vector &q, double t, const double *lambda, Sink &H) const {
   switch (kind) {
   case Kind::Coincide: {
     const Vec3 l(lambda[0], lambda[1], lambda[2]);
@@ -157,13 +163,15 @@ void Equation::add_hessian(const Vector &q, double t, const double *lambda, Matr
                 Jxb = point_jacobian(q, b, sb);
     add_rotation_hessian(H, a, ua, l * d);
     add_rotation_hessian(H, a, sa, -l * u);
-    if (a >= 0) H.block<7, 7>(7 * a, 7 * a) -= l * (Ju.transpose() * Jxa + Jxa.transpose() * Ju);
+    if (a >= 0) H.add_block(a, a, -l * (Ju.transpose() * Jxa + Jxa.transpose() * Ju));
     add_rotation_hessian(H, b, sb, l * u);
     add_cross(H, a, b, l * Ju.transpose() * Jxb);
     return;
   }
   case Kind::Normalize:
-    H.block<4, 4>(7 * a + 3, 7 * a + 3) += lambda[0] * Mat4::Identity();
+    Block7 B = Block7::Zero();
+    B.bottomRightCorner<4, 4>() = lambda[0] * Mat4::Identity();
+    H.add_block(a, a, B);
     return;
   }
 }

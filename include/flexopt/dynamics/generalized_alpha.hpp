@@ -35,6 +35,9 @@ struct NewtonSettings {
   int max_iterations = 12;  ///< per attempt
   double tolerance = 1e-12; ///< on max|dq| / (1 + max|q|)
   int max_halvings = 6;     ///< step halvings before giving up
+  /// Newton systems with more unknowns (n + m) than this use the sparse LU on the block
+  /// pattern, smaller ones a dense LU.
+  int dense_limit = 96;
 };
 
 /// What one step did, for progress output and failure messages.
@@ -81,9 +84,17 @@ private:
   /// LU on the structural pattern of A (7 x 7 blocks of bodies coupled by an equation, the
   /// constraint rows' body blocks), whose ordering is computed once.
   Vector solve(const Matrix &A, const Vector &rhs) const;
+  bool step_once_sparse(const State &s, double h, State &next, StepInfo &info) const;
   struct SparseSolver {
     Eigen::SparseMatrix<double> S;
     Eigen::SparseLU<Eigen::SparseMatrix<double>, Eigen::COLAMDOrdering<int>> lu;
+    int bodies = 0;
+    std::vector<int> block_offset; ///< per (bi, bj): start in block_index, or -1
+    std::vector<int> block_index;  ///< 49 value indices per coupled block, row-major
+    /// Per enforced row k: (body, start in row_index) for each body it touches; row_index holds
+    /// 7 value indices of S(n + k, 7 b + j) followed by 7 of S(7 b + j, n + k).
+    std::vector<std::vector<std::pair<int, int>>> row_entries;
+    std::vector<int> row_index;
   };
   std::unique_ptr<SparseSolver> sparse_;
   const Mechanism &mech_;

@@ -49,6 +49,17 @@ public:
   void constraint(const Vector &q, double t, Vector &phi, Matrix *J) const;
   /// Largest |phi| over the rows that are not enforced (0 if all are), and the row.
   double unenforced_violation(const Vector &q, double t, int *row = nullptr) const;
+  /// Enforced constraints into a Sink (rows numbered among the enforced ones): Phi (m) and the
+  /// gradient rows. For the sparse Newton path.
+  void constraint(const Vector &q, double t, Vector &phi, joints::Sink &sink) const;
+  /// Sum of lambda_k d^2 phi_k/dq^2 over the enforced rows into a Sink (7 x 7 body blocks).
+  void add_constraint_hessian(const Vector &q, double t, const Vector &lambda,
+                              joints::Sink &sink) const;
+  /// The dynamics residual r (n) and its per-body diagonal 7 x 7 blocks of K, C, M (the
+  /// equations of motion couple bodies only through the constraints).
+  void dynamics_blocks(const Vector &q, const Vector &v, const Vector &a, double t, Vector &r,
+                       std::vector<joints::Block7> &K, std::vector<joints::Block7> &C,
+                       std::vector<joints::Block7> &M) const;
   /// Every row (enforced or not): for the violation monitor and messages.
   void all_constraint_values(const Vector &q, double t, Vector &phi) const;
   /// H += d(Phi_q^T lambda)/dq for the enforced rows.

@@ -25,6 +25,32 @@ using bodies::Vec4;
 using Vector = Eigen::VectorXd;
 using Matrix = Eigen::MatrixXd;
 
+using Row7 = Eigen::Matrix<double, 1, 7>;
+using Block7 = Eigen::Matrix<double, 7, 7>;
+
+/// Where gradients and Hessian contributions go: a dense matrix, or the blocks of a sparse one.
+class Sink {
+public:
+  virtual ~Sink() = default;
+  /// Phi_q(row, body's 7 columns) += g.
+  virtual void add_row(int row, int body, const Row7 &g) = 0;
+  /// H(body bi's 7 rows, body bj's 7 columns) += B.
+  virtual void add_block(int bi, int bj, const Block7 &B) = 0;
+};
+
+/// A Sink writing into dense matrices J (rows x n) and H (n x n); either may be null.
+class DenseSink : public Sink {
+public:
+  DenseSink(Matrix *J, Matrix *H) : J_(J), H_(H) {}
+  void add_row(int row, int body, const Row7 &g) override { J_->block<1, 7>(row, 7 * body) += g; }
+  void add_block(int bi, int bj, const Block7 &B) override {
+    H_->block<7, 7>(7 * bi, 7 * bj) += B;
+  }
+
+private:
+  Matrix *J_, *H_;
+};
+
 /// A primitive constraint equation (or the 3 equations of a point coincidence).
 struct Equation {
   enum class Kind {
@@ -49,9 +75,17 @@ struct Equation {
   /// phi (rows()) into out.
   void value(const Vector &q, double t, double *out) const;
   /// Rows of Phi_q into J (rows() x n, starting at row `row`; other columns untouched).
-  void gradient(const Vector &q, double t, Matrix &J, int row) const;
+  void gradient(const Vector &q, double t, Matrix &J, int row) const {
+    DenseSink sink(&J, nullptr);
+    gradient(q, t, sink, row);
+  }
+  void gradient(const Vector &q, double t, Sink &sink, int row) const;
   /// H += sum_i lambda_i d^2 phi_i / dq^2 (n x n).
-  void add_hessian(const Vector &q, double t, const double *lambda, Matrix &H) const;
+  void add_hessian(const Vector &q, double t, const double *lambda, Matrix &H) const {
+    DenseSink sink(nullptr, &H);
+    add_hessian(q, t, lambda, sink);
+  }
+  void add_hessian(const Vector &q, double t, const double *lambda, Sink &sink) const;
   /// d phi/dt, d^2 phi/dt^2 and (d Phi_q/dt) v (time enters through drivers only).
   void time_derivatives(const Vector &q, const Vector &v, double t, double *phi_t,
                         double *phi_tt, double *phi_qt_v) const;
