@@ -58,19 +58,6 @@ void Mechanism::all_constraint_values(const Vector &q, double t, Vector &phi) co
   }
 }
 
-double Mechanism::unenforced_violation(const Vector &q, double t, int *row) const {
-  if (active_rows_ == all_rows_) return 0;
-  Vector all;
-  all_constraint_values(q, t, all);
-  double worst = 0;
-  for (int r = 0; r < all_rows_; ++r)
-    if (!enforced_[static_cast<std::size_t>(r)] && std::abs(all(r)) >= worst) {
-      worst = std::abs(all(r));
-      if (row) *row = r;
-    }
-  return worst;
-}
-
 void Mechanism::constraint(const Vector &q, double t, Vector &phi, Matrix *J) const {
   const int n = coordinates();
   Vector all;

@@ -47,8 +47,6 @@ public:
 
   /// Enforced constraints: Phi (m) and, if J is non-null, Phi_q (m x n).
   void constraint(const Vector &q, double t, Vector &phi, Matrix *J) const;
-  /// Largest |phi| over the rows that are not enforced (0 if all are), and the row.
-  double unenforced_violation(const Vector &q, double t, int *row = nullptr) const;
   /// Enforced constraints into a Sink (rows numbered among the enforced ones): Phi (m) and the
   /// gradient rows. For the sparse Newton path.
   void constraint(const Vector &q, double t, Vector &phi, joints::Sink &sink) const;
