@@ -13,7 +13,7 @@ reads the run's summary.json and compares each check:
           - {path: compliance, value: 37.9, abs_tol: 0.5}
           - {path: frequencies_hz[0:6], max_abs: 0.2}      # every selected |value| <= max_abs
           # time series (a sensor's t/value, or a list against output_times):
-          - {path: sensors.tip, component: 1, period: 1.9339, rel_tol: 1.0e-4}
+          - {path: sensors.tip, component: 1, period: 1.9339, between: [0, 2], rel_tol: 1.0e-4}
           - {path: sensors.s, component: 0, formula: "0.2*np.cos(t)", max_abs_err: 1.0e-8}
           - {path: energy, max_relative_change: 1.0e-6}
 
@@ -63,23 +63,25 @@ def series(summary, check):
     return np.array(t, dtype=float), v
 
 
-def first_period(t, v):
-    """Time between the first two interior maxima of v(t) (parabola through the three samples
-    around each), or None."""
+def maxima_period(t, v, first, second):
+    """Time between interior maxima number `first` and `second` (0-based) of v(t), each located
+    by the parabola through the three samples around it, or None."""
     import numpy as np
     peaks = []
     for i in range(1, len(v) - 1):
         if v[i] >= v[i - 1] and v[i] > v[i + 1]:
             a, b, _ = np.polyfit(t[i - 1:i + 2] - t[i], v[i - 1:i + 2], 2)
             peaks.append(t[i] - b / (2 * a))
-        if len(peaks) == 2:
-            return peaks[1] - peaks[0]
+        if len(peaks) > second:
+            return peaks[second] - peaks[first]
     return None
 
 
 def check_derived(summary, check):
-    """Checks on time series: `formula` (numpy expression in t; every sample within
-    max_abs_err), `period` (time between the first two maxima against value/rel_tol) and
+    """Checks on time series: `formula` (numpy expression in t, or statements setting `value`;
+    every sample within max_abs_err), `period` (time between the maxima `between: [i, j]`,
+    default the first two, against period/rel_tol; choose a component whose maxima are
+    quadratic, not flat) and
     `max_relative_change` (max |v - v[0]| / |v[0]| <= the given bound)."""
     import numpy as np
     path = check["path"]
@@ -100,7 +102,8 @@ def check_derived(summary, check):
         return err <= check["max_abs_err"], (f"{label}: max |value - ({shown})| "
                                              f"{err:.3g} <= {check['max_abs_err']:.3g} over {len(t)} samples")
     if "period" in check:
-        T = first_period(t, v)
+        i, j = check.get("between", [0, 1])
+        T = maxima_period(t, v, i, j)
         if T is None:
             return False, f"{label}: fewer than two maxima, no period"
         rel = abs(T - check["period"]) / abs(check["period"])
