@@ -28,17 +28,87 @@ void complete_triad(const Vec3 &w, Vec3 &u1, Vec3 &u2) {
   u2 = w.cross(u1);
 }
 
-/// Where a joint attaches: body index (-1 ground), the point relative to the centre of mass in
-/// body axes (ground: world), and the body's initial rotation (ground: identity).
-struct Attach {
-  int body = -1;
-  Vec3 s{0, 0, 0};
-  Mat3 R = Mat3::Identity();
-  Vec3 world{0, 0, 0}; ///< initial world position of the point
-  Vec3 local(const Vec3 &world_vector) const { return R.transpose() * world_vector; }
-};
-
 } // namespace
+
+std::vector<joints::Equation> joint_equations(const std::string &type, const Attachment &A,
+                                              const Attachment &B, const Vec3 &axis,
+                                              const std::string &owner) {
+  std::vector<Equation> out;
+  int row = 0;
+  auto add = [&](Equation e) {
+    e.a = A.body, e.b = B.body, e.owner = owner, e.row_in_owner = row;
+    row += e.rows();
+    out.push_back(e);
+  };
+  const Vec3 w = type == "revolute" || type == "prismatic" ? axis.normalized() : Vec3::UnitZ();
+  Vec3 u1, u2;
+  complete_triad(w, u1, u2);
+  auto coincide = [&] {
+    Equation e;
+    e.kind = K::Coincide;
+    e.sa = A.s, e.sb = B.s;
+    add(e);
+  };
+  auto perpendicular = [&](const Vec3 &ua_world, const Vec3 &vb_world) {
+    Equation e;
+    e.kind = K::Perpendicular;
+    e.ua = A.local(ua_world), e.vb = B.local(vb_world);
+    add(e);
+  };
+  auto lock_orientation = [&] {
+    perpendicular(u1, u2);
+    perpendicular(u1, w);
+    perpendicular(u2, w);
+  };
+  if (type == "spherical") {
+    coincide();
+  } else if (type == "revolute") {
+    coincide();
+    perpendicular(u1, w);
+    perpendicular(u2, w);
+  } else if (type == "fixed") {
+    coincide();
+    lock_orientation();
+  } else if (type == "prismatic") {
+    lock_orientation();
+    for (const Vec3 &u : {u1, u2}) {
+      Equation e;
+      e.kind = K::PointOnPlane;
+      e.ua = A.local(u), e.sa = A.s, e.sb = B.s;
+      e.c = u.dot(B.world - A.world); // the interfaces need not lie on one axis line
+      add(e);
+    }
+  } else {
+    throw Error("joint type '" + type + "' is not one of revolute, spherical, prismatic, fixed",
+                true);
+  }
+  return out;
+}
+
+joints::Equation driver_equation(const std::string &joint_type, const Attachment &A,
+                                 const Attachment &B, const Vec3 &axis,
+                                 std::shared_ptr<const Expression> f, const std::string &owner) {
+  const Vec3 w = axis.normalized();
+  Vec3 u1, u2;
+  complete_triad(w, u1, u2);
+  Equation e;
+  e.a = A.body, e.b = B.body;
+  e.owner = owner;
+  e.driver = std::move(f);
+  if (joint_type == "revolute") {
+    // angle = atan2(u2_a . u1_b, u1_a . u1_b) = f(t):  (sin f u1_a - cos f u2_a) . u1_b = 0
+    e.kind = K::RotationDriver;
+    e.ua = A.local(u1), e.ua2 = A.local(u2), e.vb = B.local(u1);
+  } else if (joint_type == "prismatic") {
+    // displacement along the axis from the initial configuration = f(t)
+    e.kind = K::TranslationDriver;
+    e.ua = A.local(w), e.sa = A.s, e.sb = B.s;
+    e.c = w.dot(B.world - A.world);
+  } else {
+    throw Error("a driver needs a revolute or prismatic joint, not '" + joint_type + "'", true);
+  }
+  return e;
+}
 
 Scene build_scene(MPI_Comm comm, const io::Case &c) {
   Scene scene;
@@ -94,7 +164,7 @@ Scene build_scene(MPI_Comm comm, const io::Case &c) {
   for (const auto &g : c.ground) ground[g.name] = v3(g.origin);
 
   auto attach = [&](const std::string &body, const std::string &iface) {
-    Attach a;
+    Attachment a;
     if (body == "ground") {
       a.s = ground.at(iface);
       a.world = a.s;
@@ -123,78 +193,19 @@ Scene build_scene(MPI_Comm comm, const io::Case &c) {
   // rather than a prescribed motion.
   for (const io::DriverSpec &d : c.drivers) {
     const io::JointSpec &j = *joints_by_name.at(d.joint);
-    const Attach A = attach(j.a, j.a_interface), B = attach(j.b, j.b_interface);
-    const Vec3 w = v3(j.axis);
-    Vec3 u1, u2;
-    complete_triad(w, u1, u2);
-    Equation e;
-    e.a = A.body, e.b = B.body;
-    e.owner = "driver of joint " + j.name;
-    e.driver = std::make_shared<const Expression>(d.expression);
-    if (j.type == "revolute") {
-      // angle = atan2(u2_a . u1_b, u1_a . u1_b) = f(t):  (sin f u1_a - cos f u2_a) . u1_b = 0
-      e.kind = K::RotationDriver;
-      e.ua = A.local(u1), e.ua2 = A.local(u2), e.vb = B.local(u1);
-    } else {
-      // displacement along the axis from the initial configuration = f(t)
-      e.kind = K::TranslationDriver;
-      e.ua = A.local(w), e.sa = A.s, e.sb = B.s;
-      e.c = w.dot(B.world - A.world);
-    }
-    mech.equations.push_back(e);
+    const Attachment A = attach(j.a, j.a_interface), B = attach(j.b, j.b_interface);
+    mech.equations.push_back(driver_equation(j.type, A, B, v3(j.axis),
+                                             std::make_shared<const Expression>(d.expression),
+                                             "driver of joint " + j.name));
   }
   double max_gap = 0;
   std::string gap_joint;
   for (const io::JointSpec &j : c.joints) {
-    const Attach A = attach(j.a, j.a_interface), B = attach(j.b, j.b_interface);
+    const Attachment A = attach(j.a, j.a_interface), B = attach(j.b, j.b_interface);
     const double gap = (A.world - B.world).norm();
     if (gap > max_gap && (j.type != "prismatic")) max_gap = gap, gap_joint = j.name;
-    const std::string owner = "joint " + j.name + " (" + j.type + ")";
-    int row = 0;
-    auto add = [&](Equation e) {
-      e.a = A.body, e.b = B.body, e.owner = owner, e.row_in_owner = row;
-      row += e.rows();
-      mech.equations.push_back(e);
-    };
-    const Vec3 w = j.type == "revolute" || j.type == "prismatic" ? v3(j.axis) : Vec3::UnitZ();
-    Vec3 u1, u2;
-    complete_triad(w, u1, u2);
-    auto coincide = [&] {
-      Equation e;
-      e.kind = K::Coincide;
-      e.sa = A.s, e.sb = B.s;
-      add(e);
-    };
-    auto perpendicular = [&](const Vec3 &ua_world, const Vec3 &vb_world) {
-      Equation e;
-      e.kind = K::Perpendicular;
-      e.ua = A.local(ua_world), e.vb = B.local(vb_world);
-      add(e);
-    };
-    auto lock_orientation = [&] {
-      perpendicular(u1, u2);
-      perpendicular(u1, w);
-      perpendicular(u2, w);
-    };
-    if (j.type == "spherical") {
-      coincide();
-    } else if (j.type == "revolute") {
-      coincide();
-      perpendicular(u1, w);
-      perpendicular(u2, w);
-    } else if (j.type == "fixed") {
-      coincide();
-      lock_orientation();
-    } else if (j.type == "prismatic") {
-      lock_orientation();
-      for (const Vec3 &u : {u1, u2}) {
-        Equation e;
-        e.kind = K::PointOnPlane;
-        e.ua = A.local(u), e.sa = A.s, e.sb = B.s;
-        e.c = u.dot(B.world - A.world); // the interfaces need not lie on one axis line
-        add(e);
-      }
-    }
+    for (Equation &e : joint_equations(j.type, A, B, v3(j.axis), "joint " + j.name + " (" + j.type + ")"))
+      mech.equations.push_back(std::move(e));
   }
   if (max_gap > 1e-9)
     print0(comm,

@@ -7,6 +7,7 @@
 #include "flexopt/bodies/rigid_body.hpp"
 #include "flexopt/dynamics/generalized_alpha.hpp"
 #include "flexopt/dynamics/mechanism.hpp"
+#include "flexopt/dynamics/scene.hpp"
 
 #include <gtest/gtest.h>
 #include <memory>
@@ -422,4 +423,130 @@ TEST(GeneralizedAlpha, SparseAndDensePathsAgree) {
   EXPECT_LT((sd.lambda - ss.lambda).cwiseAbs().maxCoeff(), 1e-8 * sd.lambda.cwiseAbs().maxCoeff());
   // The chain has moved: the check is not comparing two resting states.
   EXPECT_GT((sd.q - q0).cwiseAbs().maxCoeff(), 0.1);
+}
+
+// Every joint type as the scene builds it, between two bodies in a random initial placement:
+// the row count, the equations satisfied at the initial placement, the gradient and the
+// Hessian contraction of the whole joint against central differences, and the motion the joint
+// allows (revolute: rotation about its axis through the joint point; prismatic: translation
+// along its axis) keeps the equations satisfied while a forbidden motion violates them.
+TEST(Joints, EveryTypeAsBuilt) {
+  using dynamics::Attachment;
+  const Vec3 axis = random3().normalized();
+  auto rigid_motion = [](Vector q, int b, const Mat3 &R, const Vec3 &about, const Vec3 &shift) {
+    // x -> about + R (x - about) + shift for body b: r and p change accordingly.
+    const Vec3 r = q.segment<3>(7 * b);
+    q.segment<3>(7 * b) = about + R * (r - about) + shift;
+    const Mat3 A = bodies::rotation(q.segment<4>(7 * b + 3));
+    q.segment<4>(7 * b + 3) = bodies::from_matrix(R * A);
+    return q;
+  };
+  for (const std::string type : {"spherical", "revolute", "prismatic", "fixed"}) {
+    Vector q(14);
+    Mat3 R[2];
+    for (int b = 0; b < 2; ++b) {
+      R[b] = Eigen::AngleAxisd(uniform(-3, 3), random3().normalized()).toRotationMatrix();
+      q.segment<3>(7 * b) = random3();
+      q.segment<4>(7 * b + 3) = bodies::from_matrix(R[b]);
+    }
+    // The joint point in the world, the same for both bodies (prismatic: any two points).
+    const Vec3 x = random3();
+    Attachment A, B;
+    A.body = 0, B.body = 1, A.R = R[0], B.R = R[1];
+    A.world = x;
+    B.world = type == "prismatic" ? x + 0.3 * random3() : x;
+    A.s = R[0].transpose() * (A.world - q.segment<3>(0));
+    B.s = R[1].transpose() * (B.world - q.segment<3>(7));
+    const auto eqs = dynamics::joint_equations(type, A, B, axis, "joint");
+    int rows = 0;
+    for (const auto &e : eqs) rows += e.rows();
+    const int expected = type == "spherical" ? 3 : type == "fixed" ? 6 : 5;
+    EXPECT_EQ(rows, expected) << type;
+    auto phi = [&](const Vector &x_) -> Vector {
+      Vector out(rows);
+      int r = 0;
+      for (const auto &e : eqs) {
+        e.value(x_, 0.0, out.data() + r);
+        r += e.rows();
+      }
+      return out;
+    };
+    EXPECT_LT(phi(q).cwiseAbs().maxCoeff(), 1e-14) << type << ": not satisfied where built";
+    Matrix J = Matrix::Zero(rows, 14), H = Matrix::Zero(14, 14);
+    Vector lambda(rows);
+    for (int i = 0; i < rows; ++i) lambda(i) = uniform();
+    int r = 0;
+    for (const auto &e : eqs) {
+      e.gradient(q, 0.0, J, r);
+      e.add_hessian(q, 0.0, lambda.data() + r, H);
+      r += e.rows();
+    }
+    expect_close(J, fd_jacobian(phi, q, rows), (type + ": gradient").c_str());
+    auto jtl = [&](const Vector &x_) -> Vector {
+      Matrix Jx = Matrix::Zero(rows, 14);
+      int rr = 0;
+      for (const auto &e : eqs) {
+        e.gradient(x_, 0.0, Jx, rr);
+        rr += e.rows();
+      }
+      return Jx.transpose() * lambda;
+    };
+    expect_close(H, fd_jacobian(jtl, q, 14), (type + ": Hessian").c_str());
+    // Allowed and forbidden motions of body b.
+    const Mat3 spin = Eigen::AngleAxisd(0.7, axis).toRotationMatrix();
+    const Mat3 tilt = Eigen::AngleAxisd(0.7, axis.unitOrthogonal()).toRotationMatrix();
+    const double about_axis = phi(rigid_motion(q, 1, spin, x, Vec3::Zero())).cwiseAbs().maxCoeff();
+    const double tilted = phi(rigid_motion(q, 1, tilt, x, Vec3::Zero())).cwiseAbs().maxCoeff();
+    const double along = phi(rigid_motion(q, 1, Mat3::Identity(), x, 0.4 * axis)).cwiseAbs().maxCoeff();
+    if (type == "spherical") {
+      EXPECT_LT(std::max(about_axis, tilted), 1e-14) << type << " allows any rotation about x";
+      EXPECT_GT(along, 0.1) << type;
+    } else if (type == "revolute") {
+      EXPECT_LT(about_axis, 1e-14) << type;
+      EXPECT_GT(tilted, 0.1) << type;
+      EXPECT_GT(along, 0.1) << type;
+    } else if (type == "prismatic") {
+      EXPECT_LT(along, 1e-14) << type;
+      EXPECT_GT(about_axis, 0.1) << type;
+    } else {
+      EXPECT_GT(std::min({about_axis, tilted, along}), 0.1) << type << " allows nothing";
+    }
+  }
+}
+
+// Drivers on a revolute (angle) and a prismatic (displacement) joint: zero where built when
+// f(0) = 0, and zero after rotating / translating body b by f(t) about / along the axis.
+TEST(Joints, DriversPrescribeTheJointCoordinate) {
+  using dynamics::Attachment;
+  const Vec3 axis = random3().normalized();
+  auto f = std::make_shared<const Expression>("0.8*t + 0.3*t^2");
+  Vector q(14);
+  Mat3 R[2];
+  for (int b = 0; b < 2; ++b) {
+    R[b] = Eigen::AngleAxisd(uniform(-3, 3), random3().normalized()).toRotationMatrix();
+    q.segment<3>(7 * b) = random3();
+    q.segment<4>(7 * b + 3) = bodies::from_matrix(R[b]);
+  }
+  const Vec3 x = random3();
+  Attachment A, B;
+  A.body = 0, B.body = 1, A.R = R[0], B.R = R[1], A.world = x, B.world = x;
+  A.s = R[0].transpose() * (x - q.segment<3>(0));
+  B.s = R[1].transpose() * (x - q.segment<3>(7));
+  const double t = 0.9, value = 0.8 * t + 0.3 * t * t;
+  for (const std::string type : {"revolute", "prismatic"}) {
+    const auto e = dynamics::driver_equation(type, A, B, axis, f, "driver");
+    double phi0 = 1, phit = 1;
+    e.value(q, 0.0, &phi0);
+    EXPECT_LT(std::abs(phi0), 1e-14) << type;
+    Vector moved = q;
+    if (type == "revolute") {
+      const Mat3 Rt = Eigen::AngleAxisd(value, axis).toRotationMatrix();
+      moved.segment<3>(7) = x + Rt * (q.segment<3>(7) - x);
+      moved.segment<4>(10) = bodies::from_matrix(Rt * R[1]);
+    } else {
+      moved.segment<3>(7) += value * axis;
+    }
+    e.value(moved, t, &phit);
+    EXPECT_LT(std::abs(phit), 1e-13) << type << ": the joint coordinate is f(t)";
+  }
 }

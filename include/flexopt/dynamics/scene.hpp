@@ -6,6 +6,7 @@
 #include "flexopt/io/case.hpp"
 #include "flexopt/mesh/distributed_mesh.hpp"
 
+#include <memory>
 #include <mpi.h>
 #include <string>
 #include <vector>
@@ -28,6 +29,31 @@ struct Scene {
   std::vector<std::string> redundant_rows; ///< constraint rows found redundant and not enforced
   double length_scale = 1;                 ///< largest extent of the placed scene [m]
 };
+
+/// Where a joint attaches, in the initial placement: the body (-1: ground), the interface point
+/// relative to the body's centre of mass in body axes (ground: world), the body's initial
+/// rotation and the point's initial world position.
+struct Attachment {
+  int body = -1;
+  Vec3 s{0, 0, 0};
+  bodies::Mat3 R = bodies::Mat3::Identity();
+  Vec3 world{0, 0, 0};
+  /// A world direction in the initial placement, expressed in the body's axes.
+  Vec3 local(const Vec3 &world_vector) const { return R.transpose() * world_vector; }
+};
+
+/// The equations of a joint (docs/theory.md section 6.3): spherical 3 rows, revolute 5,
+/// prismatic 5, fixed 6, with vectors fixed from the initial placement and the world `axis`
+/// (revolute, prismatic). Satisfied at the initial placement when the interface points
+/// coincide (prismatic: for any interface points).
+std::vector<joints::Equation> joint_equations(const std::string &type, const Attachment &a,
+                                              const Attachment &b, const Vec3 &axis,
+                                              const std::string &owner);
+/// The equation of a driver f(t) on a revolute joint (angle from the initial placement) or a
+/// prismatic joint (displacement along the axis from the initial placement).
+joints::Equation driver_equation(const std::string &joint_type, const Attachment &a,
+                                 const Attachment &b, const Vec3 &axis,
+                                 std::shared_ptr<const Expression> f, const std::string &owner);
 
 /// Builds the scene of a dynamic case. Collective; throws collective flexopt::Errors naming the
 /// case key for scene-level problems (an interface without area, a sensor on a missing body).
