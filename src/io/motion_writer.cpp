@@ -1,6 +1,7 @@
 #include "flexopt/io/motion_writer.hpp"
 
 #include "flexopt/core/error.hpp"
+#include "hdf5_check.hpp"
 #include "flexopt/io/json.hpp"
 
 #include <cstdio>
@@ -12,16 +13,8 @@ namespace flexopt::io {
 
 namespace {
 
-// Every HDF5 call after the file exists is part of a collective sequence; a failure may be
-// seen by one rank only, so it ends the job (abort_local) instead of throwing.
-void h5check(herr_t status, const std::string &what) {
-  if (status < 0) abort_local("HDF5: " + what + " failed");
-}
-
-hid_t h5id(hid_t id, const std::string &what) {
-  if (id < 0) abort_local("HDF5: " + what + " failed");
-  return id;
-}
+using detail::h5check;
+using detail::h5id;
 
 /// Text for an XML attribute value or element content.
 std::string xml_escape(const std::string &s) {

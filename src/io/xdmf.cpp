@@ -1,6 +1,7 @@
 #include "flexopt/io/xdmf.hpp"
 
 #include "flexopt/core/error.hpp"
+#include "hdf5_check.hpp"
 #include "flexopt/io/json.hpp"
 
 #include <cstdio>
@@ -12,14 +13,8 @@ namespace flexopt::io {
 
 namespace {
 
-void h5check(herr_t status, const std::string &what) {
-  if (status < 0) throw Error("HDF5: " + what + " failed");
-}
-
-hid_t h5id(hid_t id, const std::string &what) {
-  if (id < 0) throw Error("HDF5: " + what + " failed");
-  return id;
-}
+using detail::h5check;
+using detail::h5id;
 
 struct Field {
   std::string name;
