@@ -1,0 +1,41 @@
+#pragma once
+/// \file Craig–Bampton reduction of a body's FE model with rigid interface surfaces
+/// (docs/theory.md section 7.1). The first step of the FFRF body: the body is clamped at its
+/// first interface (the reference frame); every other interface surface is made rigid (RBE2)
+/// and carries 6 static constraint modes (unit translation or rotation of the surface about
+/// its centroid, the others clamped); the lowest fixed-interface eigenmodes (all interface
+/// surfaces clamped) complete the basis.
+#include "flexopt/mesh/distributed_mesh.hpp"
+
+#include <Eigen/Dense>
+#include <petscmat.h>
+#include <string>
+#include <vector>
+
+namespace flexopt::reduce {
+
+struct CraigBamptonBasis {
+  int static_modes = 0; ///< 6 per interface after the first
+  int fixed_modes = 0;
+  /// Full-size basis vectors: the static modes first (interface k = 1.., components tx, ty,
+  /// tz, rx, ry, rz), then the fixed-interface modes (M-orthonormal among themselves).
+  std::vector<Vec> vectors;
+  std::vector<double> fixed_eigenvalues; ///< omega^2 of the fixed-interface modes [rad^2/s^2]
+  Eigen::MatrixXd K, M; ///< reduced stiffness and mass V^T K V, V^T M V (replicated)
+  std::vector<Eigen::Vector3d> centroids; ///< area-weighted centroid of each interface surface
+  CraigBamptonBasis() = default;
+  CraigBamptonBasis(const CraigBamptonBasis &) = delete;
+  CraigBamptonBasis &operator=(const CraigBamptonBasis &) = delete;
+  ~CraigBamptonBasis();
+};
+
+/// Builds the basis for the mesh's interfaces `interfaces` (physical surfaces; the first is the
+/// clamped reference frame) with `fixed_modes` fixed-interface modes, from the assembled full
+/// stiffness K and mass M (block size 3). The static modes come from one MUMPS factorization of
+/// K with all interface DOFs constrained (options prefix `cb_`). Collective; throws a collective
+/// flexopt::Error for a missing surface or a failed solve.
+void craig_bampton(const mesh::DistributedMesh &mesh, Mat K, Mat M,
+                   const std::vector<std::string> &interfaces, int fixed_modes,
+                   CraigBamptonBasis &out);
+
+} // namespace flexopt::reduce

@@ -1,0 +1,177 @@
+#include "flexopt/reduce/craig_bampton.hpp"
+
+#include "flexopt/core/error.hpp"
+#include "flexopt/core/log.hpp"
+#include "flexopt/fem/assembly.hpp"
+#include "flexopt/reduce/modal.hpp"
+
+#include <algorithm>
+#include <petscksp.h>
+
+namespace flexopt::reduce {
+
+CraigBamptonBasis::~CraigBamptonBasis() {
+  for (Vec &v : vectors) VecDestroy(&v);
+}
+
+namespace {
+
+/// Area-weighted centroid of a surface over all ranks (each face lives on one rank).
+Eigen::Vector3d centroid(const mesh::DistributedMesh &mesh, const std::string &name) {
+  const mesh::LocalSurface &s = mesh.surface(name, "Craig-Bampton interface");
+  const int nf = fem::nodes_per_face(s.type);
+  double local[4] = {0, 0, 0, 0};
+  fem::FaceCoords Xf(nf, 3);
+  for (std::size_t f = 0; f < s.size(); ++f) {
+    for (int a = 0; a < nf; ++a)
+      for (int k = 0; k < 3; ++k)
+        Xf(a, k) = s.coordinates[3 * (f * static_cast<std::size_t>(nf) + static_cast<std::size_t>(a)) +
+                                 static_cast<std::size_t>(k)];
+    const fem::ElementVector w = fem::face_traction_load(s.type, Xf, Eigen::Vector3d(1, 0, 0));
+    for (int a = 0; a < nf; ++a) {
+      local[3] += w(3 * a);
+      for (int k = 0; k < 3; ++k) local[k] += w(3 * a) * Xf(a, k);
+    }
+  }
+  double global[4];
+  MPI_Allreduce(local, global, 4, MPI_DOUBLE, MPI_SUM, mesh.comm);
+  if (!(global[3] > 0))
+    throw Error("Craig-Bampton: interface surface '" + name + "' has no area", true);
+  return Eigen::Vector3d(global[0], global[1], global[2]) / global[3];
+}
+
+} // namespace
+
+void craig_bampton(const mesh::DistributedMesh &mesh, Mat K, Mat M,
+                   const std::vector<std::string> &interfaces, int fixed_modes,
+                   CraigBamptonBasis &out) {
+  LogScope log("FxCraigBampton");
+  if (interfaces.empty())
+    throw Error("Craig-Bampton: a flexible body needs at least one interface (its frame)", true);
+  const std::size_t ni = interfaces.size();
+  out.centroids.clear();
+  for (const auto &name : interfaces) out.centroids.push_back(centroid(mesh, name));
+
+  // Owned DOFs of every interface surface, and the union (sorted) of all of them.
+  std::vector<std::vector<PetscInt>> nodes(ni);
+  std::vector<PetscInt> constrained;
+  for (std::size_t k = 0; k < ni; ++k) {
+    const auto d = fem::surface_dofs(mesh, interfaces[k], {true, true, true},
+                                     "Craig-Bampton interface");
+    constrained.insert(constrained.end(), d.begin(), d.end());
+    for (std::size_t i = 0; i < d.size(); i += 3) nodes[k].push_back(d[i] / 3);
+  }
+  std::sort(constrained.begin(), constrained.end());
+  constrained.erase(std::unique(constrained.begin(), constrained.end()), constrained.end());
+
+  // Static modes: K with every interface DOF constrained, factorized once (MUMPS).
+  Mat Kc;
+  FX_PETSC(MatDuplicate(K, MAT_COPY_VALUES, &Kc));
+  FX_PETSC(MatZeroRowsColumns(Kc, static_cast<PetscInt>(constrained.size()), constrained.data(),
+                              1.0, nullptr, nullptr));
+  KSP ksp;
+  FX_PETSC(KSPCreate(mesh.comm, &ksp));
+  FX_PETSC(KSPSetOptionsPrefix(ksp, "cb_"));
+  FX_PETSC(KSPSetOperators(ksp, Kc, Kc));
+  FX_PETSC(KSPSetType(ksp, KSPPREONLY));
+  PC pc;
+  FX_PETSC(KSPGetPC(ksp, &pc));
+  FX_PETSC(PCSetType(pc, PCLU));
+  FX_PETSC(PCFactorSetMatSolverType(pc, MATSOLVERMUMPS));
+  FX_PETSC(KSPSetFromOptions(ksp));
+  Vec ud, b;
+  FX_PETSC(MatCreateVecs(K, &ud, &b));
+  for (Vec &v : out.vectors) FX_PETSC(VecDestroy(&v));
+  out.vectors.clear();
+  for (std::size_t k = 1; k < ni; ++k)
+    for (int c = 0; c < 6; ++c) {
+      // Prescribed rigid motion of surface k: unit translation e_c, or unit rotation about
+      // e_{c-3} through the centroid: u = e x (x - centroid).
+      FX_PETSC(VecZeroEntries(ud));
+      for (PetscInt node : nodes[k]) {
+        const PetscInt local = node - mesh.node_start;
+        const Eigen::Vector3d x(mesh.coordinates[3 * static_cast<std::size_t>(local)],
+                                mesh.coordinates[3 * static_cast<std::size_t>(local) + 1],
+                                mesh.coordinates[3 * static_cast<std::size_t>(local) + 2]);
+        Eigen::Vector3d u = Eigen::Vector3d::Zero();
+        if (c < 3)
+          u(c) = 1;
+        else
+          u = Eigen::Vector3d::Unit(c - 3).cross(x - out.centroids[k]);
+        const PetscInt rows[3] = {3 * node, 3 * node + 1, 3 * node + 2};
+        FX_PETSC(VecSetValues(ud, 3, rows, u.data(), INSERT_VALUES));
+      }
+      FX_PETSC(VecAssemblyBegin(ud));
+      FX_PETSC(VecAssemblyEnd(ud));
+      // Lifting: K_ii x_i = -K_iD u_D; constrained rows carry u_D itself.
+      FX_PETSC(MatMult(K, ud, b));
+      FX_PETSC(VecScale(b, -1.0));
+      {
+        PetscScalar *ba;
+        const PetscScalar *ua;
+        PetscInt lo;
+        FX_PETSC(VecGetOwnershipRange(b, &lo, nullptr));
+        FX_PETSC(VecGetArray(b, &ba));
+        FX_PETSC(VecGetArrayRead(ud, &ua));
+        for (PetscInt dof : constrained) ba[dof - lo] = ua[dof - lo];
+        FX_PETSC(VecRestoreArrayRead(ud, &ua));
+        FX_PETSC(VecRestoreArray(b, &ba));
+      }
+      Vec x;
+      FX_PETSC(VecDuplicate(b, &x));
+      FX_PETSC(KSPSolve(ksp, b, x));
+      KSPConvergedReason reason;
+      FX_PETSC(KSPGetConvergedReason(ksp, &reason));
+      if (reason < 0)
+        throw Error("Craig-Bampton: the static-mode solve failed (KSP reason " +
+                        std::to_string(static_cast<int>(reason)) + ")",
+                    true);
+      out.vectors.push_back(x);
+    }
+  out.static_modes = static_cast<int>(out.vectors.size());
+  FX_PETSC(VecDestroy(&ud));
+  FX_PETSC(VecDestroy(&b));
+  FX_PETSC(KSPDestroy(&ksp));
+  FX_PETSC(MatDestroy(&Kc));
+
+  // Fixed-interface modes: every interface surface clamped.
+  out.fixed_modes = fixed_modes;
+  out.fixed_eigenvalues.clear();
+  if (fixed_modes > 0) {
+    ModalResult modes;
+    solve_modes(K, M, constrained, fixed_modes, -1.0, modes);
+    for (int i = 0; i < fixed_modes; ++i) {
+      out.fixed_eigenvalues.push_back(modes.eigenvalues[static_cast<std::size_t>(i)]);
+      Vec v;
+      FX_PETSC(VecDuplicate(modes.modes[static_cast<std::size_t>(i)], &v));
+      FX_PETSC(VecCopy(modes.modes[static_cast<std::size_t>(i)], v));
+      out.vectors.push_back(v);
+    }
+  }
+
+  // Reduced matrices V^T K V, V^T M V (every rank gets the same numbers from VecMDot).
+  const int n = static_cast<int>(out.vectors.size());
+  if (n == 0) {
+    out.K.resize(0, 0);
+    out.M.resize(0, 0);
+    return;
+  }
+  out.K.resize(n, n);
+  out.M.resize(n, n);
+  Vec w;
+  FX_PETSC(VecDuplicate(out.vectors.front(), &w));
+  std::vector<PetscScalar> dots(static_cast<std::size_t>(n));
+  for (int j = 0; j < n; ++j) {
+    FX_PETSC(MatMult(K, out.vectors[static_cast<std::size_t>(j)], w));
+    FX_PETSC(VecMDot(w, n, out.vectors.data(), dots.data()));
+    for (int i = 0; i < n; ++i) out.K(i, j) = dots[static_cast<std::size_t>(i)];
+    FX_PETSC(MatMult(M, out.vectors[static_cast<std::size_t>(j)], w));
+    FX_PETSC(VecMDot(w, n, out.vectors.data(), dots.data()));
+    for (int i = 0; i < n; ++i) out.M(i, j) = dots[static_cast<std::size_t>(i)];
+  }
+  FX_PETSC(VecDestroy(&w));
+  out.K = 0.5 * (out.K + out.K.transpose()).eval();
+  out.M = 0.5 * (out.M + out.M.transpose()).eval();
+}
+
+} // namespace flexopt::reduce
