@@ -9,7 +9,10 @@
 #include "flexopt/mesh/load.hpp"
 #include "flexopt/optimize/optimizer.hpp"
 #include "flexopt/optimize/topology_problem.hpp"
+#include "flexopt/reduce/craig_bampton.hpp"
 #include "flexopt/reduce/modal.hpp"
+
+#include <Eigen/Eigenvalues>
 
 #include <algorithm>
 #include <cmath>
@@ -204,7 +207,96 @@ int run_static(const Context &ctx, const Options &o, const io::Case &c, double t
   return 0;
 }
 
+/// `modes --body NAME`: the Craig-Bampton basis of one body, and how well the reduced model
+/// reproduces the frequencies of the full body clamped at its first interface.
+int run_reduction(const Context &ctx, const Options &o, const io::Case &c, double t0) {
+  const io::BodySpec *body = nullptr;
+  for (const auto &b : c.bodies)
+    if (b.name == o.body) body = &b;
+  if (!body) {
+    std::string names;
+    for (const auto &b : c.bodies) names += (names.empty() ? "" : ", ") + b.name;
+    throw Error(c.file + ": modes --body: no body named '" + o.body + "' (bodies: " + names + ")",
+                true);
+  }
+  if (body->interfaces.empty())
+    throw Error(body->where.str() + ": body '" + body->name +
+                    "' lists no interfaces; a reduction basis is clamped at the first one",
+                true);
+  const std::string dir = output_directory(ctx, o);
+  mesh::DistributedMesh m = mesh::load_body_mesh(ctx.comm(), *body);
+  const fem::IsotropicMaterial mat = material_of(c, *body);
+  Mat K = fem::create_matrix(m), M;
+  FX_PETSC(MatDuplicate(K, MAT_DO_NOT_COPY_VALUES, &M));
+  fem::assemble_stiffness(m, mat, {}, K);
+  fem::assemble_mass(m, mat.density, {}, M);
+  const double t_red = wall_time();
+  reduce::CraigBamptonBasis cb;
+  reduce::craig_bampton(m, K, M, body->interfaces, o.count, cb);
+  const double reduction_s = wall_time() - t_red;
+  // The reduced model's frequencies (Rayleigh-Ritz in the span of the basis) against the full
+  // body clamped at the frame interface only.
+  const Eigen::GeneralizedSelfAdjointEigenSolver<Eigen::MatrixXd> red(cb.K, cb.M);
+  reduce::ModalResult full;
+  const auto frame = fem::surface_dofs(m, body->interfaces.front(), {true, true, true},
+                                       body->where.str() + ": interfaces");
+  const int nfull = std::min<int>(o.count, static_cast<int>(cb.K.rows()));
+  reduce::solve_modes(K, M, frame, nfull, kModalShift, full);
+  print0(ctx.comm(),
+         "reduction of body %s: %lld DOFs -> %d coordinates (%d static modes for %zu interface(s) "
+         "after the frame '%s', %d fixed-interface modes) in %.2f s\n",
+         body->name.c_str(), static_cast<long long>(3 * m.global_nodes),
+         static_cast<int>(cb.K.rows()), cb.static_modes, body->interfaces.size() - 1,
+         body->interfaces.front().c_str(), cb.fixed_modes, reduction_s);
+  for (std::size_t k = 0; k < cb.centroids.size(); ++k)
+    print0(ctx.comm(), "  interface %-12s centroid (%.6g, %.6g, %.6g)\n",
+           body->interfaces[k].c_str(), cb.centroids[k].x(), cb.centroids[k].y(),
+           cb.centroids[k].z());
+  std::vector<double> fixed_hz, reduced_hz, full_hz;
+  for (double l : cb.fixed_eigenvalues) fixed_hz.push_back(reduce::frequency_hz(l));
+  for (Eigen::Index k = 0; k < red.eigenvalues().size(); ++k)
+    reduced_hz.push_back(reduce::frequency_hz(red.eigenvalues()(k)));
+  for (int k = 0; k < nfull; ++k) full_hz.push_back(reduce::frequency_hz(full.eigenvalues[static_cast<std::size_t>(k)]));
+  print0(ctx.comm(), "  %4s %18s %18s %18s %10s\n", "k", "fixed-interface Hz", "reduced model Hz",
+         "full (frame clamped)", "difference");
+  for (int k = 0; k < nfull; ++k)
+    print0(ctx.comm(), "  %4d %18.6f %18.6f %18.6f %9.3f%%\n", k + 1,
+           k < static_cast<int>(fixed_hz.size()) ? fixed_hz[static_cast<std::size_t>(k)] : 0.0,
+           reduced_hz[static_cast<std::size_t>(k)], full_hz[static_cast<std::size_t>(k)],
+           100 * (reduced_hz[static_cast<std::size_t>(k)] - full_hz[static_cast<std::size_t>(k)]) /
+               full_hz[static_cast<std::size_t>(k)]);
+  io::XdmfWriter writer(mesh::grid_layout(m), dir, "reduction");
+  for (std::size_t k = 0; k < cb.vectors.size(); ++k) {
+    writer.begin_step(static_cast<double>(k + 1));
+    const PetscScalar *v;
+    FX_PETSC(VecGetArrayRead(cb.vectors[k], &v));
+    writer.node_vector("basis_vector", v);
+    FX_PETSC(VecRestoreArrayRead(cb.vectors[k], &v));
+  }
+  const std::string xdmf = writer.close();
+  FX_PETSC(MatDestroy(&K));
+  FX_PETSC(MatDestroy(&M));
+  io::Json s = base_summary(ctx, o, c);
+  io::Json r = io::Json::object();
+  r["body"] = body->name;
+  r["dofs"] = static_cast<long long>(3 * m.global_nodes);
+  r["static_modes"] = cb.static_modes;
+  r["fixed_modes"] = cb.fixed_modes;
+  r["fixed_frequencies_hz"] = fixed_hz;
+  r["reduced_frequencies_hz"] = reduced_hz;
+  r["full_frequencies_hz"] = full_hz;
+  r["reduction_s"] = reduction_s;
+  s["reduction"] = r;
+  s["output"] = xdmf;
+  write_summary(ctx, dir, s, t0);
+  print0(ctx.comm(), "wrote %s (basis vectors as steps: static modes, then fixed-interface modes) "
+                     "and %s\n",
+         xdmf.c_str(), (fs::path(dir) / "summary.json").c_str());
+  return 0;
+}
+
 int run_modes(const Context &ctx, const Options &o, const io::Case &c, double t0) {
+  if (!o.body.empty()) return run_reduction(ctx, o, c, t0);
   if (c.bodies.size() != 1)
     throw Error(c.file + ": modes: the case has " + std::to_string(c.bodies.size()) +
                     " bodies; modal analysis takes a single-body case",

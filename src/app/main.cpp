@@ -30,6 +30,7 @@ const char *kUsage =
     "  --out DIR    output directory (default CASE/out)\n"
     "  --count N    modes: number of modes (default 10)\n"
     "  --free       modes: ignore the case's supports (free-free body)\n"
+    "  --body NAME  modes: the Craig-Bampton reduction basis of that body\n"
     "  --restart    optimize: continue from out/restart.h5\n"
     "  --max-iterations N  optimize: override optimizer.max_iterations\n"
     "  --fd-step H  check-gradient: finite-difference step (default 1e-2)\n"
@@ -51,11 +52,17 @@ const char *command_help(const std::string &cmd) {
            "stress, element owner rank) and out/summary.json (compliance, max_displacement,\n"
            "sensors). Default solver: CG + GAMG with the rigid-body near-null space.\n";
   if (cmd == "modes")
-    return "usage: flexopt modes CASE [--count N] [--free] [--out DIR] [PETSc/SLEPc options]\n"
+    return "usage: flexopt modes CASE [--count N] [--free] [--body NAME] [--out DIR] [PETSc/SLEPc "
+           "options]\n"
            "Lowest N (default 10) natural frequencies of the body, K phi = omega^2 M phi, by\n"
            "SLEPc shift-and-invert with a MUMPS factorization. With --free the supports are\n"
            "ignored and the six rigid-body modes come first. Writes out/modes.xdmf (one mode\n"
-           "per step) and out/summary.json (frequencies_hz).\n";
+           "per step) and out/summary.json (frequencies_hz).\n"
+           "With --body NAME (any case): the Craig-Bampton basis of that body for a flexible\n"
+           "model: clamped at its first interface, 6 static modes per other interface and N\n"
+           "fixed-interface modes; prints their frequencies and, to choose N, the frequencies of\n"
+           "the reduced model against the full body clamped at its first interface. Writes\n"
+           "out/reduction.xdmf (the basis vectors as steps) and summary.json (reduction).\n";
   if (cmd == "optimize")
     return "usage: flexopt optimize CASE [--restart] [--max-iterations N] [--out DIR] [PETSc "
            "options]\n"
@@ -119,6 +126,8 @@ int main(int argc, char **argv) {
       positive_int("--count", opts.count);
     else if (a == "--free")
       opts.free = true;
+    else if (a == "--body")
+      opts.body = value("--body");
     else if (a == "--restart")
       opts.restart = true;
     else if (a == "--max-iterations")

@@ -12,6 +12,7 @@ struct Options {
   std::string out;        ///< output directory; empty: <case>/out
   int count = 10;         ///< modes: number of modes
   bool free = false;      ///< modes: ignore supports
+  std::string body;       ///< modes: Craig-Bampton basis of this body (--body NAME)
   bool restart = false;   ///< optimize: continue from out/restart.h5
   int max_iterations = 0; ///< optimize: overrides optimizer.max_iterations when > 0
   double fd_step = 1e-2;  ///< check-gradient: finite-difference step h
