@@ -11,6 +11,7 @@
 #include "flexopt/fem/assembly.hpp"
 #include "flexopt/mesh/distributed_mesh.hpp"
 #include "flexopt/reduce/craig_bampton.hpp"
+#include "flexopt/reduce/ffrf_invariants.hpp"
 
 #include <cmath>
 #include <cstdio>
@@ -72,6 +73,72 @@ TEST(CraigBampton, StaticModesCondenseTheBeamOntoItsTip) {
                 1e-8 * cb.fixed_eigenvalues[static_cast<std::size_t>(i)]);
     EXPECT_GT(cb.fixed_eigenvalues[static_cast<std::size_t>(i)], 0);
   }
+  MatDestroy(&K);
+  MatDestroy(&M);
+}
+
+// FFRF inertia invariants (docs/theory.md section 7.2) of the same beam with its Craig-Bampton
+// basis: in the undeformed state they are the box's exact mass, first moment and inertia about
+// the frame origin (the clamp centroid); for a random deformation zeta the expansions
+// d(zeta) = d0 + D zeta and S(zeta) = S0 + ... equal the moments of the deformed node positions
+// X + Psi zeta computed directly with the mass matrix (to round-off).
+TEST(FfrfInvariants, RigidMomentsAndDeformedExpansion) {
+  const double rho = 7850, L = 1.0, h = 0.05, b = 0.1;
+  auto m = load("beam.geo", 0.025, 2);
+  Mat K = fem::create_matrix(m), M = fem::create_matrix(m);
+  fem::assemble_stiffness(m, fem::IsotropicMaterial{2.1e11, 0.3, rho}, {}, K);
+  fem::assemble_mass(m, rho, {}, M);
+  reduce::CraigBamptonBasis cb;
+  reduce::craig_bampton(m, K, M, {"clamp", "tip"}, 3, cb);
+  const Eigen::Vector3d origin = cb.centroids[0];
+  const auto inv = reduce::ffrf_invariants(m, M, cb.vectors, origin);
+  const int n = inv.modes();
+  ASSERT_EQ(n, 9);
+  const double mass = rho * L * h * b;
+  EXPECT_NEAR(inv.mass, mass, 1e-12 * mass);
+  EXPECT_LT((inv.d0 - mass * Eigen::Vector3d(L / 2, 0, 0)).norm(), 1e-12 * mass * L);
+  Eigen::Matrix3d J = Eigen::Matrix3d::Zero();
+  J(0, 0) = mass * (h * h + b * b) / 12;
+  J(1, 1) = mass * (L * L / 3 + b * b / 12);
+  J(2, 2) = mass * (L * L / 3 + h * h / 12);
+  EXPECT_LT((inv.inertia(Eigen::VectorXd::Zero(n)) - J).cwiseAbs().maxCoeff(), 1e-12 * J.norm());
+
+  // Deformed: x = X + sum_k zeta_k Psi_k, moments straight from M.
+  Eigen::VectorXd zeta(n);
+  for (int k = 0; k < n; ++k) zeta(k) = 1e-3 * std::cos(1.0 + 2.3 * k);
+  Vec x, Mx;
+  MatCreateVecs(M, &x, &Mx);
+  {
+    PetscScalar *a;
+    VecGetArray(x, &a);
+    for (PetscInt i = 0; i < m.owned_nodes; ++i)
+      for (int c = 0; c < 3; ++c)
+        a[3 * i + c] = m.coordinates[3 * static_cast<std::size_t>(i) + static_cast<std::size_t>(c)] - origin(c);
+    VecRestoreArray(x, &a);
+  }
+  for (int k = 0; k < n; ++k) VecAXPY(x, zeta(k), cb.vectors[static_cast<std::size_t>(k)]);
+  MatMult(M, x, Mx);
+  double local[12] = {0};
+  const PetscScalar *xa, *ma;
+  VecGetArrayRead(x, &xa);
+  VecGetArrayRead(Mx, &ma);
+  for (PetscInt i = 0; i < m.owned_nodes; ++i)
+    for (int r = 0; r < 3; ++r) {
+      local[9 + r] += ma[3 * i + r];
+      for (int c = 0; c < 3; ++c) local[3 * r + c] += xa[3 * i + r] * ma[3 * i + c];
+    }
+  VecRestoreArrayRead(x, &xa);
+  VecRestoreArrayRead(Mx, &ma);
+  double global[12];
+  MPI_Allreduce(local, global, 12, MPI_DOUBLE, MPI_SUM, m.comm);
+  const Eigen::Matrix3d S = Eigen::Map<Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(global);
+  const Eigen::Vector3d d(global[9], global[10], global[11]);
+  EXPECT_LT((inv.second_moment(zeta) - S).cwiseAbs().maxCoeff(), 1e-12 * S.norm());
+  EXPECT_LT((inv.first_moment(zeta) - d).norm(), 1e-12 * d.norm());
+  // The deformation is not negligible in the check: the moments did change.
+  EXPECT_GT((inv.second_moment(zeta) - inv.S0).cwiseAbs().maxCoeff(), 1e-9 * S.norm());
+  VecDestroy(&x);
+  VecDestroy(&Mx);
   MatDestroy(&K);
   MatDestroy(&M);
 }
