@@ -8,7 +8,7 @@
     gradient to FD_TOL (default 1e-6, the issue's requirement). The difference quotients carry
     the round-off of the response evaluation divided by the step and the entry. That round-off
     is set by the cancellation in the strain energy (eps |u|^T |K| |u| / u^T K u, docs/theory.md
-    section 5): about 1e-14 relative on the stubby block cases (measured FD errors <= 3.3e-9,
+    section 5): about 1e-14 relative on the compact block cases (measured FD errors <= 3.3e-9,
     1 and 2 ranks), about 1e-10 on the slender beam (length / depth 10, large rigid-like
     displacements: 1e-9 ... 1.5e-5 measured), which is therefore checked at 2e-5.
 Usage: check_gradient.py FLEXOPT CASE OUT RANKS [FD_TOL]

@@ -82,9 +82,21 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
   std::vector<std::vector<bodies::Vec3>> sensor_values(scene.sensors.size());
   double max_violation = 0;
   dynamics::Vector all;
-  auto violation = [&](const dynamics::State &st) {
+  // Largest residual of every row (the violation monitor) and of the rows left out as
+  // redundant, with that row.
+  struct Residuals {
+    double unenforced = 0;
+    int row = -1;
+  };
+  auto monitor = [&](const dynamics::State &st) {
     mech.all_constraint_values(st.q, st.t, all);
-    return all.size() ? all.cwiseAbs().maxCoeff() : 0.0;
+    Residuals out;
+    for (int r = 0; r < all.size(); ++r) {
+      const double v = std::abs(all(r));
+      max_violation = std::max(max_violation, v);
+      if (!mech.enforced(r) && v >= out.unenforced) out.unenforced = v, out.row = r;
+    }
+    return out;
   };
   auto record = [&](const dynamics::State &st) {
     out_t.push_back(st.t);
@@ -97,7 +109,7 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
       writer.positions(b, x.data());
     }
   };
-  max_violation = violation(state);
+  monitor(state);
   record(state);
 
   long long newton_total = 0;
@@ -124,18 +136,11 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
     // Rows left out as redundant must stay satisfied: if one does not, it was only dependent
     // in the initial configuration (a singular position such as a dead point), not
     // structurally, and the mechanism is not what the case describes.
-    mech.all_constraint_values(state.q, state.t, all);
-    int bad_row = -1;
-    double drift = 0;
-    for (int r = 0; r < all.size(); ++r) {
-      const double v = std::abs(all(r));
-      max_violation = std::max(max_violation, v);
-      if (!mech.enforced(r) && v >= drift) drift = v, bad_row = r;
-    }
-    if (drift > kRedundantDriftTolerance * scene.length_scale)
+    const Residuals res = monitor(state);
+    if (res.unenforced > kRedundantDriftTolerance * scene.length_scale)
       throw Error("integrate: at t = " + std::to_string(state.t) + " s (step " +
-                      std::to_string(n + 1) + ") the constraint " + mech.describe_row(bad_row) +
-                      ", left out as redundant at t = 0, is violated by " + std::to_string(drift) +
+                      std::to_string(n + 1) + ") the constraint " + mech.describe_row(res.row) +
+                      ", left out as redundant at t = 0, is violated by " + std::to_string(res.unenforced) +
                       ": the initial placement is a singular configuration of the mechanism (a "
                       "dead point or aligned links), not a structural redundancy. Place the "
                       "bodies away from it.",

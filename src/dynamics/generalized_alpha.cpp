@@ -11,6 +11,26 @@
 
 namespace flexopt::dynamics {
 
+namespace detail {
+
+/// The sparse iteration matrix with its fixed structural pattern and the positions of every
+/// body block and constraint row in its values.
+struct SparseIteration {
+  Eigen::SparseMatrix<double> S;
+  Eigen::SparseLU<Eigen::SparseMatrix<double>, Eigen::COLAMDOrdering<int>> lu;
+  int bodies = 0;
+  std::vector<int> block_offset; ///< per (bi, bj): start in block_index, or -1
+  std::vector<int> block_index;  ///< 49 value indices per coupled block, row-major
+  /// Per enforced row k: (body, start in row_index) for each body it touches; row_index holds
+  /// 7 value indices of S(n + k, 7 b + j) followed by 7 of S(7 b + j, n + k).
+  std::vector<std::vector<std::pair<int, int>>> row_entries;
+  std::vector<int> row_index;
+};
+
+} // namespace detail
+
+using detail::SparseIteration;
+
 AlphaParameters AlphaParameters::from_rho_inf(double rho) {
   AlphaParameters p;
   p.rho_inf = rho;
@@ -69,8 +89,8 @@ GeneralizedAlpha::GeneralizedAlpha(const Mechanism &mechanism, AlphaParameters p
       if (coupled[static_cast<std::size_t>(a)][static_cast<std::size_t>(b)])
         for (int i = 0; i < 7; ++i)
           for (int j = 0; j < 7; ++j) t.emplace_back(7 * a + i, 7 * b + j, 1.0);
-  sparse_ = std::make_unique<SparseSolver>();
-  SparseSolver &sp = *sparse_;
+  sparse_ = std::make_unique<SparseIteration>();
+  SparseIteration &sp = *sparse_;
   sp.S.resize(n + m, n + m);
   sp.S.setFromTriplets(t.begin(), t.end(), [](double x, double) { return x; });
   sp.S.makeCompressed();
@@ -104,16 +124,6 @@ GeneralizedAlpha::GeneralizedAlpha(const Mechanism &mechanism, AlphaParameters p
 
 
 
-Vector GeneralizedAlpha::solve(const Matrix &A, const Vector &rhs) const {
-  if (!sparse_) return A.partialPivLu().solve(rhs);
-  Eigen::SparseMatrix<double> &S = sparse_->S;
-  for (int c = 0; c < S.outerSize(); ++c)
-    for (Eigen::SparseMatrix<double>::InnerIterator it(S, c); it; ++it)
-      it.valueRef() = A(it.row(), it.col());
-  sparse_->lu.factorize(S);
-  if (sparse_->lu.info() != Eigen::Success) return Vector::Constant(rhs.size(), std::nan(""));
-  return sparse_->lu.solve(rhs);
-}
 
 namespace {
 
@@ -191,8 +201,91 @@ bool GeneralizedAlpha::step(const State &s, double h, State &next, StepInfo &inf
   return step_once(s, h, next, info);
 }
 
+namespace {
+
+/// Writes the Newton iteration matrix block by block, either into a dense matrix or straight
+/// into the values of the sparse one (through the index maps built by the constructor), and
+/// accumulates Phi_q^T lambda. Gradient rows go to row n + k and, transposed, to column n + k;
+/// 7 x 7 blocks are scaled by `block_scale`.
+struct IterationAssembly : joints::Sink {
+  Matrix *A;       ///< dense target, or null
+  SparseIteration *sp; ///< sparse target (with its value indices), or null
+  double *values;  ///< the sparse matrix's values
+  int n;
+  double block_scale = 1;
+  const Vector &lambda;
+  Vector &jt_lambda;
+  IterationAssembly(Matrix *A_, SparseIteration *sp_, int n_, const Vector &l, Vector &jtl)
+      : A(A_), sp(sp_), values(sp_ ? sp_->S.valuePtr() : nullptr), n(n_), lambda(l),
+        jt_lambda(jtl) {}
+  void add_row(int row, int body, const joints::Row7 &g) override {
+    jt_lambda.segment<7>(7 * body) += g.transpose() * lambda(row);
+    if (A) {
+      A->block<1, 7>(n + row, 7 * body) += g;
+      A->block<7, 1>(7 * body, n + row) += g.transpose();
+      return;
+    }
+    for (const auto &[bb, start] : sp->row_entries[static_cast<std::size_t>(row)])
+      if (bb == body) {
+        for (int j = 0; j < 7; ++j) {
+          values[sp->row_index[static_cast<std::size_t>(start + j)]] += g(j);
+          values[sp->row_index[static_cast<std::size_t>(start + 7 + j)]] += g(j);
+        }
+        return;
+      }
+  }
+  void add_block(int bi, int bj, const joints::Block7 &B) override {
+    if (A) {
+      A->block<7, 7>(7 * bi, 7 * bj) += block_scale * B;
+      return;
+    }
+    const int off = sp->block_offset[static_cast<std::size_t>(bi * sp->bodies + bj)];
+    for (int i = 0; i < 7; ++i)
+      for (int j = 0; j < 7; ++j)
+        values[sp->block_index[static_cast<std::size_t>(off + 7 * i + j)]] += block_scale * B(i, j);
+  }
+};
+
+} // namespace
+
+GeneralizedAlpha::~GeneralizedAlpha() = default;
+
+bool GeneralizedAlpha::newton_direction(const State &next, double bp, double gp, Vector &x,
+                                        Vector &phi) const {
+  const int n = mech_.coordinates(), m = mech_.constraints();
+  const int nb = static_cast<int>(mech_.bodies.size());
+  Vector r, jtl = Vector::Zero(n), rhs(n + m);
+  std::vector<joints::Block7> K, C, M;
+  mech_.dynamics_blocks(next.q, next.v, next.acc, next.t, r, K, C, M);
+  Matrix A;
+  if (sparse_)
+    std::fill(sparse_->S.valuePtr(), sparse_->S.valuePtr() + sparse_->S.nonZeros(), 0.0);
+  else
+    A.setZero(n + m, n + m);
+  IterationAssembly assembly(sparse_ ? nullptr : &A, sparse_.get(), n, next.lambda,
+                                           jtl);
+  // M + (gamma'/beta') C + K / beta' on the diagonal blocks, then the constraint rows and the
+  // constraint Hessian (part of K, so divided by beta').
+  for (int b = 0; b < nb; ++b) {
+    const auto k = static_cast<std::size_t>(b);
+    assembly.add_block(b, b, M[k] + (gp / bp) * C[k] + (1.0 / bp) * K[k]);
+  }
+  assembly.block_scale = 1.0 / bp;
+  mech_.constraint(next.q, next.t, phi, assembly);
+  mech_.add_constraint_hessian(next.q, next.t, next.lambda, assembly);
+  rhs.head(n) = -(r + jtl) / bp;
+  rhs.tail(m) = -phi;
+  if (!sparse_) {
+    x = A.partialPivLu().solve(rhs);
+    return x.allFinite();
+  }
+  sparse_->lu.factorize(sparse_->S);
+  if (sparse_->lu.info() != Eigen::Success) return false;
+  x = sparse_->lu.solve(rhs);
+  return x.allFinite();
+}
+
 bool GeneralizedAlpha::step_once(const State &s, double h, State &next, StepInfo &info) const {
-  if (sparse_) return step_once_sparse(s, h, next, info);
   const int n = mech_.coordinates(), m = mech_.constraints();
   const double am = par_.alpha_m, af = par_.alpha_f, g = par_.gamma, b = par_.beta;
   const double bp = (1 - am) / (b * h * h * (1 - af)), gp = g / (b * h);
@@ -205,105 +298,11 @@ bool GeneralizedAlpha::step_once(const State &s, double h, State &next, StepInfo
   next.q = s.q + h * s.v + h * h * (0.5 - b) * s.a + h * h * b * next.a;
   info.increment.clear();
   info.violation.clear();
-  Vector r, phi, rhs(n + m);
-  Matrix K, C, M, J, A(n + m, n + m);
+  Vector x, phi;
   for (int it = 0; it < settings_.max_iterations; ++it) {
-    mech_.dynamics(next.q, next.v, next.acc, next.t, r, &K, &C, &M);
-    mech_.constraint(next.q, next.t, phi, &J);
-    r.noalias() += J.transpose() * next.lambda;
-    mech_.add_constraint_hessian(next.q, next.t, next.lambda, K);
-    A.topLeftCorner(n, n) = M + (gp / bp) * C + (1.0 / bp) * K;
-    A.topRightCorner(n, m) = J.transpose();
-    A.bottomLeftCorner(m, n) = J;
-    A.bottomRightCorner(m, m).setZero();
-    rhs.head(n) = -r / bp;
-    rhs.tail(m) = -phi;
-    const Vector x = solve(A, rhs);
+    const bool ok = newton_direction(next, bp, gp, x, phi);
     ++info.iterations;
-    if (!x.allFinite()) return false;
-    const auto dq = x.head(n);
-    next.q += dq;
-    next.v += gp * dq;
-    next.acc += bp * dq;
-    next.a += (1 - af) / (1 - am) * bp * dq;
-    next.lambda += bp * x.tail(m);
-    const double inc = dq.cwiseAbs().maxCoeff() / (1 + next.q.cwiseAbs().maxCoeff());
-    info.increment.push_back(inc);
-    info.violation.push_back(m > 0 ? phi.cwiseAbs().maxCoeff() : 0.0);
-    if (!std::isfinite(inc)) return false;
-    if (inc <= settings_.tolerance) return true;
-  }
-  return false;
-}
-
-bool GeneralizedAlpha::step_once_sparse(const State &s, double h, State &next,
-                                        StepInfo &info) const {
-  // The same Newton iteration as step_once, assembled block by block into the values of the
-  // sparse iteration matrix (no dense n x n work: the cost grows linearly with the bodies of a
-  // chain).
-  const int n = mech_.coordinates(), m = mech_.constraints();
-  const double am = par_.alpha_m, af = par_.alpha_f, g = par_.gamma, b = par_.beta;
-  const double bp = (1 - am) / (b * h * h * (1 - af)), gp = g / (b * h);
-  SparseSolver &sp = *sparse_;
-  double *values = sp.S.valuePtr();
-  struct Assembly : joints::Sink {
-    SparseSolver &sp;
-    double *values;
-    double block_scale;
-    const Vector &lambda;
-    Vector &jt_lambda;
-    Assembly(SparseSolver &s_, double *v, double scale, const Vector &l, Vector &jtl)
-        : sp(s_), values(v), block_scale(scale), lambda(l), jt_lambda(jtl) {}
-    void add_row(int row, int body, const joints::Row7 &gr) override {
-      for (const auto &[bb, start] : sp.row_entries[static_cast<std::size_t>(row)])
-        if (bb == body) {
-          for (int j = 0; j < 7; ++j) {
-            values[sp.row_index[static_cast<std::size_t>(start + j)]] += gr(j);
-            values[sp.row_index[static_cast<std::size_t>(start + 7 + j)]] += gr(j);
-          }
-          jt_lambda.segment<7>(7 * body) += gr.transpose() * lambda(row);
-          return;
-        }
-    }
-    void add_block(int bi, int bj, const joints::Block7 &B) override {
-      const int off = sp.block_offset[static_cast<std::size_t>(bi * sp.bodies + bj)];
-      for (int i = 0; i < 7; ++i)
-        for (int j = 0; j < 7; ++j)
-          values[sp.block_index[static_cast<std::size_t>(off + 7 * i + j)]] += block_scale * B(i, j);
-    }
-  };
-  next.t = s.t + h;
-  next.acc = s.acc;
-  next.lambda = s.lambda;
-  next.a = (af * s.acc - am * s.a + (1 - af) * next.acc) / (1 - am);
-  next.v = s.v + h * (1 - g) * s.a + h * g * next.a;
-  next.q = s.q + h * s.v + h * h * (0.5 - b) * s.a + h * h * b * next.a;
-  info.increment.clear();
-  info.violation.clear();
-  Vector r, phi, jtl(n), rhs(n + m);
-  std::vector<joints::Block7> K, C, M;
-  const int nb = sp.bodies;
-  for (int it = 0; it < settings_.max_iterations; ++it) {
-    std::fill(values, values + sp.S.nonZeros(), 0.0);
-    mech_.dynamics_blocks(next.q, next.v, next.acc, next.t, r, K, C, M);
-    for (int bb = 0; bb < nb; ++bb) {
-      const joints::Block7 D = M[static_cast<std::size_t>(bb)] + (gp / bp) * C[static_cast<std::size_t>(bb)] +
-                               (1.0 / bp) * K[static_cast<std::size_t>(bb)];
-      const int off = sp.block_offset[static_cast<std::size_t>(bb * nb + bb)];
-      for (int i = 0; i < 49; ++i) values[sp.block_index[static_cast<std::size_t>(off + i)]] += D(i / 7, i % 7);
-    }
-    jtl.setZero();
-    Assembly assembly(sp, values, 1.0 / bp, next.lambda, jtl);
-    mech_.constraint(next.q, next.t, phi, assembly);
-    mech_.add_constraint_hessian(next.q, next.t, next.lambda, assembly);
-    r += jtl;
-    rhs.head(n) = -r / bp;
-    rhs.tail(m) = -phi;
-    sp.lu.factorize(sp.S);
-    ++info.iterations;
-    if (sp.lu.info() != Eigen::Success) return false;
-    const Vector x = sp.lu.solve(rhs);
-    if (!x.allFinite()) return false;
+    if (!ok) return false;
     const auto dq = x.head(n);
     next.q += dq;
     next.v += gp * dq;

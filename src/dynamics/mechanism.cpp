@@ -59,42 +59,23 @@ void Mechanism::all_constraint_values(const Vector &q, double t, Vector &phi) co
 }
 
 void Mechanism::constraint(const Vector &q, double t, Vector &phi, Matrix *J) const {
-  const int n = coordinates();
+  if (J) {
+    J->setZero(active_rows_, coordinates());
+    joints::DenseSink sink(J, nullptr);
+    constraint(q, t, phi, sink);
+    return;
+  }
   Vector all;
   all_constraint_values(q, t, all);
   phi.resize(active_rows_);
-  Matrix Jall;
-  if (J) Jall = Matrix::Zero(all_rows_, n);
-  int row = 0;
-  if (J)
-    for (const auto &e : equations) {
-      e.gradient(q, t, Jall, row);
-      row += e.rows();
-    }
-  if (J) J->resize(active_rows_, n);
-  int k = 0;
-  for (int r = 0; r < all_rows_; ++r) {
-    if (!enforced_[static_cast<std::size_t>(r)]) continue;
-    phi(k) = all(r);
-    if (J) J->row(k) = Jall.row(r);
-    ++k;
-  }
+  for (int r = 0, k = 0; r < all_rows_; ++r)
+    if (enforced_[static_cast<std::size_t>(r)]) phi(k++) = all(r);
 }
 
 void Mechanism::add_constraint_hessian(const Vector &q, double t, const Vector &lambda,
                                        Matrix &H) const {
-  int row = 0, k = 0;
-  double l[3];
-  for (const auto &e : equations) {
-    bool any = false;
-    for (int i = 0; i < e.rows(); ++i) {
-      const bool on = enforced_[static_cast<std::size_t>(row + i)];
-      l[i] = on ? lambda(k++) : 0.0;
-      any = any || on;
-    }
-    if (any) e.add_hessian(q, t, l, H);
-    row += e.rows();
-  }
+  joints::DenseSink sink(nullptr, &H);
+  add_constraint_hessian(q, t, lambda, sink);
 }
 
 namespace {
@@ -222,31 +203,15 @@ Vector Mechanism::constraint_convective(const Vector &q, const Vector &v, double
 
 void Mechanism::dynamics(const Vector &q, const Vector &v, const Vector &a, double t, Vector &r,
                          Matrix *K, Matrix *C, Matrix *M) const {
+  std::vector<joints::Block7> Kb, Cb, Mb;
+  dynamics_blocks(q, v, a, t, r, Kb, Cb, Mb);
   const int n = coordinates();
-  r.setZero(n);
-  if (K) K->setZero(n, n);
-  if (C) C->setZero(n, n);
-  if (M) M->setZero(n, n);
-  bodies::RigidBody::Vec7 f;
-  bodies::RigidBody::Mat7 dq, dv, mm;
-  for (std::size_t b = 0; b < bodies.size(); ++b) {
-    const int o = 7 * static_cast<int>(b);
-    bodies[b].inertial_force(q.segment<7>(o), v.segment<7>(o), a.segment<7>(o), &f,
-                             K ? &dq : nullptr, C ? &dv : nullptr, M ? &mm : nullptr);
-    r.segment<7>(o) = f;
-    r.segment<3>(o) -= bodies[b].mass() * gravity;
-    if (K) K->block<7, 7>(o, o) = dq;
-    if (C) C->block<7, 7>(o, o) = dv;
-    if (M) M->block<7, 7>(o, o) = mm;
-  }
-  for (const PointForce &pf : forces) {
-    const int o = 7 * pf.body;
-    const Vec3 F(pf.value[0](t), pf.value[1](t), pf.value[2](t));
-    const bodies::Vec4 p = q.segment<4>(o + 3);
-    // Q = [F; D(p, s)^T F] (virtual work of F on x = r + A(p) s); dQ_p/dp = K(s, F).
-    r.segment<3>(o) -= F;
-    r.segment<4>(o + 3) -= bodies::rotate_jacobian(p, pf.s).transpose() * F;
-    if (K) K->block<4, 4>(o + 3, o + 3) -= bodies::rotate_hessian(pf.s, F);
+  // The equations of motion couple bodies only through the constraints: block diagonal.
+  for (auto [out, blocks] : {std::pair{K, &Kb}, std::pair{C, &Cb}, std::pair{M, &Mb}}) {
+    if (!out) continue;
+    out->setZero(n, n);
+    for (std::size_t b = 0; b < bodies.size(); ++b)
+      out->block<7, 7>(7 * static_cast<int>(b), 7 * static_cast<int>(b)) = (*blocks)[b];
   }
 }
 

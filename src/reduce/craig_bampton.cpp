@@ -73,11 +73,7 @@ void craig_bampton(const mesh::DistributedMesh &mesh, Mat K, Mat M,
   FX_PETSC(KSPCreate(mesh.comm, &ksp));
   FX_PETSC(KSPSetOptionsPrefix(ksp, "cb_"));
   FX_PETSC(KSPSetOperators(ksp, Kc, Kc));
-  FX_PETSC(KSPSetType(ksp, KSPPREONLY));
-  PC pc;
-  FX_PETSC(KSPGetPC(ksp, &pc));
-  FX_PETSC(PCSetType(pc, PCLU));
-  FX_PETSC(PCFactorSetMatSolverType(pc, MATSOLVERMUMPS));
+  use_mumps_lu(ksp);
   FX_PETSC(KSPSetFromOptions(ksp));
   Vec ud, b;
   FX_PETSC(MatCreateVecs(K, &ud, &b));

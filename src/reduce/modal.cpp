@@ -17,6 +17,14 @@ double frequency_hz(double eigenvalue) {
   return std::copysign(std::sqrt(std::abs(eigenvalue)), eigenvalue) / (2.0 * M_PI);
 }
 
+void use_mumps_lu(KSP ksp) {
+  FX_PETSC(KSPSetType(ksp, KSPPREONLY));
+  PC pc;
+  FX_PETSC(KSPGetPC(ksp, &pc));
+  FX_PETSC(PCSetType(pc, PCLU));
+  FX_PETSC(PCFactorSetMatSolverType(pc, MATSOLVERMUMPS));
+}
+
 void solve_modes(Mat K, Mat M, const std::vector<PetscInt> &fixed_dofs, int count, double shift,
                  ModalResult &result) {
   MPI_Comm comm;
@@ -51,11 +59,7 @@ void solve_modes(Mat K, Mat M, const std::vector<PetscInt> &fixed_dofs, int coun
   FX_PETSC(STSetType(st, STSINVERT));
   KSP ksp;
   FX_PETSC(STGetKSP(st, &ksp));
-  FX_PETSC(KSPSetType(ksp, KSPPREONLY));
-  PC pc;
-  FX_PETSC(KSPGetPC(ksp, &pc));
-  FX_PETSC(PCSetType(pc, PCLU));
-  FX_PETSC(PCFactorSetMatSolverType(pc, MATSOLVERMUMPS));
+  use_mumps_lu(ksp);
   FX_PETSC(EPSSetFromOptions(eps));
   FX_PETSC(EPSSolve(eps));
 

@@ -15,27 +15,15 @@
 
 #include <cmath>
 #include <cstdio>
+#include "test_meshes.hpp"
+
 #include <gtest/gtest.h>
 
 using namespace flexopt;
 
-namespace {
-
-mesh::DistributedMesh load(const char *geometry, double size, int order) {
-  mesh::MeshData data;
-  const std::string geo = std::string(FLEXOPT_SOURCE_DIR) + "/meshes/" + geometry;
-  run_on_root(PETSC_COMM_WORLD, 0, [&] {
-    data = mesh::read_gmsh(geo, mesh::MeshOptions{size, order});
-  });
-  return mesh::distribute_mesh(PETSC_COMM_WORLD,
-                               comm_rank(PETSC_COMM_WORLD) == 0 ? &data : nullptr);
-}
-
-} // namespace
-
 TEST(CraigBampton, StaticModesCondenseTheBeamOntoItsTip) {
   const double E = 2.1e11, nu = 0.3, rho = 7850, L = 1.0, h = 0.05, b = 0.1;
-  auto m = load("beam.geo", 0.025, 2);
+  auto m = test_support::load_test_mesh("beam.geo", 0.025, 2);
   Mat K = fem::create_matrix(m), M = fem::create_matrix(m);
   fem::assemble_stiffness(m, fem::IsotropicMaterial{E, nu, rho}, {}, K);
   fem::assemble_mass(m, rho, {}, M);
@@ -84,7 +72,7 @@ TEST(CraigBampton, StaticModesCondenseTheBeamOntoItsTip) {
 // X + Psi zeta computed directly with the mass matrix (to round-off).
 TEST(FfrfInvariants, RigidMomentsAndDeformedExpansion) {
   const double rho = 7850, L = 1.0, h = 0.05, b = 0.1;
-  auto m = load("beam.geo", 0.025, 2);
+  auto m = test_support::load_test_mesh("beam.geo", 0.025, 2);
   Mat K = fem::create_matrix(m), M = fem::create_matrix(m);
   fem::assemble_stiffness(m, fem::IsotropicMaterial{2.1e11, 0.3, rho}, {}, K);
   fem::assemble_mass(m, rho, {}, M);

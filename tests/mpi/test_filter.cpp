@@ -9,22 +9,14 @@
 
 #include <cmath>
 #include <cstdio>
+#include "test_meshes.hpp"
+
 #include <gtest/gtest.h>
 #include <random>
 
 using namespace flexopt;
 
 namespace {
-
-mesh::DistributedMesh load_beam(const char *geometry, double size, int order) {
-  mesh::MeshData data;
-  const std::string geo = std::string(FLEXOPT_SOURCE_DIR) + "/meshes/" + geometry;
-  run_on_root(PETSC_COMM_WORLD, 0, [&] {
-    data = mesh::read_gmsh(geo, mesh::MeshOptions{size, order});
-  });
-  return mesh::distribute_mesh(PETSC_COMM_WORLD,
-                               comm_rank(PETSC_COMM_WORLD) == 0 ? &data : nullptr);
-}
 
 /// Tight solver tolerance: the filter is exact up to the linear solve; rtol 1e-13 with a
 /// condition number of A = r^2 K + M below 1e3 bounds the error by about 1e-10.
@@ -60,7 +52,7 @@ template <class F> void fill(const mesh::DistributedMesh &m, Vec v, F f) {
 
 TEST_P(Filter, PreservesConstants) {
   tight_filter_solver();
-  auto m = load_beam(GetParam().geometry, GetParam().size, GetParam().order);
+  auto m = test_support::load_test_mesh(GetParam().geometry, GetParam().size, GetParam().order);
   auto filter = optimize::create_density_filter(m, GetParam().type, GetParam().radius);
   Vec rho = filter->create_element_vector(), out;
   VecDuplicate(rho, &out);
@@ -76,7 +68,7 @@ TEST_P(Filter, PreservesConstants) {
 
 TEST_P(Filter, TransposeIsExact) {
   tight_filter_solver();
-  auto m = load_beam(GetParam().geometry, GetParam().size, GetParam().order);
+  auto m = test_support::load_test_mesh(GetParam().geometry, GetParam().size, GetParam().order);
   auto filter = optimize::create_density_filter(m, GetParam().type, GetParam().radius);
   Vec x = filter->create_element_vector(), y, Fx, FTy;
   VecDuplicate(x, &y);
@@ -116,7 +108,7 @@ INSTANTIATE_TEST_SUITE_P(
 // allows 1 %. Without the damping the amplitude would be off by 40 %.
 TEST(FilterPhysics, DampsACosineByTheHelmholtzFactor) {
   tight_filter_solver();
-  auto m = load_beam("beam.geo", 0.01, 1);
+  auto m = test_support::load_test_mesh("beam.geo", 0.01, 1);
   const double r = 0.05, k = 4 * M_PI;
   auto filter = optimize::HelmholtzFilter::create(m, r);
   Vec rho = filter->create_element_vector(), out;
@@ -146,7 +138,7 @@ TEST(FilterPhysics, DampsACosineByTheHelmholtzFactor) {
 // different order: they agree to round-off (1e-13 on values of order 1).
 TEST(ConeFilter, EqualsTheBruteForceSum) {
   for (const char *geometry : {"beam.geo", "beam_hex.geo"}) {
-    auto m = load_beam(geometry, std::string(geometry) == "beam.geo" ? 0.02 : 0.0, 1);
+    auto m = test_support::load_test_mesh(geometry, std::string(geometry) == "beam.geo" ? 0.02 : 0.0, 1);
     const double R = 0.07;
     auto filter = optimize::ConeFilter::create(m, R);
     auto field = [](const Eigen::Vector3d &c) {

@@ -17,6 +17,8 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include "test_meshes.hpp"
+
 #include <gtest/gtest.h>
 #include <hdf5.h>
 #include <unistd.h>
@@ -25,16 +27,6 @@ using namespace flexopt;
 namespace fs = std::filesystem;
 
 namespace {
-
-mesh::DistributedMesh load_mesh(const char *geometry, double size, int order) {
-  mesh::MeshData data;
-  const std::string geo = std::string(FLEXOPT_SOURCE_DIR) + "/meshes/" + geometry;
-  run_on_root(PETSC_COMM_WORLD, 0, [&] {
-    data = mesh::read_gmsh(geo, mesh::MeshOptions{size, order});
-  });
-  return mesh::distribute_mesh(PETSC_COMM_WORLD,
-                               comm_rank(PETSC_COMM_WORLD) == 0 ? &data : nullptr);
-}
 
 /// One unit hex at `origin`, every node and the cell on rank 0 (other ranks contribute
 /// nothing).
@@ -164,8 +156,8 @@ bool exists_on_root(const fs::path &p) {
 TEST(MotionOutput, RigidMotionOfThreeBodiesReadsBackExactly) {
   const MPI_Comm comm = PETSC_COMM_WORLD;
   const int rank = comm_rank(comm), size = comm_size(comm);
-  const auto arm_mesh = load_mesh("beam.geo", 0.05, 2);     // Tet10
-  const auto link_mesh = load_mesh("beam_hex.geo", 0.0, 1); // Hex8
+  const auto arm_mesh = test_support::load_test_mesh("beam.geo", 0.05, 2);     // Tet10
+  const auto link_mesh = test_support::load_test_mesh("beam_hex.geo", 0.0, 1); // Hex8
   std::vector<io::MotionBody> bodies = {
       {"arm", mesh::grid_layout(arm_mesh)},
       {"link", mesh::grid_layout(link_mesh)},

@@ -13,6 +13,8 @@
 #include <cstdio>
 #include <filesystem>
 #include <gmsh.h>
+#include "test_meshes.hpp"
+
 #include <gtest/gtest.h>
 #include <numeric>
 
@@ -30,14 +32,7 @@ struct MeshCase {
 };
 
 mesh::DistributedMesh load(MeshCase mc, mesh::MeshData *root_copy = nullptr) {
-  mesh::MeshData data;
-  const std::string geo = std::string(FLEXOPT_SOURCE_DIR) + "/meshes/" + mc.geometry;
-  run_on_root(PETSC_COMM_WORLD, 0, [&] {
-    data = mesh::read_gmsh(geo, mesh::MeshOptions{mc.size, mc.order});
-  });
-  if (root_copy) *root_copy = data;
-  return mesh::distribute_mesh(PETSC_COMM_WORLD,
-                               comm_rank(PETSC_COMM_WORLD) == 0 ? &data : nullptr);
+  return test_support::load_test_mesh(mc.geometry, mc.size, mc.order, root_copy);
 }
 
 class Parallel : public ::testing::TestWithParam<MeshCase> {};
@@ -199,11 +194,7 @@ TEST_P(Parallel, ProbeInterpolatesLinearFieldExactly) {
 // edge has length 1), and matches the reference code's nodal loads: 0.001 per node, half at
 // the two ends.
 TEST(LineLoad, IntegratesToForceTimesLength) {
-  mesh::MeshData data;
-  const std::string geo = std::string(FLEXOPT_SOURCE_DIR) + "/meshes/box_2x1x1_hex.geo";
-  run_on_root(PETSC_COMM_WORLD, 0, [&] { data = mesh::read_gmsh(geo, mesh::MeshOptions{}); });
-  auto m =
-      mesh::distribute_mesh(PETSC_COMM_WORLD, comm_rank(PETSC_COMM_WORLD) == 0 ? &data : nullptr);
+  auto m = test_support::load_test_mesh("box_2x1x1_hex.geo");
   Vec f = fem::create_ghosted_vector(m);
   VecZeroEntries(f);
   fem::add_surface_traction(m, "load_edge", Eigen::Vector3d(0, 0, -0.016), "test", f);

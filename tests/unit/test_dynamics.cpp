@@ -425,13 +425,34 @@ TEST(GeneralizedAlpha, SparseAndDensePathsAgree) {
   EXPECT_GT((sd.q - q0).cwiseAbs().maxCoeff(), 0.1);
 }
 
+namespace {
+
+/// Two bodies in random placements (coordinates q, rotations R) attached at world points xa
+/// (body 0) and xb (body 1).
+struct RandomPair {
+  Vector q = Vector(14);
+  Mat3 R[2];
+  dynamics::Attachment A, B;
+  RandomPair(const Vec3 &xa, const Vec3 &xb) {
+    for (int b = 0; b < 2; ++b) {
+      R[b] = Eigen::AngleAxisd(uniform(-3, 3), random3().normalized()).toRotationMatrix();
+      q.segment<3>(7 * b) = random3();
+      q.segment<4>(7 * b + 3) = bodies::from_matrix(R[b]);
+    }
+    A.body = 0, B.body = 1, A.R = R[0], B.R = R[1], A.world = xa, B.world = xb;
+    A.s = R[0].transpose() * (xa - q.segment<3>(0));
+    B.s = R[1].transpose() * (xb - q.segment<3>(7));
+  }
+};
+
+} // namespace
+
 // Every joint type as the scene builds it, between two bodies in a random initial placement:
 // the row count, the equations satisfied at the initial placement, the gradient and the
 // Hessian contraction of the whole joint against central differences, and the motion the joint
 // allows (revolute: rotation about its axis through the joint point; prismatic: translation
 // along its axis) keeps the equations satisfied while a forbidden motion violates them.
 TEST(Joints, EveryTypeAsBuilt) {
-  using dynamics::Attachment;
   const Vec3 axis = random3().normalized();
   auto rigid_motion = [](Vector q, int b, const Mat3 &R, const Vec3 &about, const Vec3 &shift) {
     // x -> about + R (x - about) + shift for body b: r and p change accordingly.
@@ -442,22 +463,11 @@ TEST(Joints, EveryTypeAsBuilt) {
     return q;
   };
   for (const std::string type : {"spherical", "revolute", "prismatic", "fixed"}) {
-    Vector q(14);
-    Mat3 R[2];
-    for (int b = 0; b < 2; ++b) {
-      R[b] = Eigen::AngleAxisd(uniform(-3, 3), random3().normalized()).toRotationMatrix();
-      q.segment<3>(7 * b) = random3();
-      q.segment<4>(7 * b + 3) = bodies::from_matrix(R[b]);
-    }
     // The joint point in the world, the same for both bodies (prismatic: any two points).
     const Vec3 x = random3();
-    Attachment A, B;
-    A.body = 0, B.body = 1, A.R = R[0], B.R = R[1];
-    A.world = x;
-    B.world = type == "prismatic" ? x + 0.3 * random3() : x;
-    A.s = R[0].transpose() * (A.world - q.segment<3>(0));
-    B.s = R[1].transpose() * (B.world - q.segment<3>(7));
-    const auto eqs = dynamics::joint_equations(type, A, B, axis, "joint");
+    const RandomPair pair(x, type == "prismatic" ? Vec3(x + 0.3 * random3()) : x);
+    const Vector &q = pair.q;
+    const auto eqs = dynamics::joint_equations(type, pair.A, pair.B, axis, "joint");
     int rows = 0;
     for (const auto &e : eqs) rows += e.rows();
     const int expected = type == "spherical" ? 3 : type == "fixed" ? 6 : 5;
@@ -517,21 +527,13 @@ TEST(Joints, EveryTypeAsBuilt) {
 // Drivers on a revolute (angle) and a prismatic (displacement) joint: zero where built when
 // f(0) = 0, and zero after rotating / translating body b by f(t) about / along the axis.
 TEST(Joints, DriversPrescribeTheJointCoordinate) {
-  using dynamics::Attachment;
   const Vec3 axis = random3().normalized();
   auto f = std::make_shared<const Expression>("0.8*t + 0.3*t^2");
-  Vector q(14);
-  Mat3 R[2];
-  for (int b = 0; b < 2; ++b) {
-    R[b] = Eigen::AngleAxisd(uniform(-3, 3), random3().normalized()).toRotationMatrix();
-    q.segment<3>(7 * b) = random3();
-    q.segment<4>(7 * b + 3) = bodies::from_matrix(R[b]);
-  }
   const Vec3 x = random3();
-  Attachment A, B;
-  A.body = 0, B.body = 1, A.R = R[0], B.R = R[1], A.world = x, B.world = x;
-  A.s = R[0].transpose() * (x - q.segment<3>(0));
-  B.s = R[1].transpose() * (x - q.segment<3>(7));
+  const RandomPair pair(x, x);
+  const Vector &q = pair.q;
+  const auto &A = pair.A, &B = pair.B;
+  const Mat3 *R = pair.R;
   const double t = 0.9, value = 0.8 * t + 0.3 * t * t;
   for (const std::string type : {"revolute", "prismatic"}) {
     const auto e = dynamics::driver_equation(type, A, B, axis, f, "driver");

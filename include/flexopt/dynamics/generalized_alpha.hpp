@@ -5,13 +5,15 @@
 /// exact Jacobian (docs/theory.md section 6.4).
 #include "flexopt/dynamics/mechanism.hpp"
 
-#include <Eigen/SparseCore>
-#include <Eigen/SparseLU>
 #include <memory>
 #include <string>
 #include <vector>
 
 namespace flexopt::dynamics {
+
+namespace detail {
+struct SparseIteration; ///< the sparse iteration matrix and its index maps (generalized_alpha.cpp)
+}
 
 /// Chung & Hulbert (1993) parameters from the spectral radius at infinity rho_inf in [0, 1]:
 /// alpha_m = (2 rho - 1)/(rho + 1), alpha_f = rho/(rho + 1), gamma = 1/2 + alpha_f - alpha_m,
@@ -52,6 +54,7 @@ class GeneralizedAlpha {
 public:
   GeneralizedAlpha(const Mechanism &mechanism, AlphaParameters parameters,
                    NewtonSettings settings = {});
+  ~GeneralizedAlpha();
 
   const AlphaParameters &parameters() const { return par_; }
 
@@ -80,26 +83,15 @@ public:
 
 private:
   bool step_once(const State &s, double h, State &next, StepInfo &info) const;
-  /// Solves the Newton system A x = rhs: dense LU for small systems; above kDenseLimit a sparse
-  /// LU on the structural pattern of A (7 x 7 blocks of bodies coupled by an equation, the
-  /// constraint rows' body blocks), whose ordering is computed once.
-  Vector solve(const Matrix &A, const Vector &rhs) const;
-  bool step_once_sparse(const State &s, double h, State &next, StepInfo &info) const;
-  struct SparseSolver {
-    Eigen::SparseMatrix<double> S;
-    Eigen::SparseLU<Eigen::SparseMatrix<double>, Eigen::COLAMDOrdering<int>> lu;
-    int bodies = 0;
-    std::vector<int> block_offset; ///< per (bi, bj): start in block_index, or -1
-    std::vector<int> block_index;  ///< 49 value indices per coupled block, row-major
-    /// Per enforced row k: (body, start in row_index) for each body it touches; row_index holds
-    /// 7 value indices of S(n + k, 7 b + j) followed by 7 of S(7 b + j, n + k).
-    std::vector<std::vector<std::pair<int, int>>> row_entries;
-    std::vector<int> row_index;
-  };
-  std::unique_ptr<SparseSolver> sparse_;
+  /// One Newton direction x = [dq; dlambda / beta'] at `next`: assembles the scaled iteration
+  /// matrix (dense up to settings.dense_limit unknowns, otherwise block by block into the
+  /// sparse LU's values, whose ordering is computed once) and solves it. phi = Phi(next.q).
+  bool newton_direction(const State &next, double bp, double gp, Vector &x, Vector &phi) const;
+
   const Mechanism &mech_;
   AlphaParameters par_;
   NewtonSettings settings_;
+  std::unique_ptr<detail::SparseIteration> sparse_; ///< null: dense Newton systems
 };
 
 } // namespace flexopt::dynamics

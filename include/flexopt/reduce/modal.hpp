@@ -1,5 +1,6 @@
 #pragma once
 /// \file Natural frequencies and mode shapes: K phi = omega^2 M phi with SLEPc.
+#include <petscksp.h>
 #include <petscmat.h>
 #include <vector>
 
@@ -23,6 +24,9 @@ struct ModalResult {
 /// non-singular for free bodies. Collective.
 void solve_modes(Mat K, Mat M, const std::vector<PetscInt> &fixed_dofs, int count, double shift,
                  ModalResult &result);
+
+/// Makes `ksp` a direct solve: preonly + LU with MUMPS (options still override). Not collective.
+void use_mumps_lu(KSP ksp);
 
 /// Frequency in Hz of an eigenvalue omega^2: sign(omega^2) sqrt(|omega^2|) / (2 pi).
 double frequency_hz(double eigenvalue);

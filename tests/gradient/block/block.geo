@@ -1,4 +1,4 @@
-// A stubby 2 x 1 x 1 block for the finite-difference gradient checks (unstructured Tet4).
+// A compact 2 x 1 x 1 block for the finite-difference gradient checks (unstructured Tet4).
 // Physical groups: volume "block"; surfaces "clamp" (x = 0) and "tip" (x = 2).
 SetFactory("OpenCASCADE");
 Box(1) = {0, 0, 0, 2, 1, 1};
