@@ -1,6 +1,6 @@
 #include "flexopt/app/commands.hpp"
-#include "app_common.hpp"
 
+#include "app_common.hpp"
 #include "flexopt/core/error.hpp"
 #include "flexopt/fem/probe.hpp"
 #include "flexopt/fem/static_problem.hpp"
@@ -13,7 +13,6 @@
 #include "flexopt/reduce/modal.hpp"
 
 #include <Eigen/Eigenvalues>
-
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -263,7 +262,8 @@ int run_reduction(const Context &ctx, const Options &o, const io::Case &c, doubl
   for (double l : cb.fixed_eigenvalues) fixed_hz.push_back(reduce::frequency_hz(l));
   for (Eigen::Index k = 0; k < red.eigenvalues().size(); ++k)
     reduced_hz.push_back(reduce::frequency_hz(red.eigenvalues()(k)));
-  for (int k = 0; k < nfull; ++k) full_hz.push_back(reduce::frequency_hz(full.eigenvalues[static_cast<std::size_t>(k)]));
+  for (int k = 0; k < nfull; ++k)
+    full_hz.push_back(reduce::frequency_hz(full.eigenvalues[static_cast<std::size_t>(k)]));
   print0(ctx.comm(), "  %4s %18s %18s %18s %10s\n", "k", "fixed-interface Hz", "reduced model Hz",
          "full (frame clamped)", "difference");
   for (int k = 0; k < nfull; ++k)
@@ -296,8 +296,9 @@ int run_reduction(const Context &ctx, const Options &o, const io::Case &c, doubl
   s["reduction"] = r;
   s["output"] = xdmf;
   write_summary(ctx, dir, s, t0);
-  print0(ctx.comm(), "wrote %s (basis vectors as steps: static modes, then fixed-interface modes) "
-                     "and %s\n",
+  print0(ctx.comm(),
+         "wrote %s (basis vectors as steps: static modes, then fixed-interface modes) "
+         "and %s\n",
          xdmf.c_str(), (fs::path(dir) / "summary.json").c_str());
   return 0;
 }

@@ -2,7 +2,6 @@
 // generalized-alpha; motion.xdmf (every body's mesh moving), summary.json (sensors, energy,
 // constraint violation, Newton statistics).
 #include "app_common.hpp"
-
 #include "flexopt/core/context.hpp"
 #include "flexopt/core/error.hpp"
 #include "flexopt/dynamics/generalized_alpha.hpp"
@@ -33,12 +32,15 @@ std::vector<double> body_positions(const dynamics::Scene &scene, std::size_t b,
                          m.coordinates[3 * static_cast<std::size_t>(i) + 1],
                          m.coordinates[3 * static_cast<std::size_t>(i) + 2]);
     const bodies::Vec3 p = qb.head<3>() + A * (X - body.center());
-    for (int k = 0; k < 3; ++k) x[3 * static_cast<std::size_t>(i) + static_cast<std::size_t>(k)] = p(k);
+    for (int k = 0; k < 3; ++k)
+      x[3 * static_cast<std::size_t>(i) + static_cast<std::size_t>(k)] = p(k);
   }
   return x;
 }
 
-io::Json vec3_json(const bodies::Vec3 &v) { return io::Json(std::vector<double>{v.x(), v.y(), v.z()}); }
+io::Json vec3_json(const bodies::Vec3 &v) {
+  return io::Json(std::vector<double>{v.x(), v.y(), v.z()});
+}
 
 } // namespace
 
@@ -122,7 +124,8 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
     if (!ga.advance(state, h, next, info)) {
       std::ostringstream msg;
       msg << "integrate: Newton did not converge in step " << n + 1 << " (t = " << state.t
-          << " s -> " << state.t + h << " s) after " << (1 << dynamics::NewtonSettings{}.max_halvings)
+          << " s -> " << state.t + h << " s) after "
+          << (1 << dynamics::NewtonSettings{}.max_halvings)
           << "-fold step halving; increments of the last attempt:";
       for (double v : info.increment) msg << ' ' << v;
       msg << "; constraint residuals:";
@@ -140,7 +143,8 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
     if (res.unenforced > kRedundantDriftTolerance * scene.length_scale)
       throw Error("integrate: at t = " + std::to_string(state.t) + " s (step " +
                       std::to_string(n + 1) + ") the constraint " + mech.describe_row(res.row) +
-                      ", left out as redundant at t = 0, is violated by " + std::to_string(res.unenforced) +
+                      ", left out as redundant at t = 0, is violated by " +
+                      std::to_string(res.unenforced) +
                       ": the initial placement is a singular configuration of the mechanism (a "
                       "dead point or aligned links), not a structural redundancy. Place the "
                       "bodies away from it.",
@@ -152,9 +156,10 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
     const double now = wall_time();
     if (now - last_print > 2.0 || n + 1 == steps) {
       const double rate = static_cast<double>(n + 1) / std::max(now - t_start, 1e-9);
-      print0(ctx.comm(), "  t = %-10.6g step %lld/%lld  Newton %.2f/step  %.0f steps/s  ETA %.1f s\n",
-             state.t, n + 1, steps, static_cast<double>(newton_total) / static_cast<double>(n + 1),
-             rate, static_cast<double>(steps - n - 1) / rate);
+      print0(ctx.comm(),
+             "  t = %-10.6g step %lld/%lld  Newton %.2f/step  %.0f steps/s  ETA %.1f s\n", state.t,
+             n + 1, steps, static_cast<double>(newton_total) / static_cast<double>(n + 1), rate,
+             static_cast<double>(steps - n - 1) / rate);
       last_print = now;
     }
   }
@@ -197,8 +202,8 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
   print0(ctx.comm(),
          "integrate: %lld steps in %.3f s (%.0f steps/s), %lld Newton iterations (max %d per "
          "step), max constraint violation %.3e, energy %.9g -> %.9g\n",
-         steps, t_int, static_cast<double>(steps) / std::max(t_int, 1e-9), newton_total,
-         newton_max, max_violation, energy.front(), energy.back());
+         steps, t_int, static_cast<double>(steps) / std::max(t_int, 1e-9), newton_total, newton_max,
+         max_violation, energy.front(), energy.back());
   detail::write_summary(ctx, dir, s, t0);
   print0(ctx.comm(), "wrote %s (open in ParaView and press play) and %s/summary.json\n",
          xdmf.c_str(), dir.c_str());

@@ -67,7 +67,8 @@ const char *command_help(const std::string &cmd) {
     return "usage: flexopt optimize CASE [--restart] [--max-iterations N] [--out DIR] [PETSc "
            "options]\n"
            "Minimizes the case's objective subject to its constraints over the element densities\n"
-           "of design.region (Helmholtz or cone filter, SIMP, adjoint gradients, MMA). Prints one line\n"
+           "of design.region (Helmholtz or cone filter, SIMP, adjoint gradients, MMA). Prints one "
+           "line\n"
            "per iteration (objective, each constraint, max density change, seconds); stops when\n"
            "the max change falls below optimizer.tolerance or at optimizer.max_iterations.\n"
            "Writes out/design.xdmf + .h5 (density and filtered_density every output.every\n"
@@ -83,7 +84,8 @@ const char *command_help(const std::string &cmd) {
            "the\n"
            "gradient g is right) and fourth-order central differences (step H, default 1e-2)\n"
            "on 5 design elements (among those with at least 1% of the largest objective\n"
-           "sensitivity) against the adjoint gradient. Directions and elements depend on Gmsh element tags,\n"
+           "sensitivity) against the adjoint gradient. Directions and elements depend on Gmsh "
+           "element tags,\n"
            "so any number of ranks checks the same thing. Writes out/summary.json (taylor, fd,\n"
            "max_rel_err).\n";
   return nullptr;
@@ -142,8 +144,7 @@ int main(int argc, char **argv) {
       } catch (...) {
         if (arg_error.empty()) arg_error = "--fd-step needs a number in (0, 0.5), got '" + v + "'";
       }
-    }
-    else if (a.rfind("--", 0) == 0)
+    } else if (a.rfind("--", 0) == 0)
       arg_error = "unknown option '" + a + "'";
     else if (a[0] == '-') {
       petsc_argv.push_back(argv[i]);

@@ -31,8 +31,8 @@ Mat34 rotate_jacobian(const Vec4 &p, const Vec3 &u) {
   const Vec3 e = p.tail<3>();
   Mat34 d;
   d.col(0) = 2 * (e0 * u + e.cross(u));
-  d.rightCols<3>() = 2 * (e.dot(u) * Mat3::Identity() + e * u.transpose() - u * e.transpose() -
-                          e0 * skew(u));
+  d.rightCols<3>() =
+      2 * (e.dot(u) * Mat3::Identity() + e * u.transpose() - u * e.transpose() - e0 * skew(u));
   return d;
 }
 

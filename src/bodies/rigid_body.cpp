@@ -16,7 +16,8 @@ MassProperties mass_properties(const mesh::MeshData &mesh, double density) {
   for (std::int64_t e = 0; e < mesh.element_count(); ++e) {
     for (int a = 0; a < npe; ++a) {
       const auto node = mesh.connectivity[static_cast<std::size_t>(e * npe + a)];
-      for (int k = 0; k < 3; ++k) X(a, k) = mesh.coordinates[static_cast<std::size_t>(3 * node + k)];
+      for (int k = 0; k < 3; ++k)
+        X(a, k) = mesh.coordinates[static_cast<std::size_t>(3 * node + k)];
     }
     const fem::ElementMatrix Me = fem::element_mass(mesh.type, X, density);
     for (int a = 0; a < npe; ++a)
@@ -50,8 +51,10 @@ SurfaceCentroid surface_centroid(const mesh::MeshData &mesh, const std::string &
   fem::FaceCoords Xf(nf, 3);
   for (std::size_t f = 0; f < g.size(); ++f) {
     for (int a = 0; a < nf; ++a) {
-      const auto node = g.connectivity[f * static_cast<std::size_t>(nf) + static_cast<std::size_t>(a)];
-      for (int k = 0; k < 3; ++k) Xf(a, k) = mesh.coordinates[static_cast<std::size_t>(3 * node + k)];
+      const auto node =
+          g.connectivity[f * static_cast<std::size_t>(nf) + static_cast<std::size_t>(a)];
+      for (int k = 0; k < 3; ++k)
+        Xf(a, k) = mesh.coordinates[static_cast<std::size_t>(3 * node + k)];
     }
     // int N_a dA from the consistent load of a unit traction (1, 0, 0).
     const fem::ElementVector w = fem::face_traction_load(g.type, Xf, Vec3(1, 0, 0));
@@ -60,7 +63,8 @@ SurfaceCentroid surface_centroid(const mesh::MeshData &mesh, const std::string &
       moment += w(3 * a) * Xf.row(a).transpose();
     }
   }
-  if (!(out.area > 0)) throw Error(mesh.source + ": physical surface '" + surface + "' has no area");
+  if (!(out.area > 0))
+    throw Error(mesh.source + ": physical surface '" + surface + "' has no area");
   out.centroid = moment / out.area;
   return out;
 }
@@ -68,8 +72,8 @@ SurfaceCentroid surface_centroid(const mesh::MeshData &mesh, const std::string &
 RigidBody::RigidBody(std::string name, const MassProperties &props)
     : name_(std::move(name)), props_(props) {}
 
-void RigidBody::inertial_force(const Vec7 &q, const Vec7 &v, const Vec7 &a, Vec7 *f,
-                               Mat7 *df_dq, Mat7 *df_dv, Mat7 *mass_matrix) const {
+void RigidBody::inertial_force(const Vec7 &q, const Vec7 &v, const Vec7 &a, Vec7 *f, Mat7 *df_dq,
+                               Mat7 *df_dv, Mat7 *mass_matrix) const {
   const Vec4 p = q.tail<4>(), vp = v.tail<4>(), ap = a.tail<4>();
   const Mat3 &J = props_.inertia;
   const Mat34 G = gbar_matrix(p), Gv = gbar_matrix(vp);

@@ -66,7 +66,8 @@ GeneralizedAlpha::GeneralizedAlpha(const Mechanism &mechanism, AlphaParameters p
   const int nb = static_cast<int>(mech_.bodies.size());
   std::vector<std::vector<char>> coupled(static_cast<std::size_t>(nb),
                                          std::vector<char>(static_cast<std::size_t>(nb), 0));
-  for (int b = 0; b < nb; ++b) coupled[static_cast<std::size_t>(b)][static_cast<std::size_t>(b)] = 1;
+  for (int b = 0; b < nb; ++b)
+    coupled[static_cast<std::size_t>(b)][static_cast<std::size_t>(b)] = 1;
   std::vector<Eigen::Triplet<double>> t;
   int row = 0, k = 0;
   for (const auto &e : mech_.equations) {
@@ -103,7 +104,8 @@ GeneralizedAlpha::GeneralizedAlpha(const Mechanism &mechanism, AlphaParameters p
   for (int a = 0; a < nb; ++a)
     for (int b = 0; b < nb; ++b)
       if (coupled[static_cast<std::size_t>(a)][static_cast<std::size_t>(b)]) {
-        sp.block_offset[static_cast<std::size_t>(a * nb + b)] = static_cast<int>(sp.block_index.size());
+        sp.block_offset[static_cast<std::size_t>(a * nb + b)] =
+            static_cast<int>(sp.block_index.size());
         for (int i = 0; i < 7; ++i)
           for (int j = 0; j < 7; ++j) sp.block_index.push_back(index(7 * a + i, 7 * b + j));
       }
@@ -114,16 +116,14 @@ GeneralizedAlpha::GeneralizedAlpha(const Mechanism &mechanism, AlphaParameters p
       if (!mech_.enforced(row)) continue;
       for (int b : {e.a, e.b})
         if (b >= 0) {
-          sp.row_entries[static_cast<std::size_t>(k)].emplace_back(b, static_cast<int>(sp.row_index.size()));
+          sp.row_entries[static_cast<std::size_t>(k)].emplace_back(
+              b, static_cast<int>(sp.row_index.size()));
           for (int j = 0; j < 7; ++j) sp.row_index.push_back(index(n + k, 7 * b + j));
           for (int j = 0; j < 7; ++j) sp.row_index.push_back(index(7 * b + j, n + k));
         }
       ++k;
     }
 }
-
-
-
 
 namespace {
 
@@ -165,8 +165,8 @@ State GeneralizedAlpha::initial_state(const Vector &q0, const Vector &v0, double
     throw Error("initial conditions: the joints cannot all be satisfied by the initial placement "
                 "(an over-constrained mechanism whose redundant joints disagree, or bodies placed "
                 "too far from an assembled configuration); after " +
-                    std::to_string(it) + " position corrections these constraints remain violated:" +
-                    bad.str(),
+                    std::to_string(it) +
+                    " position corrections these constraints remain violated:" + bad.str(),
                 true);
   // Velocities: smallest correction onto Phi_q v + Phi_t = 0.
   s.v = v0;
@@ -175,7 +175,8 @@ State GeneralizedAlpha::initial_state(const Vector &q0, const Vector &v0, double
   mech_.constraint_time_terms(s.q, s.v, t0, phi_t, phi_tt, phi_qt_v);
   if (m > 0) s.v -= min_norm(J, J * s.v + phi_t);
   mech_.constraint_time_terms(s.q, s.v, t0, phi_t, phi_tt, phi_qt_v);
-  // Accelerations and multipliers: [M J^T; J 0] [acc; lambda] = [-r0; -(J v)_q v - 2 Phi_qt v - Phi_tt].
+  // Accelerations and multipliers: [M J^T; J 0] [acc; lambda] = [-r0; -(J v)_q v - 2 Phi_qt v -
+  // Phi_tt].
   Vector r;
   Matrix M;
   mech_.dynamics(s.q, s.v, Vector::Zero(n), t0, r, nullptr, nullptr, &M);
@@ -208,9 +209,9 @@ namespace {
 /// accumulates Phi_q^T lambda. Gradient rows go to row n + k and, transposed, to column n + k;
 /// 7 x 7 blocks are scaled by `block_scale`.
 struct IterationAssembly : joints::Sink {
-  Matrix *A;       ///< dense target, or null
+  Matrix *A;           ///< dense target, or null
   SparseIteration *sp; ///< sparse target (with its value indices), or null
-  double *values;  ///< the sparse matrix's values
+  double *values;      ///< the sparse matrix's values
   int n;
   double block_scale = 1;
   const Vector &lambda;
@@ -262,8 +263,7 @@ bool GeneralizedAlpha::newton_direction(const State &next, double bp, double gp,
     std::fill(sparse_->S.valuePtr(), sparse_->S.valuePtr() + sparse_->S.nonZeros(), 0.0);
   else
     A.setZero(n + m, n + m);
-  IterationAssembly assembly(sparse_ ? nullptr : &A, sparse_.get(), n, next.lambda,
-                                           jtl);
+  IterationAssembly assembly(sparse_ ? nullptr : &A, sparse_.get(), n, next.lambda, jtl);
   // M + (gamma'/beta') C + K / beta' on the diagonal blocks, then the constraint rows and the
   // constraint Hessian (part of K, so divided by beta').
   for (int b = 0; b < nb; ++b) {
@@ -322,9 +322,8 @@ bool GeneralizedAlpha::advance(const State &s, double h, State &next, StepInfo &
   info.converged = step_once(s, h, next, info);
   if (info.converged) return true;
   // Halving: two half steps, each of which may halve again.
-  std::function<bool(const State &, double, State &, int)> split = [&](const State &from,
-                                                                       double dt, State &to,
-                                                                       int depth) -> bool {
+  std::function<bool(const State &, double, State &, int)> split =
+      [&](const State &from, double dt, State &to, int depth) -> bool {
     if (depth > settings_.max_halvings) return false;
     info.halvings = std::max(info.halvings, depth);
     State mid;

@@ -160,7 +160,8 @@ void Mechanism::dynamics_blocks(const Vector &q, const Vector &v, const Vector &
     const bodies::Vec4 p = q.segment<4>(o + 3);
     r.segment<3>(o) -= F;
     r.segment<4>(o + 3) -= bodies::rotate_jacobian(p, pf.s).transpose() * F;
-    K[static_cast<std::size_t>(pf.body)].bottomRightCorner<4, 4>() -= bodies::rotate_hessian(pf.s, F);
+    K[static_cast<std::size_t>(pf.body)].bottomRightCorner<4, 4>() -=
+        bodies::rotate_hessian(pf.s, F);
   }
 }
 

@@ -17,7 +17,9 @@ using bodies::Vec4;
 using joints::Equation;
 using K = Equation::Kind;
 
-Vec3 v3(const std::array<double, 3> &a) { return Vec3(a[0], a[1], a[2]); }
+Vec3 v3(const std::array<double, 3> &a) {
+  return Vec3(a[0], a[1], a[2]);
+}
 
 /// Two unit vectors completing the unit axis w to a right-handed triad (u1, u2, w).
 void complete_triad(const Vec3 &w, Vec3 &u1, Vec3 &u2) {
@@ -142,8 +144,7 @@ Scene build_scene(MPI_Comm comm, const io::Case &c) {
     p.center = Vec3(buf[1], buf[2], buf[3]);
     for (int k = 0; k < 9; ++k) p.inertia(k / 3, k % 3) = buf[static_cast<std::size_t>(4 + k)];
     for (std::size_t i = 0; i < spec.interfaces.size(); ++i)
-      interfaces[b][spec.interfaces[i]] =
-          Vec3(buf[13 + 3 * i], buf[14 + 3 * i], buf[15 + 3 * i]);
+      interfaces[b][spec.interfaces[i]] = Vec3(buf[13 + 3 * i], buf[14 + 3 * i], buf[15 + 3 * i]);
     mech.bodies.emplace_back(spec.name, p);
     body_index[spec.name] = static_cast<int>(b);
     R0[b] = Eigen::AngleAxisd(spec.initial.angle, v3(spec.initial.axis)).toRotationMatrix();
@@ -204,7 +205,8 @@ Scene build_scene(MPI_Comm comm, const io::Case &c) {
     const Attachment A = attach(j.a, j.a_interface), B = attach(j.b, j.b_interface);
     const double gap = (A.world - B.world).norm();
     if (gap > max_gap && (j.type != "prismatic")) max_gap = gap, gap_joint = j.name;
-    for (Equation &e : joint_equations(j.type, A, B, v3(j.axis), "joint " + j.name + " (" + j.type + ")"))
+    for (Equation &e :
+         joint_equations(j.type, A, B, v3(j.axis), "joint " + j.name + " (" + j.type + ")"))
       mech.equations.push_back(std::move(e));
   }
   if (max_gap > 1e-9)
@@ -218,7 +220,8 @@ Scene build_scene(MPI_Comm comm, const io::Case &c) {
     pf.body = body_index.at(f.body);
     pf.s = interfaces[static_cast<std::size_t>(pf.body)].at(f.interface) -
            mech.bodies[static_cast<std::size_t>(pf.body)].center();
-    for (int k = 0; k < 3; ++k) pf.value[static_cast<std::size_t>(k)] = Expression(f.value[static_cast<std::size_t>(k)]);
+    for (int k = 0; k < 3; ++k)
+      pf.value[static_cast<std::size_t>(k)] = Expression(f.value[static_cast<std::size_t>(k)]);
     mech.forces.push_back(pf);
   }
   for (const io::SensorSpec &s : c.sensors) {
@@ -232,8 +235,8 @@ Scene build_scene(MPI_Comm comm, const io::Case &c) {
   mech.finalize();
   scene.redundant_rows = mech.drop_redundant_rows(scene.q0, 0.0);
   for (std::size_t b = 0; b < c.bodies.size(); ++b)
-    scene.length_scale =
-        std::max(scene.length_scale, scene.q0.segment<3>(7 * static_cast<int>(b)).cwiseAbs().maxCoeff());
+    scene.length_scale = std::max(
+        scene.length_scale, scene.q0.segment<3>(7 * static_cast<int>(b)).cwiseAbs().maxCoeff());
   return scene;
 }
 

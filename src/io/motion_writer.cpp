@@ -1,8 +1,8 @@
 #include "flexopt/io/motion_writer.hpp"
 
 #include "flexopt/core/error.hpp"
-#include "hdf5_check.hpp"
 #include "flexopt/io/json.hpp"
+#include "hdf5_check.hpp"
 
 #include <cstdio>
 #include <filesystem>

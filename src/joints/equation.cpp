@@ -8,7 +8,9 @@ namespace {
 
 using Mat37 = Eigen::Matrix<double, 3, 7>;
 
-Vec4 euler(const Vector &q, int b) { return q.segment<4>(7 * b + 3); }
+Vec4 euler(const Vector &q, int b) {
+  return q.segment<4>(7 * b + 3);
+}
 
 /// 3 x 7 Jacobian of a body point (zero for the ground).
 Mat37 point_jacobian(const Vector &q, int b, const Vec3 &s) {
@@ -49,7 +51,8 @@ void add_row(Sink &J, int row, int b, const Row7 &g) {
 
 /// The driver's rotating vector u(t) = sin f u1 - cos f u2 and its first two time derivatives.
 void driver_vectors(const Equation &e, double t, Vec3 &u, Vec3 &ut, Vec3 &utt) {
-  const double f = (*e.driver)(t), fd = e.driver->derivative(t), fdd = e.driver->second_derivative(t);
+  const double f = (*e.driver)(t), fd = e.driver->derivative(t),
+               fdd = e.driver->second_derivative(t);
   const double s = std::sin(f), c = std::cos(f);
   u = s * e.ua - c * e.ua2;
   const Vec3 du = c * e.ua + s * e.ua2; // d u / d f
@@ -192,7 +195,8 @@ void Equation::time_derivatives(const Vector &q, const Vector &v, double t, doub
     // d/dt of the gradient rows [w^T D(p_a, u), (A_a u)^T D(p_b, v)], applied to v.
     double s = 0;
     if (a >= 0) s += w.dot(vector_jacobian(q, a, ut) * v.segment<7>(7 * a));
-    if (b >= 0) s += vector_direction(q, a, ut).dot(vector_jacobian(q, b, vb) * v.segment<7>(7 * b));
+    if (b >= 0)
+      s += vector_direction(q, a, ut).dot(vector_jacobian(q, b, vb) * v.segment<7>(7 * b));
     phi_qt_v[0] = s;
   }
 }

@@ -174,7 +174,9 @@ std::unique_ptr<ConeFilter> ConeFilter::create(const mesh::DistributedMesh &mesh
   return f;
 }
 
-ConeFilter::~ConeFilter() { MatDestroy(&H_); }
+ConeFilter::~ConeFilter() {
+  MatDestroy(&H_);
+}
 
 Vec ConeFilter::create_element_vector() const {
   Vec v;

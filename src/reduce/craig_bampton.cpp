@@ -25,8 +25,9 @@ Eigen::Vector3d centroid(const mesh::DistributedMesh &mesh, const std::string &n
   for (std::size_t f = 0; f < s.size(); ++f) {
     for (int a = 0; a < nf; ++a)
       for (int k = 0; k < 3; ++k)
-        Xf(a, k) = s.coordinates[3 * (f * static_cast<std::size_t>(nf) + static_cast<std::size_t>(a)) +
-                                 static_cast<std::size_t>(k)];
+        Xf(a, k) =
+            s.coordinates[3 * (f * static_cast<std::size_t>(nf) + static_cast<std::size_t>(a)) +
+                          static_cast<std::size_t>(k)];
     const fem::ElementVector w = fem::face_traction_load(s.type, Xf, Eigen::Vector3d(1, 0, 0));
     for (int a = 0; a < nf; ++a) {
       local[3] += w(3 * a);
@@ -56,8 +57,8 @@ void craig_bampton(const mesh::DistributedMesh &mesh, Mat K, Mat M,
   std::vector<std::vector<PetscInt>> nodes(ni);
   std::vector<PetscInt> constrained;
   for (std::size_t k = 0; k < ni; ++k) {
-    const auto d = fem::surface_dofs(mesh, interfaces[k], {true, true, true},
-                                     "Craig-Bampton interface");
+    const auto d =
+        fem::surface_dofs(mesh, interfaces[k], {true, true, true}, "Craig-Bampton interface");
     constrained.insert(constrained.end(), d.begin(), d.end());
     for (std::size_t i = 0; i < d.size(); i += 3) nodes[k].push_back(d[i] / 3);
   }

@@ -37,7 +37,9 @@ FfrfInvariants ffrf_invariants(const mesh::DistributedMesh &mesh, Mat M,
     FX_PETSC(VecGetArray(X, &x));
     for (PetscInt i = 0; i < mesh.owned_nodes; ++i)
       for (int c = 0; c < 3; ++c)
-        x[3 * i + c] = mesh.coordinates[3 * static_cast<std::size_t>(i) + static_cast<std::size_t>(c)] - origin(c);
+        x[3 * i + c] =
+            mesh.coordinates[3 * static_cast<std::size_t>(i) + static_cast<std::size_t>(c)] -
+            origin(c);
     FX_PETSC(VecRestoreArray(X, &x));
   }
   std::vector<Vec> v{ones, X};
@@ -51,7 +53,8 @@ FfrfInvariants ffrf_invariants(const mesh::DistributedMesh &mesh, Mat M,
   // Local sums for the pairs needed: (ones, X), (ones, Psi_k), (X, X), (X, Psi_k), (Psi_k, Psi_l)
   // and (ones, ones) for the mass; all 9 entries of every pair, reduced at once.
   std::vector<double> sums(static_cast<std::size_t>(nv * nv * 9), 0.0);
-  std::vector<const PetscScalar *> va(static_cast<std::size_t>(nv)), ma(static_cast<std::size_t>(nv));
+  std::vector<const PetscScalar *> va(static_cast<std::size_t>(nv)),
+      ma(static_cast<std::size_t>(nv));
   for (int a = 0; a < nv; ++a) {
     FX_PETSC(VecGetArrayRead(v[static_cast<std::size_t>(a)], &va[static_cast<std::size_t>(a)]));
     FX_PETSC(VecGetArrayRead(Mv[static_cast<std::size_t>(a)], &ma[static_cast<std::size_t>(a)]));
@@ -66,7 +69,8 @@ FfrfInvariants ffrf_invariants(const mesh::DistributedMesh &mesh, Mat M,
     }
   for (int a = 0; a < nv; ++a) {
     FX_PETSC(VecRestoreArrayRead(v[static_cast<std::size_t>(a)], &va[static_cast<std::size_t>(a)]));
-    FX_PETSC(VecRestoreArrayRead(Mv[static_cast<std::size_t>(a)], &ma[static_cast<std::size_t>(a)]));
+    FX_PETSC(
+        VecRestoreArrayRead(Mv[static_cast<std::size_t>(a)], &ma[static_cast<std::size_t>(a)]));
     FX_PETSC(VecDestroy(&Mv[static_cast<std::size_t>(a)]));
   }
   FX_PETSC(VecDestroy(&ones));
@@ -76,7 +80,8 @@ FfrfInvariants ffrf_invariants(const mesh::DistributedMesh &mesh, Mat M,
   auto C = [&](int a, int b) {
     Eigen::Matrix3d c;
     for (int r = 0; r < 3; ++r)
-      for (int k = 0; k < 3; ++k) c(r, k) = sums[static_cast<std::size_t>((a * nv + b) * 9 + 3 * r + k)];
+      for (int k = 0; k < 3; ++k)
+        c(r, k) = sums[static_cast<std::size_t>((a * nv + b) * 9 + 3 * r + k)];
     return c;
   };
   FfrfInvariants inv;
@@ -88,10 +93,12 @@ FfrfInvariants ffrf_invariants(const mesh::DistributedMesh &mesh, Mat M,
   for (int k = 0; k < n; ++k) inv.D.col(k) = C(0, 2 + k).row(0).transpose();
   inv.S0 = C(1, 1);
   inv.S1.resize(static_cast<std::size_t>(n));
-  inv.S2.assign(static_cast<std::size_t>(n), std::vector<Eigen::Matrix3d>(static_cast<std::size_t>(n)));
+  inv.S2.assign(static_cast<std::size_t>(n),
+                std::vector<Eigen::Matrix3d>(static_cast<std::size_t>(n)));
   for (int k = 0; k < n; ++k) {
     inv.S1[static_cast<std::size_t>(k)] = C(1, 2 + k);
-    for (int l = 0; l < n; ++l) inv.S2[static_cast<std::size_t>(k)][static_cast<std::size_t>(l)] = C(2 + k, 2 + l);
+    for (int l = 0; l < n; ++l)
+      inv.S2[static_cast<std::size_t>(k)][static_cast<std::size_t>(l)] = C(2 + k, 2 + l);
   }
   return inv;
 }

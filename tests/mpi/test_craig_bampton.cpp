@@ -12,11 +12,10 @@
 #include "flexopt/mesh/distributed_mesh.hpp"
 #include "flexopt/reduce/craig_bampton.hpp"
 #include "flexopt/reduce/ffrf_invariants.hpp"
+#include "test_meshes.hpp"
 
 #include <cmath>
 #include <cstdio>
-#include "test_meshes.hpp"
-
 #include <gtest/gtest.h>
 
 using namespace flexopt;
@@ -101,7 +100,9 @@ TEST(FfrfInvariants, RigidMomentsAndDeformedExpansion) {
     VecGetArray(x, &a);
     for (PetscInt i = 0; i < m.owned_nodes; ++i)
       for (int c = 0; c < 3; ++c)
-        a[3 * i + c] = m.coordinates[3 * static_cast<std::size_t>(i) + static_cast<std::size_t>(c)] - origin(c);
+        a[3 * i + c] =
+            m.coordinates[3 * static_cast<std::size_t>(i) + static_cast<std::size_t>(c)] -
+            origin(c);
     VecRestoreArray(x, &a);
   }
   for (int k = 0; k < n; ++k) VecAXPY(x, zeta(k), cb.vectors[static_cast<std::size_t>(k)]);

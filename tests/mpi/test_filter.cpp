@@ -6,11 +6,10 @@
 #include "flexopt/mesh/distributed_mesh.hpp"
 #include "flexopt/optimize/cone_filter.hpp"
 #include "flexopt/optimize/helmholtz_filter.hpp"
+#include "test_meshes.hpp"
 
 #include <cmath>
 #include <cstdio>
-#include "test_meshes.hpp"
-
 #include <gtest/gtest.h>
 #include <random>
 
@@ -99,7 +98,7 @@ INSTANTIATE_TEST_SUITE_P(
                       FilterCase{"beam.geo", 0.02, 1, "cone", 0.104, "ConeTet4"},
                       FilterCase{"beam.geo", 0.03, 2, "cone", 0.104, "ConeTet10"},
                       FilterCase{"beam_hex.geo", 0.0, 1, "cone", 0.104, "ConeHex8"}),
-                         [](const auto &info) { return std::string(info.param.name); });
+    [](const auto &info) { return std::string(info.param.name); });
 
 // rho = cos(k x) along the beam (k = 4 pi / L, zero normal derivative at both ends) solves
 // the filter PDE with phi = cos(k x) / (1 + r^2 k^2). On a mesh with h = 0.01 (k h = 0.13)
@@ -138,7 +137,8 @@ TEST(FilterPhysics, DampsACosineByTheHelmholtzFactor) {
 // different order: they agree to round-off (1e-13 on values of order 1).
 TEST(ConeFilter, EqualsTheBruteForceSum) {
   for (const char *geometry : {"beam.geo", "beam_hex.geo"}) {
-    auto m = test_support::load_test_mesh(geometry, std::string(geometry) == "beam.geo" ? 0.02 : 0.0, 1);
+    auto m =
+        test_support::load_test_mesh(geometry, std::string(geometry) == "beam.geo" ? 0.02 : 0.0, 1);
     const double R = 0.07;
     auto filter = optimize::ConeFilter::create(m, R);
     auto field = [](const Eigen::Vector3d &c) {
@@ -163,10 +163,11 @@ TEST(ConeFilter, EqualsTheBruteForceSum) {
     std::vector<int> counts(static_cast<std::size_t>(size)), displs(counts);
     MPI_Allgather(&n, 1, MPI_INT, counts.data(), 1, MPI_INT, m.comm);
     int total = 0;
-    for (int r = 0; r < size; ++r) displs[static_cast<std::size_t>(r)] = total, total += counts[static_cast<std::size_t>(r)];
+    for (int r = 0; r < size; ++r)
+      displs[static_cast<std::size_t>(r)] = total, total += counts[static_cast<std::size_t>(r)];
     std::vector<double> all(static_cast<std::size_t>(total));
-    MPI_Allgatherv(mine.data(), n, MPI_DOUBLE, all.data(), counts.data(), displs.data(),
-                   MPI_DOUBLE, m.comm);
+    MPI_Allgatherv(mine.data(), n, MPI_DOUBLE, all.data(), counts.data(), displs.data(), MPI_DOUBLE,
+                   m.comm);
 
     const PetscScalar *y;
     VecGetArrayRead(out, &y);

@@ -10,6 +10,7 @@
 #include "flexopt/io/json.hpp"
 #include "flexopt/io/motion_writer.hpp"
 #include "flexopt/mesh/distributed_mesh.hpp"
+#include "test_meshes.hpp"
 
 #include <algorithm>
 #include <array>
@@ -17,8 +18,6 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
-#include "test_meshes.hpp"
-
 #include <gtest/gtest.h>
 #include <hdf5.h>
 #include <unistd.h>

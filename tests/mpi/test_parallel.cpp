@@ -7,14 +7,13 @@
 #include "flexopt/fem/assembly.hpp"
 #include "flexopt/fem/probe.hpp"
 #include "flexopt/mesh/distributed_mesh.hpp"
+#include "test_meshes.hpp"
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <gmsh.h>
-#include "test_meshes.hpp"
-
 #include <gtest/gtest.h>
 #include <numeric>
 

@@ -31,7 +31,9 @@ std::mt19937 &rng() {
 double uniform(double lo = -1, double hi = 1) {
   return std::uniform_real_distribution<double>(lo, hi)(rng());
 }
-Vec3 random3() { return Vec3(uniform(), uniform(), uniform()); }
+Vec3 random3() {
+  return Vec3(uniform(), uniform(), uniform());
+}
 /// Euler parameters near unit length (the derivatives hold for any p).
 Vec4 random_p() {
   Vec4 p(uniform(), uniform(), uniform(), uniform());
@@ -96,8 +98,9 @@ TEST(Quaternion, RotationIsOrthogonalAndMatchesAxisAngle) {
   EXPECT_LT((bodies::rotation_vector(A) - angle * axis).norm(), 1e-13);
   // omega = 2 G p' for p' = d/dt p(axis, w t): omega = w axis.
   const double w = 0.7;
-  const Vec4 pdot = 0.5 * w * Vec4(-std::sin(0.5 * angle), std::cos(0.5 * angle) * axis.x(),
-                                   std::cos(0.5 * angle) * axis.y(), std::cos(0.5 * angle) * axis.z());
+  const Vec4 pdot = 0.5 * w *
+                    Vec4(-std::sin(0.5 * angle), std::cos(0.5 * angle) * axis.x(),
+                         std::cos(0.5 * angle) * axis.y(), std::cos(0.5 * angle) * axis.z());
   EXPECT_LT((2 * bodies::g_matrix(p) * pdot - w * axis).norm(), 1e-14);
 }
 
@@ -106,9 +109,7 @@ TEST(Quaternion, RotateJacobianAndHessian) {
   const Vec3 u = random3(), w = random3();
   auto f = [&](const Vector &x) -> Vector { return bodies::rotation(x) * u; };
   expect_close(bodies::rotate_jacobian(p, u), fd_jacobian(f, p, 3), "D(p, u)");
-  auto g = [&](const Vector &x) -> Vector {
-    return bodies::rotate_jacobian(x, u).transpose() * w;
-  };
+  auto g = [&](const Vector &x) -> Vector { return bodies::rotate_jacobian(x, u).transpose() * w; };
   expect_close(bodies::rotate_hessian(u, w), fd_jacobian(g, p, 4), "K(u, w)");
   auto t = [&](const Vector &x) -> Vector { return bodies::gbar_matrix(x).transpose() * w; };
   expect_close(bodies::gbar_transpose_matrix(w), fd_jacobian(t, p, 4), "T(w)");
@@ -200,8 +201,8 @@ TEST(Constraints, GradientsHessiansAndTimeDerivatives) {
   const double t = 0.37;
   for (const auto &e : all_kinds()) {
     const int k = e.rows();
-    const std::string what = "kind " + std::to_string(static_cast<int>(e.kind)) + " a=" +
-                             std::to_string(e.a);
+    const std::string what =
+        "kind " + std::to_string(static_cast<int>(e.kind)) + " a=" + std::to_string(e.a);
     auto phi = [&](const Vector &x) -> Vector {
       Vector out(k);
       e.value(x, t, out.data());
@@ -241,8 +242,10 @@ TEST(Constraints, GradientsHessiansAndTimeDerivatives) {
       return Jx * v;
     };
     expect_close(Eigen::Map<Vector>(pt, k), fd_jacobian(phi_t, tt, k), (what + ": phi_t").c_str());
-    expect_close(Eigen::Map<Vector>(ptt, k), fd_jacobian(phit_t, tt, k), (what + ": phi_tt").c_str());
-    expect_close(Eigen::Map<Vector>(pqtv, k), fd_jacobian(jv_t, tt, k), (what + ": phi_qt v").c_str());
+    expect_close(Eigen::Map<Vector>(ptt, k), fd_jacobian(phit_t, tt, k),
+                 (what + ": phi_tt").c_str());
+    expect_close(Eigen::Map<Vector>(pqtv, k), fd_jacobian(jv_t, tt, k),
+                 (what + ": phi_qt v").c_str());
   }
 }
 
@@ -507,7 +510,8 @@ TEST(Joints, EveryTypeAsBuilt) {
     const Mat3 tilt = Eigen::AngleAxisd(0.7, axis.unitOrthogonal()).toRotationMatrix();
     const double about_axis = phi(rigid_motion(q, 1, spin, x, Vec3::Zero())).cwiseAbs().maxCoeff();
     const double tilted = phi(rigid_motion(q, 1, tilt, x, Vec3::Zero())).cwiseAbs().maxCoeff();
-    const double along = phi(rigid_motion(q, 1, Mat3::Identity(), x, 0.4 * axis)).cwiseAbs().maxCoeff();
+    const double along =
+        phi(rigid_motion(q, 1, Mat3::Identity(), x, 0.4 * axis)).cwiseAbs().maxCoeff();
     if (type == "spherical") {
       EXPECT_LT(std::max(about_axis, tilted), 1e-14) << type << " allows any rotation about x";
       EXPECT_GT(along, 0.1) << type;

@@ -44,8 +44,8 @@ struct NewtonSettings {
 
 /// What one step did, for progress output and failure messages.
 struct StepInfo {
-  int iterations = 0;                 ///< Newton iterations (all attempts)
-  int halvings = 0;                   ///< deepest halving used
+  int iterations = 0; ///< Newton iterations (all attempts)
+  int halvings = 0;   ///< deepest halving used
   bool converged = false;
   std::vector<double> increment, violation; ///< per iteration of the last attempt
 };

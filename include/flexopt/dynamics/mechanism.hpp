@@ -11,9 +11,9 @@
 
 namespace flexopt::dynamics {
 
+using bodies::Vec3;
 using joints::Matrix;
 using joints::Vector;
-using bodies::Vec3;
 
 /// A force [N] (world frame, function of t) at a body point s (relative to the centre of mass,
 /// body axes).

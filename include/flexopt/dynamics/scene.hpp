@@ -24,7 +24,7 @@ struct BoundSensor {
 struct Scene {
   Mechanism mechanism;
   std::vector<mesh::DistributedMesh> meshes; ///< per body (for output)
-  Vector q0, v0;                              ///< placed coordinates and velocities at t = 0
+  Vector q0, v0;                             ///< placed coordinates and velocities at t = 0
   std::vector<BoundSensor> sensors;
   std::vector<std::string> redundant_rows; ///< constraint rows found redundant and not enforced
   double length_scale = 1;                 ///< largest extent of the placed scene [m]

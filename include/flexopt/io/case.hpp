@@ -94,8 +94,8 @@ struct ForceSpec {
 
 /// Time integration (`time:`).
 struct TimeSpec {
-  double end = 0;      ///< [s], > 0
-  double step = 0;     ///< [s], > 0, <= end
+  double end = 0;       ///< [s], > 0
+  double step = 0;      ///< [s], > 0, <= end
   double rho_inf = 0.8; ///< generalized-alpha spectral radius at infinity, in [0, 1]
   bool given = false;
   Location where;
@@ -135,10 +135,10 @@ struct DesignSpec {
   double min_stiffness = 1e-9;   ///< E_min / E_0
   std::string mass = "linear";   ///< mass interpolation (dynamic analyses): linear | pedersen
   std::string filter_type = "helmholtz"; ///< helmholtz | cone
-  double filter_radius = 0;      ///< Helmholtz length scale r, or cone radius R [m]
-  std::vector<double> beta;      ///< Heaviside projection continuation (empty: no projection)
-  double eta = 0.5;              ///< projection threshold
-  int beta_every = 25;           ///< iterations per beta value (continuation)
+  double filter_radius = 0;              ///< Helmholtz length scale r, or cone radius R [m]
+  std::vector<double> beta; ///< Heaviside projection continuation (empty: no projection)
+  double eta = 0.5;         ///< projection threshold
+  int beta_every = 25;      ///< iterations per beta value (continuation)
   Location where;
 };
 
@@ -176,7 +176,7 @@ struct Case {
   std::vector<DriverSpec> drivers;         ///< dynamic
   std::vector<ForceSpec> forces;           ///< dynamic: loads.forces
   TimeSpec time;                           ///< dynamic
-  std::string solver; ///< PETSc options applied before the command line's
+  std::string solver;                      ///< PETSc options applied before the command line's
   int output_every = 1;
   std::optional<DesignSpec> design;      ///< topology optimization: the design field
   std::optional<ResponseSpec> objective; ///< topology optimization: minimized

@@ -43,9 +43,7 @@ class DenseSink : public Sink {
 public:
   DenseSink(Matrix *J, Matrix *H) : J_(J), H_(H) {}
   void add_row(int row, int body, const Row7 &g) override { J_->block<1, 7>(row, 7 * body) += g; }
-  void add_block(int bi, int bj, const Block7 &B) override {
-    H_->block<7, 7>(7 * bi, 7 * bj) += B;
-  }
+  void add_block(int bi, int bj, const Block7 &B) override { H_->block<7, 7>(7 * bi, 7 * bj) += B; }
 
 private:
   Matrix *J_, *H_;
@@ -54,15 +52,15 @@ private:
 /// A primitive constraint equation (or the 3 equations of a point coincidence).
 struct Equation {
   enum class Kind {
-    Coincide,        ///< x_a(s_a) - x_b(s_b) = 0                          (3 rows)
-    Perpendicular,   ///< u_a . v_b - c = 0                                (1 row)
-    PointOnPlane,    ///< u_a . (x_b(s_b) - x_a(s_a)) - c = 0              (1 row)
-    Normalize,       ///< (p_a . p_a - 1) / 2 = 0                          (1 row)
-    RotationDriver,  ///< u_a(t) . v_b = 0, u_a(t) = sin f(t) u1 - cos f(t) u2 (1 row)
+    Coincide,         ///< x_a(s_a) - x_b(s_b) = 0                          (3 rows)
+    Perpendicular,    ///< u_a . v_b - c = 0                                (1 row)
+    PointOnPlane,     ///< u_a . (x_b(s_b) - x_a(s_a)) - c = 0              (1 row)
+    Normalize,        ///< (p_a . p_a - 1) / 2 = 0                          (1 row)
+    RotationDriver,   ///< u_a(t) . v_b = 0, u_a(t) = sin f(t) u1 - cos f(t) u2 (1 row)
     TranslationDriver ///< u_a . (x_b - x_a) - c - f(t) = 0                (1 row)
   };
   Kind kind = Kind::Coincide;
-  int a = -1, b = -1;          ///< bodies (-1: ground)
+  int a = -1, b = -1;            ///< bodies (-1: ground)
   Vec3 sa{0, 0, 0}, sb{0, 0, 0}; ///< attachment points
   Vec3 ua{0, 0, 0}, vb{0, 0, 0}; ///< vectors (RotationDriver: ua = u1, va2 = u2)
   Vec3 ua2{0, 0, 0};
@@ -87,8 +85,8 @@ struct Equation {
   }
   void add_hessian(const Vector &q, double t, const double *lambda, Sink &sink) const;
   /// d phi/dt, d^2 phi/dt^2 and (d Phi_q/dt) v (time enters through drivers only).
-  void time_derivatives(const Vector &q, const Vector &v, double t, double *phi_t,
-                        double *phi_tt, double *phi_qt_v) const;
+  void time_derivatives(const Vector &q, const Vector &v, double t, double *phi_t, double *phi_tt,
+                        double *phi_qt_v) const;
 };
 
 /// World position of attachment point s of body `b` and its 3 x 7 Jacobian block.

@@ -90,10 +90,10 @@ private:
   double beta_ = 0;                 ///< 0: no projection
   std::vector<double> dprojection_; ///< d physical / d filtered, all local elements
   Vec adjoint_rhs_ = nullptr, adjoint_ = nullptr;
-  std::vector<double> factor_;  ///< SIMP modulus factors (all local elements)
-  std::vector<double> dfactor_; ///< d factor / d filtered density
-  std::vector<double> element_ku_;   ///< K_e^0 u_e, 3 * nodes_per_element per element
-  bool element_ku_current_ = false;  ///< element_ku_ belongs to the current state
+  std::vector<double> factor_;      ///< SIMP modulus factors (all local elements)
+  std::vector<double> dfactor_;     ///< d factor / d filtered density
+  std::vector<double> element_ku_;  ///< K_e^0 u_e, 3 * nodes_per_element per element
+  bool element_ku_current_ = false; ///< element_ku_ belongs to the current state
   int solves_ = 0;
 };
 

@@ -14,9 +14,11 @@ namespace flexopt::reduce {
 /// (mesh coordinates minus the frame origin) and mode shapes Psi_ik (3-vectors, mode k at
 /// node i):
 ///   mass = sum_ij m_ij,  d0 = sum_ij m_ij X_j,  D(:, k) = sum_ij m_ij Psi_jk,
-///   S0 = sum_ij m_ij X_i X_j^T,  S1[k] = sum_ij m_ij X_i Psi_jk^T,  S2[k][l] = sum_ij m_ij Psi_ik Psi_jl^T,
+///   S0 = sum_ij m_ij X_i X_j^T,  S1[k] = sum_ij m_ij X_i Psi_jk^T,  S2[k][l] = sum_ij m_ij Psi_ik
+///   Psi_jl^T,
 /// so that the first moment and the second-moment tensor of the deformed body are
-///   d(zeta) = d0 + D zeta,  S(zeta) = S0 + sum_k zeta_k (S1[k] + S1[k]^T) + sum_kl zeta_k zeta_l S2[k][l].
+///   d(zeta) = d0 + D zeta,  S(zeta) = S0 + sum_k zeta_k (S1[k] + S1[k]^T) + sum_kl zeta_k zeta_l
+///   S2[k][l].
 struct FfrfInvariants {
   double mass = 0;
   Eigen::Vector3d d0 = Eigen::Vector3d::Zero();
