@@ -1,7 +1,9 @@
-// `flexopt simulate` for `analysis: dynamic`: a mechanism of rigid bodies integrated with
-// generalized-alpha; motion.xdmf (every body's mesh moving), summary.json (sensors, energy,
-// constraint violation, Newton statistics).
+// `flexopt simulate` for `analysis: dynamic`: a mechanism of rigid and FFRF bodies integrated
+// with generalized-alpha; motion.xdmf (every body's mesh moving and, for flexible bodies,
+// deforming), summary.json (sensors, energy, constraint violation, Newton statistics).
 #include "app_common.hpp"
+#include "flexopt/bodies/ffrf_body.hpp"
+#include "flexopt/bodies/rigid_body.hpp"
 #include "flexopt/core/context.hpp"
 #include "flexopt/core/error.hpp"
 #include "flexopt/dynamics/generalized_alpha.hpp"
@@ -19,21 +21,27 @@ namespace {
 /// before the run stops (structurally redundant rows stay at round-off, ~1e-15).
 constexpr double kRedundantDriftTolerance = 1e-8;
 
-/// Current world coordinates of the owned nodes of body b.
+/// Current world coordinates of the owned nodes of body b and, for a flexible body, their
+/// elastic displacement Psi zeta (frame axes) into `elastic`.
 std::vector<double> body_positions(const dynamics::Scene &scene, std::size_t b,
-                                   const dynamics::Vector &q) {
+                                   const dynamics::Vector &q, std::vector<double> &elastic) {
   const mesh::DistributedMesh &m = scene.meshes[b];
-  const auto &body = scene.mechanism.bodies[b];
-  const auto qb = q.segment<7>(7 * static_cast<int>(b));
-  const bodies::Mat3 A = bodies::rotation(qb.tail<4>());
-  std::vector<double> x(3 * static_cast<std::size_t>(m.owned_nodes));
-  for (PetscInt i = 0; i < m.owned_nodes; ++i) {
-    const bodies::Vec3 X(m.coordinates[3 * static_cast<std::size_t>(i)],
-                         m.coordinates[3 * static_cast<std::size_t>(i) + 1],
-                         m.coordinates[3 * static_cast<std::size_t>(i) + 2]);
-    const bodies::Vec3 p = qb.head<3>() + A * (X - body.center());
-    for (int k = 0; k < 3; ++k)
-      x[3 * static_cast<std::size_t>(i) + static_cast<std::size_t>(k)] = p(k);
+  const dynamics::Mechanism &mech = scene.mechanism;
+  const int o = mech.offset(static_cast<int>(b)), ne = mech.size(static_cast<int>(b)) - 7;
+  const bodies::Vec3 r = q.segment<3>(o), origin = mech.bodies[b]->origin();
+  const bodies::Mat3 A = bodies::rotation(q.segment<4>(o + 3));
+  const auto nodes = static_cast<std::size_t>(m.owned_nodes);
+  std::vector<double> x(3 * nodes);
+  elastic.assign(ne > 0 ? 3 * nodes : 0, 0.0);
+  if (ne > 0)
+    Eigen::Map<Eigen::VectorXd>(elastic.data(), static_cast<Eigen::Index>(3 * nodes)) =
+        scene.owned_modes[b] * q.segment(o + 7, ne);
+  for (std::size_t i = 0; i < nodes; ++i) {
+    bodies::Vec3 X(m.coordinates[3 * i], m.coordinates[3 * i + 1], m.coordinates[3 * i + 2]);
+    X -= origin;
+    if (ne > 0) X += bodies::Vec3(elastic[3 * i], elastic[3 * i + 1], elastic[3 * i + 2]);
+    const bodies::Vec3 p = r + A * X;
+    for (std::size_t k = 0; k < 3; ++k) x[3 * i + k] = p(static_cast<Eigen::Index>(k));
   }
   return x;
 }
@@ -77,7 +85,7 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
 
   std::vector<io::MotionBody> mb;
   for (std::size_t b = 0; b < mech.bodies.size(); ++b)
-    mb.push_back({mech.bodies[b].name(), mesh::grid_layout(scene.meshes[b])});
+    mb.push_back({mech.bodies[b]->name(), mesh::grid_layout(scene.meshes[b])});
   io::MotionWriter writer(mb, dir, "motion");
 
   std::vector<double> out_t, energy;
@@ -106,9 +114,12 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
     for (std::size_t k = 0; k < scene.sensors.size(); ++k)
       sensor_values[k].push_back(dynamics::sensor_value(scene, scene.sensors[k], st.q));
     writer.begin_step(st.t);
+    std::vector<double> elastic;
     for (std::size_t b = 0; b < mech.bodies.size(); ++b) {
-      const auto x = body_positions(scene, b, st.q);
+      const auto x = body_positions(scene, b, st.q, elastic);
       writer.positions(b, x.data());
+      if (mech.size(static_cast<int>(b)) > 7)
+        writer.node_vector(b, "elastic_displacement", elastic.data());
     }
   };
   monitor(state);
@@ -192,10 +203,17 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
   io::Json bl = io::Json::array();
   for (const auto &b : mech.bodies) {
     io::Json j = io::Json::object();
-    j["name"] = b.name();
-    j["mass"] = b.mass();
-    j["center"] = vec3_json(b.center());
-    j["inertia"] = io::Json(std::vector<double>(b.inertia().data(), b.inertia().data() + 9));
+    j["name"] = b->name();
+    j["model"] = b->model();
+    j["mass"] = b->mass();
+    if (const auto *rigid = dynamic_cast<const bodies::RigidBody *>(b.get())) {
+      j["center"] = vec3_json(rigid->center());
+      j["inertia"] =
+          io::Json(std::vector<double>(rigid->inertia().data(), rigid->inertia().data() + 9));
+    } else {
+      j["frame_origin"] = vec3_json(b->origin());
+      j["elastic_coordinates"] = b->elastic_coordinates();
+    }
     bl.push_back(j);
   }
   s["bodies"] = bl;

@@ -70,7 +70,7 @@ SurfaceCentroid surface_centroid(const mesh::MeshData &mesh, const std::string &
 }
 
 RigidBody::RigidBody(std::string name, const MassProperties &props)
-    : name_(std::move(name)), props_(props) {}
+    : Body(std::move(name)), props_(props) {}
 
 void RigidBody::inertial_force(const Vec7 &q, const Vec7 &v, const Vec7 &a, Vec7 *f, Mat7 *df_dq,
                                Mat7 *df_dv, Mat7 *mass_matrix) const {
@@ -107,24 +107,22 @@ double RigidBody::kinetic_energy(const Vec7 &q, const Vec7 &v) const {
   return 0.5 * props_.mass * v.head<3>().squaredNorm() + 0.5 * w.dot(props_.inertia * w);
 }
 
-RigidBody::Vec7 RigidBody::placement(const Vec3 &origin, const Mat3 &R) const {
-  Vec7 q;
-  q.head<3>() = origin + R * props_.center;
-  q.tail<4>() = from_matrix(R);
-  return q;
+void RigidBody::residual(const ConstVectorRef &q, const ConstVectorRef &v,
+                         const ConstVectorRef &a, const Vec3 &gravity, Eigen::Ref<Vector> res,
+                         Matrix *K, Matrix *C, Matrix *M) const {
+  Vec7 f;
+  Mat7 k, c, m;
+  inertial_force(q, v, a, &f, K ? &k : nullptr, C ? &c : nullptr, M ? &m : nullptr);
+  res = f;
+  res.head<3>() -= props_.mass * gravity;
+  if (K) *K = k;
+  if (C) *C = c;
+  if (M) *M = m;
 }
 
-RigidBody::Vec7 RigidBody::placement_velocity(const Vec7 &q, const Vec3 &velocity,
-                                              const Vec3 &omega) const {
-  const Mat3 R = rotation(q.tail<4>());
-  Vec7 v;
-  v.head<3>() = velocity + omega.cross(R * props_.center);
-  v.tail<4>() = 0.5 * g_matrix(q.tail<4>()).transpose() * omega; // omega = 2 G p', p' _|_ p
-  return v;
-}
-
-Vec3 RigidBody::point(const Vec7 &q, const Vec3 &X) const {
-  return q.head<3>() + rotation(q.tail<4>()) * (X - props_.center);
+double RigidBody::energy(const ConstVectorRef &q, const ConstVectorRef &v,
+                         const Vec3 &gravity) const {
+  return kinetic_energy(q, v) - props_.mass * gravity.dot(q.head<3>());
 }
 
 } // namespace flexopt::bodies

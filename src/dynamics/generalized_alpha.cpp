@@ -19,10 +19,11 @@ struct SparseIteration {
   Eigen::SparseMatrix<double> S;
   Eigen::SparseLU<Eigen::SparseMatrix<double>, Eigen::COLAMDOrdering<int>> lu;
   int bodies = 0;
+  std::vector<int> size;         ///< per body: coordinate block size
   std::vector<int> block_offset; ///< per (bi, bj): start in block_index, or -1
-  std::vector<int> block_index;  ///< 49 value indices per coupled block, row-major
+  std::vector<int> block_index;  ///< size_i * size_j value indices per coupled block, row-major
   /// Per enforced row k: (body, start in row_index) for each body it touches; row_index holds
-  /// 7 value indices of S(n + k, 7 b + j) followed by 7 of S(7 b + j, n + k).
+  /// size_b value indices of S(n + k, o_b + j) followed by size_b of S(o_b + j, n + k).
   std::vector<std::vector<std::pair<int, int>>> row_entries;
   std::vector<int> row_index;
 };
@@ -78,9 +79,9 @@ GeneralizedAlpha::GeneralizedAlpha(const Mechanism &mechanism, AlphaParameters p
       if (!mech_.enforced(row)) continue;
       for (int b : {e.a, e.b})
         if (b >= 0)
-          for (int j = 0; j < 7; ++j) {
-            t.emplace_back(n + k, 7 * b + j, 1.0);
-            t.emplace_back(7 * b + j, n + k, 1.0);
+          for (int j = 0; j < mech_.size(b); ++j) {
+            t.emplace_back(n + k, mech_.offset(b) + j, 1.0);
+            t.emplace_back(mech_.offset(b) + j, n + k, 1.0);
           }
       ++k;
     }
@@ -88,8 +89,9 @@ GeneralizedAlpha::GeneralizedAlpha(const Mechanism &mechanism, AlphaParameters p
   for (int a = 0; a < nb; ++a)
     for (int b = 0; b < nb; ++b)
       if (coupled[static_cast<std::size_t>(a)][static_cast<std::size_t>(b)])
-        for (int i = 0; i < 7; ++i)
-          for (int j = 0; j < 7; ++j) t.emplace_back(7 * a + i, 7 * b + j, 1.0);
+        for (int i = 0; i < mech_.size(a); ++i)
+          for (int j = 0; j < mech_.size(b); ++j)
+            t.emplace_back(mech_.offset(a) + i, mech_.offset(b) + j, 1.0);
   sparse_ = std::make_unique<SparseIteration>();
   SparseIteration &sp = *sparse_;
   sp.S.resize(n + m, n + m);
@@ -100,14 +102,16 @@ GeneralizedAlpha::GeneralizedAlpha(const Mechanism &mechanism, AlphaParameters p
   const double *base = sp.S.valuePtr();
   auto index = [&](int i, int j) { return static_cast<int>(&sp.S.coeffRef(i, j) - base); };
   sp.bodies = nb;
+  for (int b = 0; b < nb; ++b) sp.size.push_back(mech_.size(b));
   sp.block_offset.assign(static_cast<std::size_t>(nb * nb), -1);
   for (int a = 0; a < nb; ++a)
     for (int b = 0; b < nb; ++b)
       if (coupled[static_cast<std::size_t>(a)][static_cast<std::size_t>(b)]) {
         sp.block_offset[static_cast<std::size_t>(a * nb + b)] =
             static_cast<int>(sp.block_index.size());
-        for (int i = 0; i < 7; ++i)
-          for (int j = 0; j < 7; ++j) sp.block_index.push_back(index(7 * a + i, 7 * b + j));
+        for (int i = 0; i < mech_.size(a); ++i)
+          for (int j = 0; j < mech_.size(b); ++j)
+            sp.block_index.push_back(index(mech_.offset(a) + i, mech_.offset(b) + j));
       }
   sp.row_entries.assign(static_cast<std::size_t>(m), {});
   row = 0, k = 0;
@@ -118,8 +122,10 @@ GeneralizedAlpha::GeneralizedAlpha(const Mechanism &mechanism, AlphaParameters p
         if (b >= 0) {
           sp.row_entries[static_cast<std::size_t>(k)].emplace_back(
               b, static_cast<int>(sp.row_index.size()));
-          for (int j = 0; j < 7; ++j) sp.row_index.push_back(index(n + k, 7 * b + j));
-          for (int j = 0; j < 7; ++j) sp.row_index.push_back(index(7 * b + j, n + k));
+          for (int j = 0; j < mech_.size(b); ++j)
+            sp.row_index.push_back(index(n + k, mech_.offset(b) + j));
+          for (int j = 0; j < mech_.size(b); ++j)
+            sp.row_index.push_back(index(mech_.offset(b) + j, n + k));
         }
       ++k;
     }
@@ -145,7 +151,7 @@ State GeneralizedAlpha::initial_state(const Vector &q0, const Vector &v0, double
   // Positions: Gauss-Newton on the smallest correction, q <- q - J^T (J J^T)^-1 Phi.
   double scale = 1;
   for (int b = 0; b < static_cast<int>(mech_.bodies.size()); ++b)
-    scale = std::max(scale, q0.segment<3>(7 * b).cwiseAbs().maxCoeff());
+    scale = std::max(scale, q0.segment<3>(mech_.offset(b)).cwiseAbs().maxCoeff());
   const double tol = 1e-13 * scale;
   int it = 0;
   for (; it < 50; ++it) {
@@ -207,7 +213,7 @@ namespace {
 /// Writes the Newton iteration matrix block by block, either into a dense matrix or straight
 /// into the values of the sparse one (through the index maps built by the constructor), and
 /// accumulates Phi_q^T lambda. Gradient rows go to row n + k and, transposed, to column n + k;
-/// 7 x 7 blocks are scaled by `block_scale`.
+/// body blocks are scaled by `block_scale`.
 struct IterationAssembly : joints::Sink {
   Matrix *A;           ///< dense target, or null
   SparseIteration *sp; ///< sparse target (with its value indices), or null
@@ -219,31 +225,51 @@ struct IterationAssembly : joints::Sink {
   IterationAssembly(Matrix *A_, SparseIteration *sp_, int n_, const Vector &l, Vector &jtl)
       : A(A_), sp(sp_), values(sp_ ? sp_->S.valuePtr() : nullptr), n(n_), lambda(l),
         jt_lambda(jtl) {}
-  void add_row(int row, int body, const joints::Row7 &g) override {
-    jt_lambda.segment<7>(7 * body) += g.transpose() * lambda(row);
+  void add_row(int row, const joints::BodyRef &body, const joints::Row &g) override {
+    const int size = static_cast<int>(g.size());
+    jt_lambda.segment(body.offset, size) += g.transpose() * lambda(row);
     if (A) {
-      A->block<1, 7>(n + row, 7 * body) += g;
-      A->block<7, 1>(7 * body, n + row) += g.transpose();
+      A->block(n + row, body.offset, 1, size) += g;
+      A->block(body.offset, n + row, size, 1) += g.transpose();
       return;
     }
     for (const auto &[bb, start] : sp->row_entries[static_cast<std::size_t>(row)])
-      if (bb == body) {
-        for (int j = 0; j < 7; ++j) {
+      if (bb == body.index) {
+        for (int j = 0; j < size; ++j) {
           values[sp->row_index[static_cast<std::size_t>(start + j)]] += g(j);
-          values[sp->row_index[static_cast<std::size_t>(start + 7 + j)]] += g(j);
+          values[sp->row_index[static_cast<std::size_t>(start + size + j)]] += g(j);
         }
         return;
       }
   }
-  void add_block(int bi, int bj, const joints::Block7 &B) override {
+  /// Value index of entry (i, j) of the block of bodies (bi, bj).
+  int value_index(const joints::BodyRef &bi, const joints::BodyRef &bj, int i, int j) const {
+    const int off = sp->block_offset[static_cast<std::size_t>(bi.index * sp->bodies + bj.index)];
+    return sp->block_index[static_cast<std::size_t>(
+        off + i * sp->size[static_cast<std::size_t>(bj.index)] + j)];
+  }
+  void add_block(const joints::BodyRef &bi, const joints::BodyRef &bj, int i0, int j0,
+                 const Eigen::Ref<const Matrix> &B) override {
     if (A) {
-      A->block<7, 7>(7 * bi, 7 * bj) += block_scale * B;
+      A->block(bi.offset + i0, bj.offset + j0, B.rows(), B.cols()) += block_scale * B;
       return;
     }
-    const int off = sp->block_offset[static_cast<std::size_t>(bi * sp->bodies + bj)];
-    for (int i = 0; i < 7; ++i)
-      for (int j = 0; j < 7; ++j)
-        values[sp->block_index[static_cast<std::size_t>(off + 7 * i + j)]] += block_scale * B(i, j);
+    for (Eigen::Index i = 0; i < B.rows(); ++i)
+      for (Eigen::Index j = 0; j < B.cols(); ++j)
+        values[value_index(bi, bj, i0 + static_cast<int>(i), j0 + static_cast<int>(j))] +=
+            block_scale * B(i, j);
+  }
+  void add_product(const joints::BodyRef &bi, const joints::BodyRef &bj, double scale,
+                   const joints::Jacobian &X, const joints::Jacobian &Y) override {
+    const double s = block_scale * scale;
+    if (A) {
+      A->block(bi.offset, bj.offset, X.cols(), Y.cols()).noalias() += s * X.transpose() * Y;
+      return;
+    }
+    for (Eigen::Index i = 0; i < X.cols(); ++i)
+      for (Eigen::Index j = 0; j < Y.cols(); ++j)
+        values[value_index(bi, bj, static_cast<int>(i), static_cast<int>(j))] +=
+            s * X.col(i).dot(Y.col(j));
   }
 };
 
@@ -256,7 +282,7 @@ bool GeneralizedAlpha::newton_direction(const State &next, double bp, double gp,
   const int n = mech_.coordinates(), m = mech_.constraints();
   const int nb = static_cast<int>(mech_.bodies.size());
   Vector r, jtl = Vector::Zero(n), rhs(n + m);
-  std::vector<joints::Block7> K, C, M;
+  std::vector<Matrix> &K = work_K_, &C = work_C_, &M = work_M_;
   mech_.dynamics_blocks(next.q, next.v, next.acc, next.t, r, K, C, M);
   Matrix A;
   if (sparse_)
@@ -268,7 +294,9 @@ bool GeneralizedAlpha::newton_direction(const State &next, double bp, double gp,
   // constraint Hessian (part of K, so divided by beta').
   for (int b = 0; b < nb; ++b) {
     const auto k = static_cast<std::size_t>(b);
-    assembly.add_block(b, b, M[k] + (gp / bp) * C[k] + (1.0 / bp) * K[k]);
+    M[k] += (gp / bp) * C[k] + (1.0 / bp) * K[k];
+    const joints::BodyRef ref{b, mech_.offset(b)};
+    assembly.add_block(ref, ref, 0, 0, M[k]);
   }
   assembly.block_scale = 1.0 / bp;
   mech_.constraint(next.q, next.t, phi, assembly);

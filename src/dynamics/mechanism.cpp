@@ -1,10 +1,42 @@
 #include "flexopt/dynamics/mechanism.hpp"
 
+#include "flexopt/core/error.hpp"
+
 #include <cmath>
 
 namespace flexopt::dynamics {
 
+namespace {
+
+/// An elastic part sized for a body with n elastic coordinates: zero if unset.
+void size_elastic(joints::Elastic &S, int n, const std::string &owner) {
+  if (S.cols() == n) return;
+  if (S.cols() != 0)
+    throw Error(owner + ": elastic part with " + std::to_string(S.cols()) +
+                    " columns for a body with " + std::to_string(n) + " elastic coordinates",
+                true);
+  S = joints::Elastic::Zero(3, n);
+}
+
+} // namespace
+
 void Mechanism::finalize() {
+  offsets_.clear();
+  coordinates_ = 0;
+  for (const auto &b : bodies) {
+    offsets_.push_back(coordinates_);
+    coordinates_ += b->coordinates();
+  }
+  auto elastic = [&](int b) { return b < 0 ? 0 : size(b) - 7; };
+  for (auto &e : equations) {
+    e.oa = e.a < 0 ? 0 : offset(e.a);
+    e.ob = e.b < 0 ? 0 : offset(e.b);
+    e.na = elastic(e.a);
+    e.nb = elastic(e.b);
+    for (joints::Elastic *S : {&e.Sa, &e.Ua, &e.Ua2}) size_elastic(*S, e.na, e.owner);
+    for (joints::Elastic *S : {&e.Sb, &e.Vb}) size_elastic(*S, e.nb, e.owner);
+  }
+  for (auto &f : forces) size_elastic(f.S, elastic(f.body), "force on body " + body(f.body).name());
   row_equation_.clear();
   row_index_.clear();
   for (std::size_t e = 0; e < equations.size(); ++e)
@@ -85,11 +117,18 @@ namespace {
 class EnforcedRows : public joints::Sink {
 public:
   EnforcedRows(joints::Sink &inner, const std::vector<int> &map) : inner_(inner), map_(map) {}
-  void add_row(int row, int body, const joints::Row7 &g) override {
+  void add_row(int row, const joints::BodyRef &body, const joints::Row &g) override {
     const int k = map_[static_cast<std::size_t>(row)];
     if (k >= 0) inner_.add_row(k, body, g);
   }
-  void add_block(int bi, int bj, const joints::Block7 &B) override { inner_.add_block(bi, bj, B); }
+  void add_block(const joints::BodyRef &bi, const joints::BodyRef &bj, int i0, int j0,
+                 const Eigen::Ref<const Matrix> &B) override {
+    inner_.add_block(bi, bj, i0, j0, B);
+  }
+  void add_product(const joints::BodyRef &bi, const joints::BodyRef &bj, double scale,
+                   const joints::Jacobian &X, const joints::Jacobian &Y) override {
+    inner_.add_product(bi, bj, scale, X, Y);
+  }
 
 private:
   joints::Sink &inner_;
@@ -137,31 +176,33 @@ void Mechanism::add_constraint_hessian(const Vector &q, double t, const Vector &
 }
 
 void Mechanism::dynamics_blocks(const Vector &q, const Vector &v, const Vector &a, double t,
-                                Vector &r, std::vector<joints::Block7> &K,
-                                std::vector<joints::Block7> &C,
-                                std::vector<joints::Block7> &M) const {
+                                Vector &r, std::vector<Matrix> &K, std::vector<Matrix> &C,
+                                std::vector<Matrix> &M) const {
   const int n = coordinates();
   const std::size_t nb = bodies.size();
   r.setZero(n);
   K.resize(nb);
   C.resize(nb);
   M.resize(nb);
-  bodies::RigidBody::Vec7 f;
   for (std::size_t b = 0; b < nb; ++b) {
-    const int o = 7 * static_cast<int>(b);
-    bodies[b].inertial_force(q.segment<7>(o), v.segment<7>(o), a.segment<7>(o), &f, &K[b], &C[b],
-                             &M[b]);
-    r.segment<7>(o) = f;
-    r.segment<3>(o) -= bodies[b].mass() * gravity;
+    const int o = offsets_[b], m = bodies[b]->coordinates();
+    bodies[b]->residual(q.segment(o, m), v.segment(o, m), a.segment(o, m), gravity,
+                        r.segment(o, m), &K[b], &C[b], &M[b]);
   }
+  bodies::Mat4 pp;
+  Eigen::Matrix<double, 4, Eigen::Dynamic> pz;
   for (const PointForce &pf : forces) {
-    const int o = 7 * pf.body;
+    const int o = offset(pf.body), m = size(pf.body);
     const Vec3 F(pf.value[0](t), pf.value[1](t), pf.value[2](t));
-    const bodies::Vec4 p = q.segment<4>(o + 3);
-    r.segment<3>(o) -= F;
-    r.segment<4>(o + 3) -= bodies::rotate_jacobian(p, pf.s).transpose() * F;
-    K[static_cast<std::size_t>(pf.body)].bottomRightCorner<4, 4>() -=
-        bodies::rotate_hessian(pf.s, F);
+    const auto qb = q.segment(o, m);
+    r.segment(o, m) -= joints::anchor_jacobian(qb, pf.s, pf.S).transpose() * F;
+    joints::anchor_hessian(qb, pf.s, pf.S, F, pp, pz);
+    Matrix &Kb = K[static_cast<std::size_t>(pf.body)];
+    Kb.block<4, 4>(3, 3) -= pp;
+    if (pz.cols() > 0) {
+      Kb.block(3, 7, 4, pz.cols()) -= pz;
+      Kb.block(7, 3, pz.cols(), 4) -= pz.transpose();
+    }
   }
 }
 
@@ -204,7 +245,7 @@ Vector Mechanism::constraint_convective(const Vector &q, const Vector &v, double
 
 void Mechanism::dynamics(const Vector &q, const Vector &v, const Vector &a, double t, Vector &r,
                          Matrix *K, Matrix *C, Matrix *M) const {
-  std::vector<joints::Block7> Kb, Cb, Mb;
+  std::vector<Matrix> Kb, Cb, Mb;
   dynamics_blocks(q, v, a, t, r, Kb, Cb, Mb);
   const int n = coordinates();
   // The equations of motion couple bodies only through the constraints: block diagonal.
@@ -212,16 +253,16 @@ void Mechanism::dynamics(const Vector &q, const Vector &v, const Vector &a, doub
     if (!out) continue;
     out->setZero(n, n);
     for (std::size_t b = 0; b < bodies.size(); ++b)
-      out->block<7, 7>(7 * static_cast<int>(b), 7 * static_cast<int>(b)) = (*blocks)[b];
+      out->block(offsets_[b], offsets_[b], (*blocks)[b].rows(), (*blocks)[b].cols()) =
+          (*blocks)[b];
   }
 }
 
 double Mechanism::energy(const Vector &q, const Vector &v) const {
   double e = 0;
   for (std::size_t b = 0; b < bodies.size(); ++b) {
-    const int o = 7 * static_cast<int>(b);
-    e += bodies[b].kinetic_energy(q.segment<7>(o), v.segment<7>(o));
-    e -= bodies[b].mass() * gravity.dot(q.segment<3>(o));
+    const int o = offsets_[b], m = bodies[b]->coordinates();
+    e += bodies[b]->energy(q.segment(o, m), v.segment(o, m), gravity);
   }
   return e;
 }

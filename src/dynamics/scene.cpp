@@ -1,10 +1,16 @@
 #include "flexopt/dynamics/scene.hpp"
 
+#include "flexopt/bodies/ffrf_body.hpp"
+#include "flexopt/bodies/rigid_body.hpp"
 #include "flexopt/core/context.hpp"
 #include "flexopt/core/error.hpp"
 #include "flexopt/mesh/load.hpp"
+#include "flexopt/reduce/flexible_reduction.hpp"
+#include "flexopt/reduce/modal.hpp"
 
 #include <cmath>
+#include <cstdio>
+#include <tuple>
 #include <map>
 #include <memory>
 
@@ -49,12 +55,14 @@ std::vector<joints::Equation> joint_equations(const std::string &type, const Att
     Equation e;
     e.kind = K::Coincide;
     e.sa = A.s, e.sb = B.s;
+    e.Sa = A.translation, e.Sb = B.translation;
     add(e);
   };
   auto perpendicular = [&](const Vec3 &ua_world, const Vec3 &vb_world) {
     Equation e;
     e.kind = K::Perpendicular;
     e.ua = A.local(ua_world), e.vb = B.local(vb_world);
+    e.Ua = A.vector_part(e.ua), e.Vb = B.vector_part(e.vb);
     add(e);
   };
   auto lock_orientation = [&] {
@@ -77,6 +85,7 @@ std::vector<joints::Equation> joint_equations(const std::string &type, const Att
       Equation e;
       e.kind = K::PointOnPlane;
       e.ua = A.local(u), e.sa = A.s, e.sb = B.s;
+      e.Ua = A.vector_part(e.ua), e.Sa = A.translation, e.Sb = B.translation;
       e.c = u.dot(B.world - A.world); // the interfaces need not lie on one axis line
       add(e);
     }
@@ -101,10 +110,12 @@ joints::Equation driver_equation(const std::string &joint_type, const Attachment
     // angle = atan2(u2_a . u1_b, u1_a . u1_b) = f(t):  (sin f u1_a - cos f u2_a) . u1_b = 0
     e.kind = K::RotationDriver;
     e.ua = A.local(u1), e.ua2 = A.local(u2), e.vb = B.local(u1);
+    e.Ua = A.vector_part(e.ua), e.Ua2 = A.vector_part(e.ua2), e.Vb = B.vector_part(e.vb);
   } else if (joint_type == "prismatic") {
     // displacement along the axis from the initial configuration = f(t)
     e.kind = K::TranslationDriver;
     e.ua = A.local(w), e.sa = A.s, e.sb = B.s;
+    e.Ua = A.vector_part(e.ua), e.Sa = A.translation, e.Sb = B.translation;
     e.c = w.dot(B.world - A.world);
   } else {
     throw Error("a driver needs a revolute or prismatic joint, not '" + joint_type + "'", true);
@@ -112,55 +123,126 @@ joints::Equation driver_equation(const std::string &joint_type, const Attachment
   return e;
 }
 
+namespace {
+
+/// The Rayleigh damping a M + b K of a reduced body.
+Matrix rayleigh(const reduce::FlexibleReduction &r, const std::array<double, 2> &ab) {
+  return ab[0] * r.M + ab[1] * r.K;
+}
+
+} // namespace
+
 Scene build_scene(MPI_Comm comm, const io::Case &c) {
   Scene scene;
   Mechanism &mech = scene.mechanism;
   std::map<std::string, int> body_index;
-  // Per body: interface centroids (body frame) by name; initial rotation and origin.
-  std::vector<std::map<std::string, Vec3>> interfaces(c.bodies.size());
-  std::vector<Mat3> R0(c.bodies.size());
-  std::vector<Vec3> origin(c.bodies.size());
-  scene.q0.resize(7 * static_cast<int>(c.bodies.size()));
-  scene.v0.resize(scene.q0.size());
-  for (std::size_t b = 0; b < c.bodies.size(); ++b) {
+  // Per body: interface centroids (mesh coordinates) by name, and for flexible bodies the
+  // interface nodes' elastic motion; initial rotation and origin.
+  const std::size_t nbodies = c.bodies.size();
+  std::vector<std::map<std::string, Vec3>> interfaces(nbodies);
+  std::vector<std::map<std::string, std::pair<joints::Elastic, joints::Elastic>>> elastic(nbodies);
+  std::vector<std::shared_ptr<reduce::FlexibleReduction>> reductions(nbodies);
+  std::vector<Mat3> R0(nbodies);
+  std::vector<Vec3> origin(nbodies);
+  for (std::size_t b = 0; b < nbodies; ++b) {
     const io::BodySpec &spec = c.bodies[b];
-    const double density = c.material(spec.material).density;
-    // Mass properties and interface centroids from the whole mesh on rank 0, broadcast as one
-    // buffer: every rank, whatever the rank count, holds the same numbers to the last bit.
-    std::vector<double> buf(13 + 3 * spec.interfaces.size(), 0.0);
-    scene.meshes.push_back(mesh::load_body_mesh(comm, spec, [&](const mesh::MeshData &data) {
-      const bodies::MassProperties p = bodies::mass_properties(data, density);
-      buf[0] = p.mass;
-      for (int k = 0; k < 3; ++k) buf[static_cast<std::size_t>(1 + k)] = p.center(k);
-      for (int k = 0; k < 9; ++k) buf[static_cast<std::size_t>(4 + k)] = p.inertia(k / 3, k % 3);
+    const auto &mat = c.material(spec.material);
+    if (spec.model == "ffrf") {
+      if (spec.interfaces.empty())
+        throw Error(spec.where.str() + ": body '" + spec.name +
+                        "' (model: ffrf) lists no interfaces; its floating frame is clamped at "
+                        "the first one",
+                    true);
+      scene.meshes.push_back(mesh::load_body_mesh(comm, spec));
+      const mesh::DistributedMesh &m = scene.meshes.back();
+      auto red = std::make_shared<reduce::FlexibleReduction>();
+      const double t0 = wall_time();
+      reduce::reduce_flexible_body(m, fem::IsotropicMaterial{mat.E, mat.nu, mat.density},
+                                   spec.interfaces, spec.reduction.modes,
+                                   spec.reduction.geometric_stiffening, *red);
+      bodies::FfrfModel model;
+      model.invariants = red->invariants;
+      model.stiffness = red->K;
+      model.damping = rayleigh(*red, spec.rayleigh);
+      model.geometric = red->geometric;
+      model.origin = red->origin;
+      auto body = std::make_shared<bodies::FfrfBody>(spec.name, std::move(model));
       for (std::size_t i = 0; i < spec.interfaces.size(); ++i) {
-        const bodies::SurfaceCentroid sc = bodies::surface_centroid(data, spec.interfaces[i]);
-        for (int k = 0; k < 3; ++k) buf[13 + 3 * i + static_cast<std::size_t>(k)] = sc.centroid(k);
+        interfaces[b][spec.interfaces[i]] = red->centroids[i];
+        elastic[b][spec.interfaces[i]] = {red->translation[i], red->rotation[i]};
       }
-    }));
-    MPI_Bcast(buf.data(), static_cast<int>(buf.size()), MPI_DOUBLE, 0, comm);
-    bodies::MassProperties p;
-    p.mass = buf[0];
-    p.center = Vec3(buf[1], buf[2], buf[3]);
-    for (int k = 0; k < 9; ++k) p.inertia(k / 3, k % 3) = buf[static_cast<std::size_t>(4 + k)];
-    for (std::size_t i = 0; i < spec.interfaces.size(); ++i)
-      interfaces[b][spec.interfaces[i]] = Vec3(buf[13 + 3 * i], buf[14 + 3 * i], buf[15 + 3 * i]);
-    mech.bodies.emplace_back(spec.name, p);
+      scene.owned_modes.push_back(reduce::owned_basis_values(*red, m.owned_nodes));
+      print0(comm,
+             "body %s: ffrf, mass %.6g kg, frame at interface '%s' (%.6g, %.6g, %.6g), %d elastic "
+             "coordinates (%d static + %d fixed-interface modes)%s, reduced in %.2f s\n",
+             spec.name.c_str(), body->mass(), spec.interfaces.front().c_str(), red->origin.x(),
+             red->origin.y(), red->origin.z(), red->size(), red->static_modes, red->fixed_modes,
+             spec.reduction.geometric_stiffening ? ", centrifugal geometric stiffening" : "",
+             wall_time() - t0);
+      if (red->size() > 0) {
+        std::string freq;
+        for (int k = 0; k < std::min(red->size(), 8); ++k) {
+          char buf[32];
+          std::snprintf(buf, sizeof buf, "%s%.6g", k ? ", " : "",
+                        reduce::frequency_hz(red->eigenvalues(k)));
+          freq += buf;
+        }
+        print0(comm, "body %s: reduced frequencies (frame clamped) [Hz]: %s%s\n",
+               spec.name.c_str(), freq.c_str(), red->size() > 8 ? ", ..." : "");
+      }
+      reductions[b] = red;
+      mech.bodies.push_back(body);
+    } else {
+      // Mass properties and interface centroids from the whole mesh on rank 0, broadcast as
+      // one buffer: every rank, whatever the rank count, holds the same numbers to the last
+      // bit.
+      std::vector<double> buf(13 + 3 * spec.interfaces.size(), 0.0);
+      scene.meshes.push_back(mesh::load_body_mesh(comm, spec, [&](const mesh::MeshData &data) {
+        const bodies::MassProperties p = bodies::mass_properties(data, mat.density);
+        buf[0] = p.mass;
+        for (int k = 0; k < 3; ++k) buf[static_cast<std::size_t>(1 + k)] = p.center(k);
+        for (int k = 0; k < 9; ++k) buf[static_cast<std::size_t>(4 + k)] = p.inertia(k / 3, k % 3);
+        for (std::size_t i = 0; i < spec.interfaces.size(); ++i) {
+          const bodies::SurfaceCentroid sc = bodies::surface_centroid(data, spec.interfaces[i]);
+          for (int k = 0; k < 3; ++k)
+            buf[13 + 3 * i + static_cast<std::size_t>(k)] = sc.centroid(k);
+        }
+      }));
+      MPI_Bcast(buf.data(), static_cast<int>(buf.size()), MPI_DOUBLE, 0, comm);
+      bodies::MassProperties p;
+      p.mass = buf[0];
+      p.center = Vec3(buf[1], buf[2], buf[3]);
+      for (int k = 0; k < 9; ++k) p.inertia(k / 3, k % 3) = buf[static_cast<std::size_t>(4 + k)];
+      for (std::size_t i = 0; i < spec.interfaces.size(); ++i)
+        interfaces[b][spec.interfaces[i]] =
+            Vec3(buf[13 + 3 * i], buf[14 + 3 * i], buf[15 + 3 * i]);
+      mech.bodies.push_back(std::make_shared<bodies::RigidBody>(spec.name, p));
+      scene.owned_modes.emplace_back();
+      const Eigen::SelfAdjointEigenSolver<Mat3> principal(p.inertia);
+      print0(comm,
+             "body %s: rigid, mass %.6g kg, centre of mass (%.6g, %.6g, %.6g), principal inertia "
+             "(%.6g, %.6g, %.6g) kg m^2\n",
+             spec.name.c_str(), p.mass, p.center.x(), p.center.y(), p.center.z(),
+             principal.eigenvalues()(0), principal.eigenvalues()(1), principal.eigenvalues()(2));
+    }
     body_index[spec.name] = static_cast<int>(b);
     R0[b] = Eigen::AngleAxisd(spec.initial.angle, v3(spec.initial.axis)).toRotationMatrix();
     origin[b] = v3(spec.initial.position);
-    const auto q = mech.bodies.back().placement(origin[b], R0[b]);
-    scene.q0.segment<7>(7 * static_cast<int>(b)) = q;
-    scene.v0.segment<7>(7 * static_cast<int>(b)) = mech.bodies.back().placement_velocity(
-        q, v3(spec.initial.velocity), v3(spec.initial.angular_velocity));
-    print0(comm,
-           "body %s: rigid, mass %.6g kg, centre of mass (%.6g, %.6g, %.6g), principal inertia "
-           "(%.6g, %.6g, %.6g) kg m^2\n",
-           spec.name.c_str(), p.mass, p.center.x(), p.center.y(), p.center.z(),
-           Eigen::SelfAdjointEigenSolver<Mat3>(p.inertia).eigenvalues()(0),
-           Eigen::SelfAdjointEigenSolver<Mat3>(p.inertia).eigenvalues()(1),
-           Eigen::SelfAdjointEigenSolver<Mat3>(p.inertia).eigenvalues()(2));
   }
+  int total = 0;
+  for (const auto &b : mech.bodies) total += b->coordinates();
+  scene.q0.setZero(total);
+  scene.v0.setZero(total);
+  for (std::size_t b = 0, o = 0; b < nbodies; ++b) {
+    const bodies::Body &body = *mech.bodies[b];
+    const auto n = static_cast<Eigen::Index>(body.coordinates());
+    const bodies::Vector q = body.placement(origin[b], R0[b]);
+    scene.q0.segment(static_cast<Eigen::Index>(o), n) = q;
+    scene.v0.segment(static_cast<Eigen::Index>(o), n) = body.placement_velocity(
+        q, v3(c.bodies[b].initial.velocity), v3(c.bodies[b].initial.angular_velocity));
+    o += static_cast<std::size_t>(n);
+  }
+
   std::map<std::string, Vec3> ground;
   for (const auto &g : c.ground) ground[g.name] = v3(g.origin);
 
@@ -172,11 +254,13 @@ Scene build_scene(MPI_Comm comm, const io::Case &c) {
       return a;
     }
     const int b = body_index.at(body);
+    const auto ub = static_cast<std::size_t>(b);
     a.body = b;
-    const Vec3 X = interfaces[static_cast<std::size_t>(b)].at(iface);
-    a.s = X - mech.bodies[static_cast<std::size_t>(b)].center();
-    a.R = R0[static_cast<std::size_t>(b)];
-    a.world = origin[static_cast<std::size_t>(b)] + a.R * X;
+    const Vec3 X = interfaces[ub].at(iface);
+    a.s = X - mech.bodies[ub]->origin();
+    a.R = R0[ub];
+    a.world = origin[ub] + a.R * X;
+    if (reductions[ub]) std::tie(a.translation, a.rotation) = elastic[ub].at(iface);
     return a;
   };
 
@@ -218,8 +302,9 @@ Scene build_scene(MPI_Comm comm, const io::Case &c) {
   for (const io::ForceSpec &f : c.forces) {
     PointForce pf;
     pf.body = body_index.at(f.body);
-    pf.s = interfaces[static_cast<std::size_t>(pf.body)].at(f.interface) -
-           mech.bodies[static_cast<std::size_t>(pf.body)].center();
+    const auto ub = static_cast<std::size_t>(pf.body);
+    pf.s = interfaces[ub].at(f.interface) - mech.bodies[ub]->origin();
+    if (reductions[ub]) pf.S = elastic[ub].at(f.interface).first;
     for (int k = 0; k < 3; ++k)
       pf.value[static_cast<std::size_t>(k)] = Expression(f.value[static_cast<std::size_t>(k)]);
     mech.forces.push_back(pf);
@@ -229,27 +314,36 @@ Scene build_scene(MPI_Comm comm, const io::Case &c) {
     bs.name = s.name;
     bs.quantity = s.quantity;
     bs.body = body_index.at(s.body);
+    const auto ub = static_cast<std::size_t>(bs.body);
     bs.point = v3(s.point);
+    bs.s = bs.point - mech.bodies[ub]->origin();
+    if (reductions[ub])
+      bs.S = reduce::basis_at_point(scene.meshes[ub], *reductions[ub], bs.point,
+                                    s.where.str() + ": sensor '" + s.name + "' point");
     scene.sensors.push_back(bs);
   }
   mech.finalize();
+  for (BoundSensor &bs : scene.sensors)
+    if (bs.S.cols() == 0) bs.S.setZero(3, mech.size(bs.body) - 7);
   scene.redundant_rows = mech.drop_redundant_rows(scene.q0, 0.0);
-  for (std::size_t b = 0; b < c.bodies.size(); ++b)
-    scene.length_scale = std::max(
-        scene.length_scale, scene.q0.segment<3>(7 * static_cast<int>(b)).cwiseAbs().maxCoeff());
+  for (int b = 0; b < static_cast<int>(nbodies); ++b)
+    scene.length_scale =
+        std::max(scene.length_scale, scene.q0.segment<3>(mech.offset(b)).cwiseAbs().maxCoeff());
   return scene;
 }
 
 Vec3 sensor_value(const Scene &scene, const BoundSensor &s, const Vector &q) {
-  const auto &body = scene.mechanism.bodies[static_cast<std::size_t>(s.body)];
-  const int o = 7 * s.body;
+  const Mechanism &mech = scene.mechanism;
+  const int o = mech.offset(s.body), n = mech.size(s.body);
   if (s.quantity == "rotation_angle") {
     const Mat3 A = bodies::rotation(q.segment<4>(o + 3).normalized());
     const Mat3 A0 = bodies::rotation(scene.q0.segment<4>(o + 3).normalized());
     return bodies::rotation_vector(A * A0.transpose());
   }
-  const Vec3 x = body.point(q.segment<7>(o), s.point);
-  if (s.quantity == "displacement") return x - body.point(scene.q0.segment<7>(o), s.point);
+  if (s.quantity == "elastic_displacement") return s.S * q.segment(o + 7, n - 7);
+  const Vec3 x = joints::anchor_position(q.segment(o, n), s.s, s.S);
+  if (s.quantity == "displacement")
+    return x - joints::anchor_position(scene.q0.segment(o, n), s.s, s.S);
   return x;
 }
 

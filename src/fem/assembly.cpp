@@ -195,6 +195,19 @@ void assemble_mass(const mesh::DistributedMesh &mesh, double density,
   });
 }
 
+void assemble_geometric_stiffness(const mesh::DistributedMesh &mesh,
+                                  const IsotropicMaterial &material, Vec u_ghosted, Mat A) {
+  Vec local;
+  FX_PETSC(VecGhostGetLocalForm(u_ghosted, &local));
+  const PetscScalar *u;
+  FX_PETSC(VecGetArrayRead(local, &u));
+  assemble_matrix(mesh, A, [&](PetscInt e, const ElementCoords &X) {
+    return element_geometric_stiffness(mesh.type, X, material, gather_element(mesh, e, u));
+  });
+  FX_PETSC(VecRestoreArrayRead(local, &u));
+  FX_PETSC(VecGhostRestoreLocalForm(u_ghosted, &local));
+}
+
 void add_body_force(const mesh::DistributedMesh &mesh, const Eigen::Vector3d &b, Vec f) {
   const int npe = mesh.nodes_per_element();
   std::vector<PetscInt> rows(static_cast<std::size_t>(npe));

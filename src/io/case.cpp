@@ -233,11 +233,6 @@ void read_bodies(const Reader &r, const YAML::Node &node, const fs::path &dir, C
     r.check_keys(v, path,
                  {"name", "model", "geometry", "mesh", "material", "interfaces", "reduction",
                   "damping", "initial"});
-    for (const char *later : {"reduction", "damping"})
-      if (v[later])
-        r.fail(v[later], path + "." + later +
-                             ": not supported yet by this version of flexopt (it simulates rigid "
-                             "bodies; flexible bodies come later)");
     BodySpec b;
     b.where = r.where(v);
     b.name = r.string(r.require(v, "name", path), path + ".name");
@@ -249,10 +244,41 @@ void read_bodies(const Reader &r, const YAML::Node &node, const fs::path &dir, C
         r.fail(v["name"], path + ".name: duplicate body name '" + b.name + "'");
     if (v["model"]) {
       b.model = r.choice(v["model"], path + ".model", {"rigid", "ffrf", "acf", "auto"});
-      if (dynamic && (b.model == "ffrf" || b.model == "acf"))
-        r.fail(v["model"], path + ".model: '" + b.model +
-                               "' is not supported yet (this version simulates rigid bodies; "
-                               "ffrf/acf come later)");
+      if (dynamic && b.model == "acf")
+        r.fail(v["model"], path + ".model: 'acf' is not supported yet (this version simulates "
+                                  "rigid and ffrf bodies)");
+    }
+    for (const char *key : {"reduction", "damping"})
+      if (v[key] && b.model != "ffrf")
+        r.fail(r.key_node(v, key), path + "." + key + ": only an ffrf body takes it (model: " +
+                                       b.model + ")");
+    if (v["reduction"]) {
+      const YAML::Node &m = v["reduction"];
+      const std::string mp = path + ".reduction";
+      r.require_map(m, mp);
+      r.check_keys(m, mp, {"modes", "geometric_stiffening"});
+      if (m["modes"]) {
+        b.reduction.modes = r.integer(m["modes"], mp + ".modes");
+        if (b.reduction.modes < 0 || b.reduction.modes > 100)
+          r.fail(m["modes"], mp + ".modes: the number of fixed-interface modes must be in [0, 100]");
+      }
+      if (m["geometric_stiffening"])
+        b.reduction.geometric_stiffening =
+            r.boolean(m["geometric_stiffening"], mp + ".geometric_stiffening");
+    }
+    if (v["damping"]) {
+      const YAML::Node &m = v["damping"];
+      const std::string mp = path + ".damping";
+      r.require_map(m, mp);
+      r.check_keys(m, mp, {"rayleigh"});
+      const YAML::Node &ray = r.require(m, "rayleigh", mp);
+      if (!ray.IsSequence() || ray.size() != 2)
+        r.fail(ray, mp + ".rayleigh: expected [a, b] (C = a M + b K)");
+      for (std::size_t k = 0; k < 2; ++k) {
+        b.rayleigh[k] = r.number(ray[k], mp + ".rayleigh[" + std::to_string(k) + "]");
+        if (b.rayleigh[k] < 0)
+          r.fail(ray[k], mp + ".rayleigh[" + std::to_string(k) + "]: must not be negative");
+      }
     }
     b.geometry_key = r.string(r.require(v, "geometry", path), path + ".geometry");
     b.geometry = (dir / b.geometry_key).string();
@@ -555,9 +581,6 @@ void read_sensors(const Reader &r, const YAML::Node &node, Case &c) {
       if (c.analysis == "static" && s.quantity != "displacement" && s.quantity != "position")
         r.fail(q, path + ".quantity: '" + s.quantity +
                       "' needs a dynamic analysis; a static one has displacement and position");
-      if (c.analysis == "dynamic" && s.quantity == "elastic_displacement")
-        r.fail(q, path + ".quantity: 'elastic_displacement' is not supported yet (it needs "
-                         "flexible bodies; this version simulates rigid bodies)");
     }
     c.sensors.push_back(s);
   }

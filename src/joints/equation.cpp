@@ -6,175 +6,247 @@ namespace flexopt::joints {
 
 namespace {
 
-using Mat37 = Eigen::Matrix<double, 3, 7>;
+using Mat4X = Eigen::Matrix<double, 4, Eigen::Dynamic, Eigen::ColMajor, 4,
+                            bodies::kMaxBodyCoordinates>;
+using MatX4 = Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::ColMajor,
+                            bodies::kMaxBodyCoordinates, 4>;
 
-Vec4 euler(const Vector &q, int b) {
-  return q.segment<4>(7 * b + 3);
+/// One side of an equation: a body (or the ground) with its coordinate block.
+struct Side {
+  BodyRef ref;
+  int n = 0; ///< elastic coordinates
+  const Vector &q;
+  Side(const Vector &q_, int body, int offset, int elastic) : n(elastic), q(q_) {
+    ref.index = body;
+    ref.offset = offset >= 0 ? offset : 7 * body;
+  }
+  bool ground() const { return ref.index < 0; }
+  int size() const { return 7 + n; }
+  Vec4 p() const { return q.segment<4>(ref.offset + 3); }
+  /// s + S zeta in body axes.
+  Vec3 local(const Vec3 &s, const Elastic &S) const {
+    if (n == 0) return s;
+    return s + S * q.segment(ref.offset + 7, n);
+  }
+  Vec3 point(const Vec3 &s, const Elastic &S) const {
+    if (ground()) return s;
+    return q.segment<3>(ref.offset) + bodies::rotation(p()) * local(s, S);
+  }
+  Vec3 vector(const Vec3 &u, const Elastic &U) const {
+    if (ground()) return u;
+    return bodies::rotation(p()) * local(u, U);
+  }
+  /// [I, D(p, s + S zeta), A S] for points (translation = true), [0, D, A U] for vectors.
+  Jacobian jacobian(const Vec3 &s, const Elastic &S, bool translation) const {
+    if (ground()) return Jacobian(3, 0);
+    Jacobian j = Jacobian::Zero(3, size());
+    if (translation) j.leftCols<3>().setIdentity();
+    const Vec4 pp = p();
+    j.middleCols<4>(3) = bodies::rotate_jacobian(pp, local(s, S));
+    if (n > 0) j.rightCols(n) = bodies::rotation(pp) * S;
+    return j;
+  }
+  Vec3 velocity_of_vector(const Vec3 &u, const Elastic &U, const Vector &v) const {
+    if (ground()) return Vec3::Zero();
+    return jacobian(u, U, false) * v.segment(ref.offset, size());
+  }
+};
+
+/// H_bb += d^2 (w . A(p_b) (s + S zeta_b)) / dq_b^2 (points and vectors alike: r enters
+/// linearly).
+void add_rotation_hessian(Sink &H, const Side &b, const Vec3 &s, const Elastic &S, const Vec3 &w) {
+  if (b.ground()) return;
+  const Mat4 pp = bodies::rotate_hessian(b.local(s, S), w);
+  H.add_block(b.ref, b.ref, 3, 3, pp);
+  if (b.n == 0) return;
+  const Vec4 p = b.p();
+  Mat4X pz(4, b.n);
+  for (int l = 0; l < b.n; ++l)
+    pz.col(l) = bodies::rotate_jacobian(p, S.col(l)).transpose() * w;
+  const MatX4 zp = pz.transpose();
+  H.add_block(b.ref, b.ref, 3, 7, pz);
+  H.add_block(b.ref, b.ref, 7, 3, zp);
 }
 
-/// 3 x 7 Jacobian of a body point (zero for the ground).
-Mat37 point_jacobian(const Vector &q, int b, const Vec3 &s) {
-  Mat37 j = Mat37::Zero();
-  if (b < 0) return j;
-  j.leftCols<3>().setIdentity();
-  j.rightCols<4>() = bodies::rotate_jacobian(euler(q, b), s);
-  return j;
+/// H_ab += s X^T Y, H_ba += s Y^T X for a cross term (both bodies moving).
+void add_cross(Sink &H, const Side &a, const Side &b, double scale, const Jacobian &X,
+               const Jacobian &Y) {
+  if (a.ground() || b.ground()) return;
+  H.add_product(a.ref, b.ref, scale, X, Y);
+  H.add_product(b.ref, a.ref, scale, Y, X);
 }
 
-/// 3 x 7 Jacobian of a body vector.
-Mat37 vector_jacobian(const Vector &q, int b, const Vec3 &u) {
-  Mat37 j = Mat37::Zero();
-  if (b < 0) return j;
-  j.rightCols<4>() = bodies::rotate_jacobian(euler(q, b), u);
-  return j;
+void add_row(Sink &J, int row, const Side &b, const Row &g) {
+  if (b.ground()) return;
+  J.add_row(row, b.ref, g);
 }
 
-/// H_bb += d^2 (w . A(p_b) u) / dp_b^2 (points and vectors alike: r enters linearly).
-void add_rotation_hessian(Sink &H, int b, const Vec3 &u, const Vec3 &w) {
-  if (b < 0) return;
-  Block7 B = Block7::Zero();
-  B.bottomRightCorner<4, 4>() = bodies::rotate_hessian(u, w);
-  H.add_block(b, b, B);
-}
-
-/// H_ab += B, H_ba += B^T for a 7 x 7 cross block (both bodies moving).
-void add_cross(Sink &H, int a, int b, const Block7 &B) {
-  if (a < 0 || b < 0) return;
-  H.add_block(a, b, B);
-  H.add_block(b, a, B.transpose());
-}
-
-void add_row(Sink &J, int row, int b, const Row7 &g) {
-  if (b < 0) return;
-  J.add_row(row, b, g);
-}
-
-/// The driver's rotating vector u(t) = sin f u1 - cos f u2 and its first two time derivatives.
-void driver_vectors(const Equation &e, double t, Vec3 &u, Vec3 &ut, Vec3 &utt) {
+/// The driver's rotating vector u(t) = sin f u1 - cos f u2 (and its elastic part) and its
+/// first two time derivatives.
+struct DriverVectors {
+  Vec3 u, ut, utt;
+  Elastic U, Ut, Utt;
+};
+DriverVectors driver_vectors(const Equation &e, double t) {
   const double f = (*e.driver)(t), fd = e.driver->derivative(t),
                fdd = e.driver->second_derivative(t);
   const double s = std::sin(f), c = std::cos(f);
-  u = s * e.ua - c * e.ua2;
+  DriverVectors d;
+  d.u = s * e.ua - c * e.ua2;
   const Vec3 du = c * e.ua + s * e.ua2; // d u / d f
   const Vec3 ddu = -s * e.ua + c * e.ua2;
-  ut = fd * du;
-  utt = fdd * du + fd * fd * ddu;
+  d.ut = fd * du;
+  d.utt = fdd * du + fd * fd * ddu;
+  if (e.na > 0) {
+    d.U = s * e.Ua - c * e.Ua2;
+    const Elastic dU = c * e.Ua + s * e.Ua2, ddU = -s * e.Ua + c * e.Ua2;
+    d.Ut = fd * dU;
+    d.Utt = fdd * dU + fd * fd * ddU;
+  }
+  return d;
+}
+
+int elastic(const Elastic &M) {
+  return static_cast<int>(M.cols());
 }
 
 } // namespace
 
-Vec3 point_position(const Vector &q, int b, const Vec3 &s) {
-  if (b < 0) return s;
-  return q.segment<3>(7 * b) + bodies::rotation(euler(q, b)) * s;
+Vec3 anchor_position(const Eigen::Ref<const Vector> &q_b, const Vec3 &s, const Elastic &S) {
+  const Vec3 local = S.cols() > 0 ? Vec3(s + S * q_b.tail(S.cols())) : s;
+  return q_b.head<3>() + bodies::rotation(q_b.segment<4>(3)) * local;
 }
 
-Vec3 vector_direction(const Vector &q, int b, const Vec3 &u) {
-  if (b < 0) return u;
-  return bodies::rotation(euler(q, b)) * u;
+Jacobian anchor_jacobian(const Eigen::Ref<const Vector> &q_b, const Vec3 &s, const Elastic &S) {
+  const Vector q = q_b;
+  return Side(q, 0, 0, elastic(S)).jacobian(s, S, true);
+}
+
+void anchor_hessian(const Eigen::Ref<const Vector> &q_b, const Vec3 &s, const Elastic &S,
+                    const Vec3 &w, Mat4 &pp, Eigen::Matrix<double, 4, Eigen::Dynamic> &pz) {
+  const int n = elastic(S);
+  const Vec4 p = q_b.segment<4>(3);
+  const Vec3 local = n > 0 ? Vec3(s + S * q_b.tail(n)) : s;
+  pp = bodies::rotate_hessian(local, w);
+  pz.resize(4, n);
+  for (int l = 0; l < n; ++l) pz.col(l) = bodies::rotate_jacobian(p, S.col(l)).transpose() * w;
 }
 
 void Equation::value(const Vector &q, double t, double *out) const {
+  const Side A(q, a, oa, na), B(q, b, ob, nb);
   switch (kind) {
   case Kind::Coincide: {
-    const Vec3 d = point_position(q, a, sa) - point_position(q, b, sb);
+    const Vec3 d = A.point(sa, Sa) - B.point(sb, Sb);
     out[0] = d(0), out[1] = d(1), out[2] = d(2);
     return;
   }
   case Kind::Perpendicular:
-    out[0] = vector_direction(q, a, ua).dot(vector_direction(q, b, vb)) - c;
+    out[0] = A.vector(ua, Ua).dot(B.vector(vb, Vb)) - c;
     return;
   case Kind::PointOnPlane:
   case Kind::TranslationDriver: {
-    const Vec3 d = point_position(q, b, sb) - point_position(q, a, sa);
-    out[0] = vector_direction(q, a, ua).dot(d) - c;
+    const Vec3 d = B.point(sb, Sb) - A.point(sa, Sa);
+    out[0] = A.vector(ua, Ua).dot(d) - c;
     if (kind == Kind::TranslationDriver) out[0] -= (*driver)(t);
     return;
   }
   case Kind::Normalize:
-    out[0] = 0.5 * (euler(q, a).squaredNorm() - 1);
+    out[0] = 0.5 * (A.p().squaredNorm() - 1);
     return;
   case Kind::RotationDriver: {
-    Vec3 u, ut, utt;
-    driver_vectors(*this, t, u, ut, utt);
-    out[0] = vector_direction(q, a, u).dot(vector_direction(q, b, vb));
+    const DriverVectors dv = driver_vectors(*this, t);
+    out[0] = A.vector(dv.u, dv.U).dot(B.vector(vb, Vb));
     return;
   }
   }
 }
 
 void Equation::gradient(const Vector &q, double t, Sink &J, int row) const {
+  const Side A(q, a, oa, na), B(q, b, ob, nb);
   switch (kind) {
   case Kind::Coincide: {
-    const Mat37 ja = point_jacobian(q, a, sa), jb = point_jacobian(q, b, sb);
+    const Jacobian ja = A.jacobian(sa, Sa, true), jb = B.jacobian(sb, Sb, true);
     for (int k = 0; k < 3; ++k) {
-      add_row(J, row + k, a, ja.row(k));
-      add_row(J, row + k, b, -jb.row(k));
+      if (!A.ground()) add_row(J, row + k, A, ja.row(k));
+      if (!B.ground()) add_row(J, row + k, B, -jb.row(k));
     }
     return;
   }
   case Kind::Perpendicular:
   case Kind::RotationDriver: {
-    Vec3 uu = ua, ut, utt;
-    if (kind == Kind::RotationDriver) driver_vectors(*this, t, uu, ut, utt);
-    const Vec3 u = vector_direction(q, a, uu), v = vector_direction(q, b, vb);
-    add_row(J, row, a, v.transpose() * vector_jacobian(q, a, uu));
-    add_row(J, row, b, u.transpose() * vector_jacobian(q, b, vb));
+    Vec3 uu = ua;
+    Elastic UU = Ua;
+    if (kind == Kind::RotationDriver) {
+      const DriverVectors dv = driver_vectors(*this, t);
+      uu = dv.u, UU = dv.U;
+    }
+    const Vec3 u = A.vector(uu, UU), v = B.vector(vb, Vb);
+    if (!A.ground()) add_row(J, row, A, v.transpose() * A.jacobian(uu, UU, false));
+    if (!B.ground()) add_row(J, row, B, u.transpose() * B.jacobian(vb, Vb, false));
     return;
   }
   case Kind::PointOnPlane:
   case Kind::TranslationDriver: {
-    const Vec3 u = vector_direction(q, a, ua);
-    const Vec3 d = point_position(q, b, sb) - point_position(q, a, sa);
-    add_row(J, row, a,
-            d.transpose() * vector_jacobian(q, a, ua) - u.transpose() * point_jacobian(q, a, sa));
-    add_row(J, row, b, u.transpose() * point_jacobian(q, b, sb));
+    const Vec3 u = A.vector(ua, Ua);
+    const Vec3 d = B.point(sb, Sb) - A.point(sa, Sa);
+    if (!A.ground())
+      add_row(J, row, A,
+              d.transpose() * A.jacobian(ua, Ua, false) -
+                  u.transpose() * A.jacobian(sa, Sa, true));
+    if (!B.ground()) add_row(J, row, B, u.transpose() * B.jacobian(sb, Sb, true));
     return;
   }
   case Kind::Normalize:
-    Row7 g = Row7::Zero();
-    g.tail<4>() = euler(q, a).transpose();
-    J.add_row(row, a, g);
+    Row g = Row::Zero(A.size());
+    g.segment<4>(3) = A.p().transpose();
+    J.add_row(row, A.ref, g);
     return;
   }
 }
 
 void Equation::add_hessian(const Vector &q, double t, const double *lambda, Sink &H) const {
+  const Side A(q, a, oa, na), B(q, b, ob, nb);
   switch (kind) {
   case Kind::Coincide: {
     const Vec3 l(lambda[0], lambda[1], lambda[2]);
-    add_rotation_hessian(H, a, sa, l);
-    add_rotation_hessian(H, b, sb, -l);
+    add_rotation_hessian(H, A, sa, Sa, l);
+    add_rotation_hessian(H, B, sb, Sb, -l);
     return;
   }
   case Kind::Perpendicular:
   case Kind::RotationDriver: {
-    Vec3 uu = ua, ut, utt;
-    if (kind == Kind::RotationDriver) driver_vectors(*this, t, uu, ut, utt);
+    Vec3 uu = ua;
+    Elastic UU = Ua;
+    if (kind == Kind::RotationDriver) {
+      const DriverVectors dv = driver_vectors(*this, t);
+      uu = dv.u, UU = dv.U;
+    }
     const double l = lambda[0];
-    const Vec3 u = vector_direction(q, a, uu), v = vector_direction(q, b, vb);
-    add_rotation_hessian(H, a, uu, l * v);
-    add_rotation_hessian(H, b, vb, l * u);
-    add_cross(H, a, b, l * vector_jacobian(q, a, uu).transpose() * vector_jacobian(q, b, vb));
+    const Vec3 u = A.vector(uu, UU), v = B.vector(vb, Vb);
+    add_rotation_hessian(H, A, uu, UU, l * v);
+    add_rotation_hessian(H, B, vb, Vb, l * u);
+    if (!A.ground() && !B.ground())
+      add_cross(H, A, B, l, A.jacobian(uu, UU, false), B.jacobian(vb, Vb, false));
     return;
   }
   case Kind::PointOnPlane:
   case Kind::TranslationDriver: {
     const double l = lambda[0];
-    const Vec3 u = vector_direction(q, a, ua);
-    const Vec3 d = point_position(q, b, sb) - point_position(q, a, sa);
-    const Mat37 Ju = vector_jacobian(q, a, ua), Jxa = point_jacobian(q, a, sa),
-                Jxb = point_jacobian(q, b, sb);
-    add_rotation_hessian(H, a, ua, l * d);
-    add_rotation_hessian(H, a, sa, -l * u);
-    if (a >= 0) H.add_block(a, a, -l * (Ju.transpose() * Jxa + Jxa.transpose() * Ju));
-    add_rotation_hessian(H, b, sb, l * u);
-    add_cross(H, a, b, l * Ju.transpose() * Jxb);
+    const Vec3 u = A.vector(ua, Ua);
+    const Vec3 d = B.point(sb, Sb) - A.point(sa, Sa);
+    add_rotation_hessian(H, A, ua, Ua, l * d);
+    add_rotation_hessian(H, A, sa, Sa, -l * u);
+    add_rotation_hessian(H, B, sb, Sb, l * u);
+    if (!A.ground()) {
+      const Jacobian Ju = A.jacobian(ua, Ua, false), Jxa = A.jacobian(sa, Sa, true);
+      H.add_product(A.ref, A.ref, -l, Ju, Jxa);
+      H.add_product(A.ref, A.ref, -l, Jxa, Ju);
+      if (!B.ground()) add_cross(H, A, B, l, Ju, B.jacobian(sb, Sb, true));
+    }
     return;
   }
   case Kind::Normalize:
-    Block7 B = Block7::Zero();
-    B.bottomRightCorner<4, 4>() = lambda[0] * Mat4::Identity();
-    H.add_block(a, a, B);
+    H.add_block(A.ref, A.ref, 3, 3, lambda[0] * Mat4::Identity());
     return;
   }
 }
@@ -187,17 +259,14 @@ void Equation::time_derivatives(const Vector &q, const Vector &v, double t, doub
     phi_t[0] = -driver->derivative(t);
     phi_tt[0] = -driver->second_derivative(t);
   } else if (kind == Kind::RotationDriver) {
-    Vec3 u, ut, utt;
-    driver_vectors(*this, t, u, ut, utt);
-    const Vec3 w = vector_direction(q, b, vb);
-    phi_t[0] = vector_direction(q, a, ut).dot(w);
-    phi_tt[0] = vector_direction(q, a, utt).dot(w);
-    // d/dt of the gradient rows [w^T D(p_a, u), (A_a u)^T D(p_b, v)], applied to v.
-    double s = 0;
-    if (a >= 0) s += w.dot(vector_jacobian(q, a, ut) * v.segment<7>(7 * a));
-    if (b >= 0)
-      s += vector_direction(q, a, ut).dot(vector_jacobian(q, b, vb) * v.segment<7>(7 * b));
-    phi_qt_v[0] = s;
+    const Side A(q, a, oa, na), B(q, b, ob, nb);
+    const DriverVectors dv = driver_vectors(*this, t);
+    const Vec3 w = B.vector(vb, Vb);
+    phi_t[0] = A.vector(dv.ut, dv.Ut).dot(w);
+    phi_tt[0] = A.vector(dv.utt, dv.Utt).dot(w);
+    // d/dt of the gradient rows [w^T J_a(u_t), (A_a u_t)^T J_b(v)], applied to v.
+    phi_qt_v[0] = w.dot(A.velocity_of_vector(dv.ut, dv.Ut, v)) +
+                  A.vector(dv.ut, dv.Ut).dot(B.velocity_of_vector(vb, Vb, v));
   }
 }
 

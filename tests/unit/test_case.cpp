@@ -421,21 +421,47 @@ TEST_F(CaseFiles, InitialNeedsDynamicAnalysis) {
   EXPECT_CASE_ERROR(y, "case.yaml:9:5:", "bodies[0].initial: needs analysis: dynamic");
 }
 
-TEST_F(CaseFiles, ReductionAndDampingStillNotSupported) {
-  EXPECT_CASE_ERROR(dynamic_with("    interfaces: [pin_a, pin_b]\n",
-                                 "    interfaces: [pin_a, pin_b]\n    reduction: {modes: 8}\n"),
-                    "case.yaml:14:", "bodies[1].reduction: not supported yet");
-  EXPECT_CASE_ERROR(
-      dynamic_with("    interfaces: [pin_a, pin_b]\n",
-                   "    interfaces: [pin_a, pin_b]\n    damping: {rayleigh: [0, 1]}\n"),
-      "case.yaml:14:", "bodies[1].damping: not supported yet");
+TEST_F(CaseFiles, FfrfReductionAndDamping) {
+  const std::string ffrf = "    interfaces: [pin_a, pin_b]\n    model: ffrf\n";
+  write(dynamic_with("    interfaces: [pin_a, pin_b]\n",
+                     ffrf + "    reduction: {modes: 8, geometric_stiffening: true}\n"
+                            "    damping: {rayleigh: [0.5, 1.0e-4]}\n"));
+  const flexopt::io::Case c = load_case(dir_.string());
+  EXPECT_EQ(c.bodies[1].model, "ffrf");
+  EXPECT_EQ(c.bodies[1].reduction.modes, 8);
+  EXPECT_TRUE(c.bodies[1].reduction.geometric_stiffening);
+  EXPECT_DOUBLE_EQ(c.bodies[1].rayleigh[0], 0.5);
+  EXPECT_DOUBLE_EQ(c.bodies[1].rayleigh[1], 1.0e-4);
+  // Defaults: 4 fixed-interface modes, no stiffening, no damping.
+  write(dynamic_with("    interfaces: [pin_a, pin_b]\n", ffrf));
+  const flexopt::io::Case d = load_case(dir_.string());
+  EXPECT_EQ(d.bodies[1].reduction.modes, 4);
+  EXPECT_FALSE(d.bodies[1].reduction.geometric_stiffening);
+  EXPECT_EQ(d.bodies[1].rayleigh[1], 0.0);
 }
 
-TEST_F(CaseFiles, FlexibleModelsNotSupportedYetInDynamicAnalysis) {
-  for (const std::string model : {"ffrf", "acf"})
-    EXPECT_CASE_ERROR(dynamic_with("model: rigid", "model: " + model),
-                      "case.yaml:6:12:", "bodies[0].model: '" + model + "' is not supported yet",
-                      "this version simulates rigid bodies; ffrf/acf come later");
+TEST_F(CaseFiles, ReductionAndDampingErrors) {
+  EXPECT_CASE_ERROR(dynamic_with("    interfaces: [pin_a, pin_b]\n",
+                                 "    interfaces: [pin_a, pin_b]\n    reduction: {modes: 8}\n"),
+                    "case.yaml:14:", "bodies[1].reduction: only an ffrf body takes it");
+  const std::string ffrf = "    interfaces: [pin_a, pin_b]\n    model: ffrf\n";
+  EXPECT_CASE_ERROR(dynamic_with("    interfaces: [pin_a, pin_b]\n",
+                                 ffrf + "    reduction: {modes: -1}\n"),
+                    "case.yaml:15:", "bodies[1].reduction.modes: the number of fixed-interface");
+  EXPECT_CASE_ERROR(dynamic_with("    interfaces: [pin_a, pin_b]\n",
+                                 ffrf + "    reduction: {nodes: 3}\n"),
+                    "case.yaml:15:", "unknown key 'bodies[1].reduction.nodes'");
+  EXPECT_CASE_ERROR(dynamic_with("    interfaces: [pin_a, pin_b]\n",
+                                 ffrf + "    damping: {rayleigh: [0.1]}\n"),
+                    "case.yaml:15:", "bodies[1].damping.rayleigh: expected [a, b]");
+  EXPECT_CASE_ERROR(dynamic_with("    interfaces: [pin_a, pin_b]\n",
+                                 ffrf + "    damping: {rayleigh: [0.1, -2]}\n"),
+                    "case.yaml:15:", "bodies[1].damping.rayleigh[1]: must not be negative");
+}
+
+TEST_F(CaseFiles, AcfNotSupportedYetInDynamicAnalysis) {
+  EXPECT_CASE_ERROR(dynamic_with("model: rigid", "model: acf"), "case.yaml:6:12:",
+                    "bodies[0].model: 'acf' is not supported yet");
 }
 
 TEST_F(CaseFiles, StaticAnalysisIgnoresModel) {
@@ -617,10 +643,8 @@ TEST_F(CaseFiles, DynamicAnalysisNeedsTime) {
 // sensors
 
 TEST_F(CaseFiles, SensorQuantitiesPerAnalysis) {
-  EXPECT_CASE_ERROR(dynamic_with("quantity: rotation_angle", "quantity: elastic_displacement"),
-                    "case.yaml:40:58:",
-                    "sensors[1].quantity: 'elastic_displacement' is not "
-                    "supported yet");
+  write(dynamic_with("quantity: rotation_angle", "quantity: elastic_displacement"));
+  EXPECT_EQ(load_case(dir_.string()).sensors[1].quantity, "elastic_displacement");
   std::string y = kValid;
   y.replace(y.find("point: [1, 0, 0]"), 16, "point: [1, 0, 0], quantity: rotation_angle");
   EXPECT_CASE_ERROR(y, "case.yaml:16:57:",

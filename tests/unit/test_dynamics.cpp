@@ -255,10 +255,10 @@ namespace {
 /// a time-dependent point force: every term of the dynamics residual.
 dynamics::Mechanism two_body_mechanism() {
   dynamics::Mechanism m;
-  m.bodies.emplace_back("a", some_body());
+  m.bodies.push_back(std::make_shared<bodies::RigidBody>("a", some_body()));
   auto p2 = some_body();
   p2.mass = 1.3;
-  m.bodies.emplace_back("b", p2);
+  m.bodies.push_back(std::make_shared<bodies::RigidBody>("b", p2));
   m.gravity = Vec3(0, -9.81, 0.5);
   for (int b = 0; b < 2; ++b) {
     joints::Equation n;
@@ -366,7 +366,7 @@ dynamics::Mechanism chain(int links, Vector &q0) {
   p.inertia = Vec3(0.001, 0.17, 0.17).asDiagonal();
   q0.resize(7 * links);
   for (int b = 0; b < links; ++b) {
-    m.bodies.emplace_back("l" + std::to_string(b), p);
+    m.bodies.push_back(std::make_shared<bodies::RigidBody>("l" + std::to_string(b), p));
     q0.segment<3>(7 * b) = Vec3(b + 0.5, 0, 0);
     q0.segment<4>(7 * b + 3) = Vec4(1, 0, 0, 0);
     joints::Equation n;

@@ -2,7 +2,7 @@
 /// \file Rigid bodies: mass properties integrated from the FE mass matrix of the body's mesh,
 /// interface points, and the inertial terms of the equations of motion in Euler parameters
 /// (docs/theory.md section 6.2).
-#include "flexopt/bodies/quaternion.hpp"
+#include "flexopt/bodies/body.hpp"
 #include "flexopt/mesh/mesh_data.hpp"
 
 #include <string>
@@ -41,7 +41,7 @@ SurfaceCentroid surface_centroid(const mesh::MeshData &mesh, const std::string &
 /// with J the inertia about the centre of mass in body axes. The mass matrix
 /// M = diag(m I, 4 Gbar^T J Gbar) is singular along p; the constraint |p|^2 = 1 removes that
 /// direction (section 6.2).
-class RigidBody {
+class RigidBody : public Body {
 public:
   static constexpr int kCoordinates = 7;
   using Vec7 = Eigen::Matrix<double, 7, 1>;
@@ -49,8 +49,10 @@ public:
 
   RigidBody(std::string name, const MassProperties &props);
 
-  const std::string &name() const { return name_; }
-  double mass() const { return props_.mass; }
+  const char *model() const override { return "rigid"; }
+  int coordinates() const override { return kCoordinates; }
+  double mass() const override { return props_.mass; }
+  Vec3 origin() const override { return props_.center; }
   const Vec3 &center() const { return props_.center; }
   const Mat3 &inertia() const { return props_.inertia; }
 
@@ -59,17 +61,15 @@ public:
                       Mat7 *df_dv, Mat7 *mass_matrix) const;
   /// Kinetic energy 1/2 m |v_r|^2 + 1/2 w^T J w, w = 2 Gbar(p) v_p.
   double kinetic_energy(const Vec7 &q, const Vec7 &v) const;
-  /// Coordinates of the body placed with its frame origin at `origin` and rotated by R
-  /// (mesh point X at origin + R X).
-  Vec7 placement(const Vec3 &origin, const Mat3 &R) const;
-  /// Velocities for a frame-origin velocity `velocity` and world angular velocity `omega`
-  /// of the body at coordinates q placed from frame origin with rotation R.
-  Vec7 placement_velocity(const Vec7 &q, const Vec3 &velocity, const Vec3 &omega) const;
-  /// World position of the body point with mesh (body-frame) coordinates X.
-  Vec3 point(const Vec7 &q, const Vec3 &X) const;
+
+  /// inertial_force() minus the weight m g on r.
+  void residual(const ConstVectorRef &q, const ConstVectorRef &v, const ConstVectorRef &a,
+                const Vec3 &gravity, Eigen::Ref<Vector> res, Matrix *K, Matrix *C,
+                Matrix *M) const override;
+  double energy(const ConstVectorRef &q, const ConstVectorRef &v,
+                const Vec3 &gravity) const override;
 
 private:
-  std::string name_;
   MassProperties props_;
 };
 

@@ -92,6 +92,7 @@ private:
   AlphaParameters par_;
   NewtonSettings settings_;
   std::unique_ptr<detail::SparseIteration> sparse_; ///< null: dense Newton systems
+  mutable std::vector<Matrix> work_K_, work_C_, work_M_; ///< body blocks, reused across iterations
 };
 
 } // namespace flexopt::dynamics

@@ -1,11 +1,12 @@
 #pragma once
-/// \file A mechanism of rigid bodies: coordinates, equations of motion, constraints (joints,
-/// drivers, Euler-parameter normalization) and loads, evaluated densely (Eigen, replicated on
-/// every rank; docs/theory.md section 6).
-#include "flexopt/bodies/rigid_body.hpp"
+/// \file A mechanism of rigid and FFRF bodies: coordinates, equations of motion, constraints
+/// (joints, drivers, Euler-parameter normalization) and loads, evaluated densely (Eigen,
+/// replicated on every rank; docs/theory.md sections 6 and 7).
+#include "flexopt/bodies/body.hpp"
 #include "flexopt/joints/equation.hpp"
 
 #include <array>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -15,28 +16,37 @@ using bodies::Vec3;
 using joints::Matrix;
 using joints::Vector;
 
-/// A force [N] (world frame, function of t) at a body point s (relative to the centre of mass,
-/// body axes).
+/// A force [N] (world frame, function of t) at a body point s + S zeta (relative to the body's
+/// reference point, body axes; S: the elastic part, empty for rigid bodies).
 struct PointForce {
   int body = 0;
   Vec3 s{0, 0, 0};
+  joints::Elastic S;
   std::array<Expression, 3> value;
 };
 
 class Mechanism {
 public:
-  std::vector<bodies::RigidBody> bodies;
+  std::vector<std::shared_ptr<const bodies::Body>> bodies;
   std::vector<joints::Equation> equations; ///< normalizations, drivers, then joints
   std::vector<PointForce> forces;
   Vec3 gravity{0, 0, 0};
 
-  int coordinates() const { return 7 * static_cast<int>(bodies.size()); }
+  /// Size of q: the sum of the bodies' coordinate blocks (after finalize()).
+  int coordinates() const { return coordinates_; }
+  /// Offset of body b's block in q and its size (after finalize()).
+  int offset(int b) const { return offsets_[static_cast<std::size_t>(b)]; }
+  int size(int b) const { return bodies[static_cast<std::size_t>(b)]->coordinates(); }
+  const bodies::Body &body(int b) const { return *bodies[static_cast<std::size_t>(b)]; }
   /// Number of enforced constraint rows (redundant rows excluded).
   int constraints() const { return active_rows_; }
   /// Total rows of all equations, enforced or not.
   int all_rows() const { return all_rows_; }
 
-  /// Marks every row enforced; call after filling `equations`.
+  /// Lays out the coordinates (body blocks in order), gives every equation and force its
+  /// bodies' offsets and elastic sizes (zero elastic parts where unset) and marks every row
+  /// enforced; call after filling `bodies`, `equations` and `forces`. Throws flexopt::Error for
+  /// an elastic part of the wrong size.
   void finalize();
   /// Finds rows of Phi_q(q, t) that are linear combinations of rows before them (tolerance
   /// `tol` relative to the row norm, modified Gram-Schmidt in equation order) and stops
@@ -50,14 +60,14 @@ public:
   /// Enforced constraints into a Sink (rows numbered among the enforced ones): Phi (m) and the
   /// gradient rows. For the sparse Newton path.
   void constraint(const Vector &q, double t, Vector &phi, joints::Sink &sink) const;
-  /// Sum of lambda_k d^2 phi_k/dq^2 over the enforced rows into a Sink (7 x 7 body blocks).
+  /// Sum of lambda_k d^2 phi_k/dq^2 over the enforced rows into a Sink (body blocks).
   void add_constraint_hessian(const Vector &q, double t, const Vector &lambda,
                               joints::Sink &sink) const;
-  /// The dynamics residual r (n) and its per-body diagonal 7 x 7 blocks of K, C, M (the
-  /// equations of motion couple bodies only through the constraints).
+  /// The dynamics residual r (n) and its per-body diagonal blocks of K, C, M (the equations
+  /// of motion couple bodies only through the constraints).
   void dynamics_blocks(const Vector &q, const Vector &v, const Vector &a, double t, Vector &r,
-                       std::vector<joints::Block7> &K, std::vector<joints::Block7> &C,
-                       std::vector<joints::Block7> &M) const;
+                       std::vector<Matrix> &K, std::vector<Matrix> &C,
+                       std::vector<Matrix> &M) const;
   /// Every row (enforced or not): for the violation monitor and messages.
   void all_constraint_values(const Vector &q, double t, Vector &phi) const;
   /// H += d(Phi_q^T lambda)/dq for the enforced rows.
@@ -73,14 +83,16 @@ public:
   /// and its derivatives K = dr/dq, C = dr/dv, M = dr/da (each may be null).
   void dynamics(const Vector &q, const Vector &v, const Vector &a, double t, Vector &r, Matrix *K,
                 Matrix *C, Matrix *M) const;
-  /// Kinetic energy plus the potential of gravity, -m g . r (the interface forces are not
-  /// conservative and are not included).
+  /// Kinetic energy plus strain energy plus the potential of gravity (the interface forces are
+  /// not conservative and are not included).
   double energy(const Vector &q, const Vector &v) const;
 
   /// Owner name and row within the owner of row r (over all rows).
   std::string describe_row(int r) const;
 
 private:
+  std::vector<int> offsets_;
+  int coordinates_ = 0;
   std::vector<char> enforced_;
   std::vector<int> row_equation_, row_index_; ///< per row: equation and row within it
   int active_rows_ = 0, all_rows_ = 0;

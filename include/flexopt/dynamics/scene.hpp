@@ -1,7 +1,8 @@
 #pragma once
-/// \file A dynamic case turned into a Mechanism: bodies meshed and their mass properties
-/// integrated (rank 0, broadcast), interfaces located, joints and drivers expanded into
-/// constraint equations, loads and sensors bound (docs/theory.md section 6.3).
+/// \file A dynamic case turned into a Mechanism: bodies meshed; rigid bodies' mass properties
+/// integrated (rank 0, broadcast), FFRF bodies reduced (in parallel); interfaces located,
+/// joints and drivers expanded into constraint equations, loads and sensors bound
+/// (docs/theory.md sections 6.3 and 7.4).
 #include "flexopt/dynamics/mechanism.hpp"
 #include "flexopt/io/case.hpp"
 #include "flexopt/mesh/distributed_mesh.hpp"
@@ -13,17 +14,23 @@
 
 namespace flexopt::dynamics {
 
-/// A sensor bound to a body: `point` in body (mesh) coordinates.
+/// A sensor bound to a body: `point` in body (mesh) coordinates; s + S zeta is the point
+/// relative to the body's reference point (S: the basis at the point, empty for rigid bodies).
 struct BoundSensor {
   std::string name;
-  std::string quantity; ///< position | displacement | rotation_angle
+  std::string quantity; ///< position | displacement | elastic_displacement | rotation_angle
   int body = 0;
   Vec3 point{0, 0, 0};
+  Vec3 s{0, 0, 0};
+  joints::Elastic S;
 };
 
 struct Scene {
   Mechanism mechanism;
   std::vector<mesh::DistributedMesh> meshes; ///< per body (for output)
+  /// Per body: the reduction basis at the owned nodes, (3 owned nodes) x n, node-major (empty
+  /// for rigid bodies): the deformed mesh of the output.
+  std::vector<Eigen::MatrixXd> owned_modes;
   Vector q0, v0;                             ///< placed coordinates and velocities at t = 0
   std::vector<BoundSensor> sensors;
   std::vector<std::string> redundant_rows; ///< constraint rows found redundant and not enforced
@@ -38,8 +45,17 @@ struct Attachment {
   Vec3 s{0, 0, 0};
   bodies::Mat3 R = bodies::Mat3::Identity();
   Vec3 world{0, 0, 0};
+  /// Flexible body: the interface node's translation and small rotation per elastic
+  /// coordinate (3 x n, body axes); empty for rigid bodies and the ground.
+  joints::Elastic translation, rotation;
   /// A world direction in the initial placement, expressed in the body's axes.
   Vec3 local(const Vec3 &world_vector) const { return R.transpose() * world_vector; }
+  /// The elastic part of a body vector u fixed to the interface: the rotation theta = Theta
+  /// zeta turns u by theta x u = -[u]x Theta zeta.
+  joints::Elastic vector_part(const Vec3 &u) const {
+    if (rotation.cols() == 0) return {};
+    return -bodies::skew(u) * rotation;
+  }
 };
 
 /// The equations of a joint (docs/theory.md section 6.3): spherical 3 rows, revolute 5,
@@ -60,7 +76,8 @@ joints::Equation driver_equation(const std::string &joint_type, const Attachment
 Scene build_scene(MPI_Comm comm, const io::Case &c);
 
 /// Value of a sensor at coordinates q (3 numbers): position (world), displacement from the
-/// initial position, or rotation_angle (the rotation vector of the body relative to its
+/// initial position, elastic_displacement (S zeta, in the axes of the body frame; zero for a
+/// rigid body) or rotation_angle (the rotation vector of the body frame relative to its
 /// initial orientation, world frame).
 Vec3 sensor_value(const Scene &scene, const BoundSensor &s, const Vector &q);
 

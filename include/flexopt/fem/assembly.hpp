@@ -32,6 +32,12 @@ void assemble_stiffness(const mesh::DistributedMesh &mesh, const IsotropicMateri
 void assemble_mass(const mesh::DistributedMesh &mesh, double density,
                    const std::vector<double> &density_factor, Mat A);
 
+/// Geometric (initial-stress) stiffness K_sigma = sum_e element_geometric_stiffness(u_e) of the
+/// stress of the displacement u into A (zeroed first; A from create_matrix). `u_ghosted` is a
+/// vector from create_ghosted_vector whose ghost values are up to date. Collective.
+void assemble_geometric_stiffness(const mesh::DistributedMesh &mesh,
+                                  const IsotropicMaterial &material, Vec u_ghosted, Mat A);
+
 /// Adds the consistent load of a constant body force b [N/m^3] to f. Collective.
 void add_body_force(const mesh::DistributedMesh &mesh, const Eigen::Vector3d &b, Vec f);
 

@@ -136,6 +136,21 @@ ElementVector element_body_force(ElementType type, const ElementCoords &X,
 /// (node-major, 3n entries): sigma = modulus_factor * D * B(xi) u_e. Throws if det J <= 0 at xi.
 Voigt element_stress(ElementType type, const ElementCoords &X, const IsotropicMaterial &mat,
                      double modulus_factor, const ElementVector &u_e, const Eigen::Vector3d &xi);
+/// Geometric (initial-stress) stiffness [N/m] of the stress that the element displacement u_e
+/// [m] (node-major, 3n entries) produces: K_sigma = int_e G^T S G dV, i.e.
+///   (K_sigma)_(i,k),(j,l) = delta_kl int_e dN_i/dx_a sigma_ab(u_e) dN_j/dx_b dV,
+/// with the stress tensor sigma(u_e) = D B u_e (tensor components, modulus factor 1) evaluated at
+/// every quadrature point of element_stiffness's rule for this element (same points, same
+/// degenerate-element check and error). w^T K_sigma w = int_e sigma : (grad w^T grad w) dV is the
+/// second-order work of the prestress on a displacement w; adding K_sigma to K is the standard
+/// stress-stiffening correction of a prestressed body. Exactly symmetric and linear in u_e;
+/// zero on rigid translations. Exact for Tet4; for a uniform stress (u_e of a linear field) exact
+/// on affine Tet10 and parallelepiped Hex8, and w^T K_sigma w of a linear w is exact on every
+/// geometry of the type (the rule integrates det J exactly). Otherwise (varying stress on Tet10,
+/// distorted Hex8) it carries the quadrature error of the stiffness rule. Throws flexopt::Error
+/// for a wrong u_e size, an invalid material, or a degenerate or inverted element.
+ElementMatrix element_geometric_stiffness(ElementType type, const ElementCoords &X,
+                                          const IsotropicMaterial &mat, const ElementVector &u_e);
 /// von Mises equivalent stress [Pa] of a Voigt stress:
 /// sqrt(((sxx-syy)^2 + (syy-szz)^2 + (szz-sxx)^2) / 2 + 3 (syz^2 + sxz^2 + sxy^2)).
 double von_mises(const Voigt &sigma);

@@ -44,15 +44,24 @@ struct InitialSpec {
   std::array<double, 3> angular_velocity{0, 0, 0}; ///< world frame [rad/s]
 };
 
+/// `bodies[].reduction` of an FFRF body: the Craig-Bampton basis (docs/theory.md section 7.1).
+struct ReductionSpec {
+  int modes = 4; ///< fixed-interface eigenmodes (plus 6 static modes per interface after the first)
+  bool geometric_stiffening = false; ///< centrifugal geometric stiffness (section 7.5)
+};
+
 struct BodySpec {
   std::string name;
-  std::string model = "auto"; ///< rigid | ffrf | acf | auto (dynamic: rigid | auto for now)
+  std::string model = "auto"; ///< rigid | ffrf | acf | auto (dynamic: auto = rigid for now)
   std::string geometry;       ///< path, resolved against the case directory
   std::string geometry_key;   ///< as written in case.yaml
   MeshSpec mesh;
   std::string material;
   std::vector<std::string> interfaces; ///< physical surfaces for joints and forces, unique
   InitialSpec initial;                 ///< dynamic only (identity at rest if not given)
+  ReductionSpec reduction;             ///< ffrf only
+  /// Rayleigh damping C = a M + b K of the elastic coordinates (ffrf only): [a, b].
+  std::array<double, 2> rayleigh{0, 0};
   Location where;
 };
 

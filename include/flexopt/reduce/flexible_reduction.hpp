@@ -1,0 +1,57 @@
+#pragma once
+/// \file Everything an FFRF body takes from its FE model (docs/theory.md sections 7.1-7.5): the
+/// Craig-Bampton basis turned M-orthonormal, the reduced stiffness, the inertia invariants about
+/// the frame origin, the rigid motion of every interface node per basis vector, and optionally
+/// the centrifugal geometric stiffness. Built once per body (per design, later), in parallel;
+/// the small matrices are held on every rank, the basis vectors stay distributed for output.
+#include "flexopt/fem/element.hpp"
+#include "flexopt/mesh/distributed_mesh.hpp"
+#include "flexopt/reduce/ffrf_invariants.hpp"
+
+#include <Eigen/Dense>
+#include <petscvec.h>
+#include <string>
+#include <vector>
+
+namespace flexopt::reduce {
+
+struct FlexibleReduction {
+  int static_modes = 0; ///< 6 per interface after the first
+  int fixed_modes = 0;
+  /// The basis Psi = V Y: V the Craig-Bampton vectors, Y the eigenvectors of the reduced
+  /// problem K_cb y = w^2 M_cb y, so Psi^T M Psi = I and Psi^T K Psi = diag(w^2) (full size).
+  std::vector<Vec> basis;
+  Eigen::VectorXd eigenvalues; ///< w^2 of the reduced model (frame clamped), ascending
+  Eigen::MatrixXd K, M;        ///< Psi^T K Psi, Psi^T M Psi (replicated)
+  FfrfInvariants invariants;   ///< about `origin`
+  Eigen::Vector3d origin = Eigen::Vector3d::Zero(); ///< frame origin: centroid of interface 0
+  std::vector<Eigen::Vector3d> centroids;           ///< per interface (mesh coordinates)
+  /// Per interface: the translation and (small) rotation of its rigid interface node per unit
+  /// basis coordinate (3 x n each; zero for the frame interface).
+  std::vector<Eigen::Matrix3Xd> translation, rotation;
+  /// Centrifugal geometric stiffness per unit s_c(omega) (6 matrices) or empty.
+  std::vector<Eigen::MatrixXd> geometric;
+  int size() const { return static_cast<int>(basis.size()); }
+
+  FlexibleReduction() = default;
+  FlexibleReduction(const FlexibleReduction &) = delete;
+  FlexibleReduction &operator=(const FlexibleReduction &) = delete;
+  ~FlexibleReduction();
+};
+
+/// Reduces the body meshed as `mesh` with material `material` (interfaces: physical surfaces,
+/// the first is the frame). Collective; throws collective flexopt::Errors (missing surface,
+/// failed solve).
+void reduce_flexible_body(const mesh::DistributedMesh &mesh, const fem::IsotropicMaterial &material,
+                          const std::vector<std::string> &interfaces, int fixed_modes,
+                          bool geometric_stiffening, FlexibleReduction &out);
+
+/// The basis vectors' values at the owned nodes: a (3 owned_nodes) x n matrix, node-major.
+Eigen::MatrixXd owned_basis_values(const FlexibleReduction &r, PetscInt owned_nodes);
+
+/// The basis interpolated at a point of the undeformed body (3 x n, the same on every rank).
+/// Collective; throws a collective flexopt::Error naming `what` if no element contains it.
+Eigen::Matrix3Xd basis_at_point(const mesh::DistributedMesh &mesh, const FlexibleReduction &r,
+                                const Eigen::Vector3d &point, const std::string &what);
+
+} // namespace flexopt::reduce

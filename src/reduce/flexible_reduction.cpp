@@ -1,0 +1,129 @@
+#include "flexopt/reduce/flexible_reduction.hpp"
+
+#include "flexopt/core/error.hpp"
+#include "flexopt/core/log.hpp"
+#include "flexopt/fem/assembly.hpp"
+#include "flexopt/fem/probe.hpp"
+#include "flexopt/reduce/craig_bampton.hpp"
+#include "flexopt/reduce/geometric_stiffness.hpp"
+
+namespace flexopt::reduce {
+
+FlexibleReduction::~FlexibleReduction() {
+  for (Vec &v : basis) VecDestroy(&v);
+}
+
+namespace {
+
+/// w^T A v for every pair of `vectors` (replicated).
+Eigen::MatrixXd project(Mat A, const std::vector<Vec> &vectors) {
+  const int n = static_cast<int>(vectors.size());
+  Eigen::MatrixXd out(n, n);
+  if (n == 0) return out;
+  Vec w;
+  FX_PETSC(VecDuplicate(vectors.front(), &w));
+  std::vector<PetscScalar> dots(static_cast<std::size_t>(n));
+  for (int j = 0; j < n; ++j) {
+    FX_PETSC(MatMult(A, vectors[static_cast<std::size_t>(j)], w));
+    FX_PETSC(VecMDot(w, n, vectors.data(), dots.data()));
+    for (int i = 0; i < n; ++i) out(i, j) = dots[static_cast<std::size_t>(i)];
+  }
+  FX_PETSC(VecDestroy(&w));
+  return 0.5 * (out + out.transpose());
+}
+
+} // namespace
+
+void reduce_flexible_body(const mesh::DistributedMesh &mesh, const fem::IsotropicMaterial &material,
+                          const std::vector<std::string> &interfaces, int fixed_modes,
+                          bool geometric_stiffening, FlexibleReduction &out) {
+  LogScope log("FxFlexReduce");
+  Mat K = fem::create_matrix(mesh), M;
+  FX_PETSC(MatDuplicate(K, MAT_DO_NOT_COPY_VALUES, &M));
+  fem::assemble_stiffness(mesh, material, {}, K);
+  fem::assemble_mass(mesh, material.density, {}, M);
+  CraigBamptonBasis cb;
+  craig_bampton(mesh, K, M, interfaces, fixed_modes, cb);
+  out.static_modes = cb.static_modes;
+  out.fixed_modes = cb.fixed_modes;
+  out.centroids = cb.centroids;
+  out.origin = cb.centroids.front();
+  const int n = static_cast<int>(cb.vectors.size());
+  // M-orthonormal eigenbasis of the reduced problem, each column's sign fixed by its largest
+  // entry (the same on every rank and rank count).
+  Eigen::MatrixXd Y = Eigen::MatrixXd::Identity(n, n);
+  if (n > 0) {
+    const Eigen::GeneralizedSelfAdjointEigenSolver<Eigen::MatrixXd> eig(cb.K, cb.M);
+    if (eig.info() != Eigen::Success)
+      throw Error("FFRF reduction: the reduced eigenproblem failed (a singular reduced mass)",
+                  true);
+    Y = eig.eigenvectors();
+    for (int k = 0; k < n; ++k) {
+      Eigen::Index i;
+      Y.col(k).cwiseAbs().maxCoeff(&i);
+      if (Y(i, k) < 0) Y.col(k) *= -1;
+    }
+  }
+  for (Vec &v : out.basis) FX_PETSC(VecDestroy(&v));
+  out.basis.clear();
+  for (int k = 0; k < n; ++k) {
+    Vec v;
+    FX_PETSC(VecDuplicate(cb.vectors.front(), &v));
+    FX_PETSC(VecZeroEntries(v));
+    FX_PETSC(VecMAXPY(v, n, Y.col(k).data(), cb.vectors.data()));
+    out.basis.push_back(v);
+  }
+  out.K = project(K, out.basis);
+  out.M = project(M, out.basis);
+  out.eigenvalues = out.K.diagonal();
+  out.invariants = ffrf_invariants(mesh, M, out.basis, out.origin);
+  // Interface nodes: static mode 6 (k - 1) + c moves interface k by unit translation (c < 3)
+  // or rotation (c >= 3) and no other interface; fixed-interface modes move none.
+  out.translation.assign(interfaces.size(), Eigen::Matrix3Xd::Zero(3, n));
+  out.rotation.assign(interfaces.size(), Eigen::Matrix3Xd::Zero(3, n));
+  for (std::size_t k = 1; k < interfaces.size(); ++k) {
+    const int base = 6 * static_cast<int>(k - 1);
+    out.translation[k] = Y.block(base, 0, 3, n);
+    out.rotation[k] = Y.block(base + 3, 0, 3, n);
+  }
+  out.geometric.clear();
+  if (geometric_stiffening) {
+    const auto G =
+        centrifugal_geometric_stiffness(mesh, material, K, M, interfaces.front(), out.origin,
+                                        out.basis);
+    out.geometric.assign(G.begin(), G.end());
+  }
+  FX_PETSC(MatDestroy(&K));
+  FX_PETSC(MatDestroy(&M));
+}
+
+Eigen::MatrixXd owned_basis_values(const FlexibleReduction &r, PetscInt owned_nodes) {
+  const int n = r.size();
+  Eigen::MatrixXd out(3 * owned_nodes, n);
+  for (int k = 0; k < n; ++k) {
+    const PetscScalar *v;
+    FX_PETSC(VecGetArrayRead(r.basis[static_cast<std::size_t>(k)], &v));
+    for (PetscInt i = 0; i < 3 * owned_nodes; ++i) out(i, k) = v[i];
+    FX_PETSC(VecRestoreArrayRead(r.basis[static_cast<std::size_t>(k)], &v));
+  }
+  return out;
+}
+
+Eigen::Matrix3Xd basis_at_point(const mesh::DistributedMesh &mesh, const FlexibleReduction &r,
+                                const Eigen::Vector3d &point, const std::string &what) {
+  const int n = r.size();
+  const fem::PointLocation where = fem::locate(mesh, {point.x(), point.y(), point.z()}, what);
+  Eigen::Matrix3Xd out(3, n);
+  Vec g = fem::create_ghosted_vector(mesh);
+  for (int k = 0; k < n; ++k) {
+    FX_PETSC(VecCopy(r.basis[static_cast<std::size_t>(k)], g));
+    FX_PETSC(VecGhostUpdateBegin(g, INSERT_VALUES, SCATTER_FORWARD));
+    FX_PETSC(VecGhostUpdateEnd(g, INSERT_VALUES, SCATTER_FORWARD));
+    const auto u = fem::probe_vector(mesh, g, where);
+    out.col(k) = Eigen::Vector3d(u[0], u[1], u[2]);
+  }
+  FX_PETSC(VecDestroy(&g));
+  return out;
+}
+
+} // namespace flexopt::reduce

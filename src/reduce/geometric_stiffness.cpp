@@ -1,0 +1,147 @@
+#include "flexopt/reduce/geometric_stiffness.hpp"
+
+#include "flexopt/core/error.hpp"
+#include "flexopt/core/log.hpp"
+#include "flexopt/fem/assembly.hpp"
+#include "flexopt/reduce/modal.hpp"
+
+#include <petscksp.h>
+#include <string>
+
+namespace flexopt::reduce {
+
+const std::array<const char *, 6> kCentrifugalCases = {"xx", "yy", "zz", "yz", "xz", "xy"};
+
+Eigen::Matrix<double, 6, 1> centrifugal_coefficients(const Eigen::Vector3d &omega) {
+  Eigen::Matrix<double, 6, 1> s;
+  s << omega.x() * omega.x(), omega.y() * omega.y(), omega.z() * omega.z(), omega.y() * omega.z(),
+      omega.x() * omega.z(), omega.x() * omega.y();
+  return s;
+}
+
+Eigen::Matrix3d centrifugal_load_matrix(int c) {
+  // Axis pairs (a, b) of the off-diagonal cases yz, xz, xy.
+  static constexpr int kPairs[3][2] = {{1, 2}, {0, 2}, {0, 1}};
+  if (c < 0 || c > 5)
+    throw Error("centrifugal_load_matrix: load case " + std::to_string(c) + " is not in 0..5");
+  Eigen::Matrix3d B = Eigen::Matrix3d::Zero();
+  if (c < 3) {
+    B = Eigen::Matrix3d::Identity();
+    B(c, c) = 0.0;
+  } else {
+    const int a = kPairs[c - 3][0], b = kPairs[c - 3][1];
+    B(a, b) = B(b, a) = -1.0;
+  }
+  return B;
+}
+
+Eigen::MatrixXd centrifugal_stiffening(const std::array<Eigen::MatrixXd, 6> &G,
+                                       const Eigen::Vector3d &omega) {
+  const Eigen::Matrix<double, 6, 1> s = centrifugal_coefficients(omega);
+  Eigen::MatrixXd sum = Eigen::MatrixXd::Zero(G[0].rows(), G[0].cols());
+  for (int c = 0; c < 6; ++c) sum += s(c) * G[static_cast<std::size_t>(c)];
+  return sum;
+}
+
+std::array<Eigen::MatrixXd, 6>
+centrifugal_geometric_stiffness(const mesh::DistributedMesh &mesh,
+                                const fem::IsotropicMaterial &material, Mat K, Mat M,
+                                const std::string &frame_interface, const Eigen::Vector3d &origin,
+                                const std::vector<Vec> &basis) {
+  LogScope log("FxGeomStiffness");
+  const int n = static_cast<int>(basis.size());
+  std::array<Eigen::MatrixXd, 6> G;
+  for (auto &g : G) g.setZero(n, n);
+  // Every rank holds the same material: its error is collective.
+  try {
+    material.validate();
+  } catch (const Error &err) {
+    throw Error(std::string("centrifugal geometric stiffness: ") + err.what(), true);
+  }
+  const std::vector<PetscInt> frame = fem::surface_dofs(mesh, frame_interface, {true, true, true},
+                                                        "centrifugal geometric stiffness frame");
+  if (n == 0) return G;
+
+  // The body clamped at its frame: one factorization for the six load cases.
+  Mat Kc;
+  FX_PETSC(MatDuplicate(K, MAT_COPY_VALUES, &Kc));
+  FX_PETSC(MatZeroRowsColumns(Kc, static_cast<PetscInt>(frame.size()), frame.data(), 1.0, nullptr,
+                              nullptr));
+  KSP ksp;
+  FX_PETSC(KSPCreate(mesh.comm, &ksp));
+  FX_PETSC(KSPSetOptionsPrefix(ksp, "gs_"));
+  FX_PETSC(KSPSetOperators(ksp, Kc, Kc));
+  use_mumps_lu(ksp);
+  FX_PETSC(KSPSetFromOptions(ksp));
+
+  Vec w, f, Kv;
+  FX_PETSC(MatCreateVecs(M, &w, &f));
+  FX_PETSC(VecDuplicate(basis.front(), &Kv));
+  Vec u = fem::create_ghosted_vector(mesh);
+  Mat Ks = fem::create_matrix(mesh);
+  PetscInt lo;
+  FX_PETSC(VecGetOwnershipRange(f, &lo, nullptr));
+  std::vector<PetscScalar> dots(static_cast<std::size_t>(n));
+  for (int c = 0; c < 6; ++c) {
+    // Load: f_c = M w_c, w_c = B_c (X - origin) at the owned nodes, zero on the clamped DOFs.
+    const Eigen::Matrix3d B = centrifugal_load_matrix(c);
+    {
+      PetscScalar *wa;
+      FX_PETSC(VecGetArray(w, &wa));
+      for (PetscInt i = 0; i < mesh.owned_nodes; ++i) {
+        const Eigen::Vector3d x =
+            Eigen::Map<const Eigen::Vector3d>(&mesh.coordinates[3 * static_cast<std::size_t>(i)]) -
+            origin;
+        Eigen::Map<Eigen::Vector3d> wi(&wa[3 * i]);
+        wi = B * x;
+      }
+      FX_PETSC(VecRestoreArray(w, &wa));
+    }
+    FX_PETSC(MatMult(M, w, f));
+    {
+      PetscScalar *fa;
+      FX_PETSC(VecGetArray(f, &fa));
+      for (PetscInt dof : frame) fa[dof - lo] = 0.0;
+      FX_PETSC(VecRestoreArray(f, &fa));
+    }
+    FX_PETSC(KSPSolve(ksp, f, u));
+    KSPConvergedReason reason;
+    FX_PETSC(KSPGetConvergedReason(ksp, &reason));
+    if (reason < 0) {
+      FX_PETSC(MatDestroy(&Ks));
+      FX_PETSC(VecDestroy(&u));
+      FX_PETSC(VecDestroy(&Kv));
+      FX_PETSC(VecDestroy(&f));
+      FX_PETSC(VecDestroy(&w));
+      FX_PETSC(KSPDestroy(&ksp));
+      FX_PETSC(MatDestroy(&Kc));
+      throw Error(std::string("centrifugal geometric stiffness: the solve of load case ") +
+                      kCentrifugalCases[static_cast<std::size_t>(c)] + " with '" + frame_interface +
+                      "' clamped failed (" + KSPConvergedReasons[reason] +
+                      "). Does the frame surface hold the body against rigid motion?",
+                  true);
+    }
+    FX_PETSC(VecGhostUpdateBegin(u, INSERT_VALUES, SCATTER_FORWARD));
+    FX_PETSC(VecGhostUpdateEnd(u, INSERT_VALUES, SCATTER_FORWARD));
+
+    // G_c = V^T K_sigma(u_c) V; VecMDot gives every rank the same numbers.
+    fem::assemble_geometric_stiffness(mesh, material, u, Ks);
+    Eigen::MatrixXd &Gc = G[static_cast<std::size_t>(c)];
+    for (int j = 0; j < n; ++j) {
+      FX_PETSC(MatMult(Ks, basis[static_cast<std::size_t>(j)], Kv));
+      FX_PETSC(VecMDot(Kv, n, basis.data(), dots.data()));
+      for (int i = 0; i < n; ++i) Gc(i, j) = dots[static_cast<std::size_t>(i)];
+    }
+    Gc = 0.5 * (Gc + Gc.transpose()).eval();
+  }
+  FX_PETSC(MatDestroy(&Ks));
+  FX_PETSC(VecDestroy(&u));
+  FX_PETSC(VecDestroy(&Kv));
+  FX_PETSC(VecDestroy(&f));
+  FX_PETSC(VecDestroy(&w));
+  FX_PETSC(KSPDestroy(&ksp));
+  FX_PETSC(MatDestroy(&Kc));
+  return G;
+}
+
+} // namespace flexopt::reduce
