@@ -23,7 +23,7 @@ constexpr int kMaxCachedDegree = 10;
 /// Highest degree accepted by the public quadrature functions (21 Gauss points per direction).
 constexpr int kMaxDegree = 40;
 
-// Quadrature degrees per kernel; see docs/theory-elements.md for the derivation of each.
+// Quadrature degrees per kernel; see docs/theory.md section 3 for the derivation of each.
 // Tet4 (affine, constant B and det J).
 constexpr int kTet4StiffnessDegree = 0;
 constexpr int kTet4MassDegree = 2;

@@ -7,6 +7,7 @@
 #include <Eigen/Eigenvalues>
 #include <Eigen/Sparse>
 #include <Eigen/SparseCholesky>
+#include <algorithm>
 #include <array>
 #include <chrono>
 #include <cmath>
@@ -548,6 +549,148 @@ TEST(Stress, LinearDisplacementGivesExactConstantStress) {
       const Voigt s = element_stress(el.type, el.X, kSteel, factor, ue, xi);
       EXPECT_LT((s - exact).norm(), 1e-12 * exact.norm()) << el.name << " at " << xi.transpose();
     }
+  }
+}
+
+// -----------------------------------------------------------------------------------------------
+// Geometric stiffness
+
+/// Stress tensor (3x3) of a Voigt stress.
+Eigen::Matrix3d stress_tensor(const Voigt &s) {
+  Eigen::Matrix3d S;
+  S << s[0], s[5], s[4], s[5], s[1], s[3], s[4], s[3], s[2];
+  return S;
+}
+
+/// Quadrature degree of element_stiffness for a test element (as in the stiffness test).
+int stiffness_degree(const TestElement &el) {
+  if (el.type == ElementType::Tet10) return el.name.find("curved") != std::string::npos ? 3 : 2;
+  return el.type == ElementType::Hex8 ? 3 : 0;
+}
+
+TEST(GeometricStiffness, UniformStressGivesVolumeTimesTraceOfH2SigmaH2T) {
+  // For u = H1 x the stress sigma = D eps(H1) is uniform and exact at every point (see the stress
+  // test); for w = H2 x, grad w = H2 exactly, so w^T K_sigma w = int tr(H2 sigma H2^T) dV =
+  // V tr(H2 sigma H2^T). The stiffness rule integrates det J exactly on every element here
+  // (Tet4, affine Tet10: constant; curved Tet10: cubic, degree-3 rule; Hex8: degree 2 per
+  // direction, 2x2x2 Gauss), so only roundoff remains: ~1e-14 relative; the bound asked is 1e-10.
+  // The translations c1, c2 exercise K_sigma's null space (sum_b grad N_b = 0).
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  double worst = 0.0;
+  for (const TestElement &el : test_elements()) {
+    const double h = (el.X.colwise().maxCoeff() - el.X.colwise().minCoeff()).norm();
+    for (int trial = 0; trial < 5; ++trial) {
+      Eigen::Matrix3d H1, H2;
+      for (int i = 0; i < 9; ++i) {
+        H1.data()[i] = 1e-3 * u(rng);
+        H2.data()[i] = u(rng);
+      }
+      const ElementVector ue = nodal_values(el.X, H1, 1e-3 * h * Vector3d(u(rng), u(rng), u(rng)));
+      const ElementVector we = nodal_values(el.X, H2, h * Vector3d(u(rng), u(rng), u(rng)));
+      const Eigen::Matrix3d sigma = stress_tensor(kSteel.elasticity() * strain_of(H1));
+      const ElementMatrix Ks = element_geometric_stiffness(el.type, el.X, kSteel, ue);
+      const double exact = element_volume(el.type, el.X) * (H2 * sigma * H2.transpose()).trace();
+      const double err = std::abs(we.dot(Ks * we) - exact) / std::abs(exact);
+      worst = std::max(worst, err);
+      EXPECT_LT(err, 1e-10) << el.name;
+      EXPECT_EQ((Ks - Ks.transpose()).cwiseAbs().maxCoeff(), 0.0) << el.name;
+    }
+  }
+  std::printf("geometric stiffness: max relative error of w^T K_sigma w = V tr(H2 sigma H2^T): "
+              "%.2e\n",
+              worst);
+}
+
+TEST(GeometricStiffness, MatchesTheQuadratureOfPointStresses) {
+  // Independent reference for a non-uniform stress (random nodal displacements): the stress from
+  // element_stress at each point of the documented stiffness rule, and the textbook sum
+  // K_(a,k),(b,k) = sum_q w_q det J_q grad N_a^T S_q grad N_b. Entries are sums of ~n_q * 9
+  // products: 1e-13 relative to max |K_sigma|.
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  for (const TestElement &el : test_elements()) {
+    const int n = el.X.rows();
+    const double h = (el.X.colwise().maxCoeff() - el.X.colwise().minCoeff()).norm();
+    ElementVector ue(3 * n);
+    for (int i = 0; i < 3 * n; ++i) ue[i] = 1e-3 * h * u(rng);
+    const QuadratureRule rule = volume_quadrature(el.type, stiffness_degree(el));
+    Eigen::MatrixXd k = Eigen::MatrixXd::Zero(n, n);
+    for (std::size_t q = 0; q < rule.points.size(); ++q) {
+      double dN[kMaxDofs];
+      shape_functions(el.type, rule.points[q], nullptr, dN);
+      const Eigen::Matrix3d J = map_jacobian(el.type, el.X, rule.points[q]);
+      Eigen::MatrixXd G(n, 3);
+      for (int a = 0; a < n; ++a)
+        G.row(a) = Eigen::Map<const Eigen::RowVector3d>(&dN[3 * a]) * J.inverse();
+      const Eigen::Matrix3d S =
+          stress_tensor(element_stress(el.type, el.X, kSteel, 1.0, ue, rule.points[q]));
+      k += rule.weights[q] * J.determinant() * G * S * G.transpose();
+    }
+    const ElementMatrix Ks = element_geometric_stiffness(el.type, el.X, kSteel, ue);
+    const double scale = k.cwiseAbs().maxCoeff();
+    double diff = 0.0;
+    for (int a = 0; a < n; ++a)
+      for (int b = 0; b < n; ++b)
+        for (int i = 0; i < 3; ++i)
+          for (int j = 0; j < 3; ++j)
+            diff = std::max(diff, std::abs(Ks(3 * a + i, 3 * b + j) - (i == j ? k(a, b) : 0.0)));
+    EXPECT_LT(diff, 1e-13 * scale) << el.name;
+  }
+}
+
+TEST(GeometricStiffness, LinearInTheDisplacementAndBlindToRigidTranslations) {
+  // K_sigma(u) is linear in u; a rigid translation has no stress (K_sigma(t) = 0 to roundoff) and
+  // lies in K_sigma's null space (sum_b grad N_b = 0).
+  std::mt19937 rng(8);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  for (const TestElement &el : test_elements()) {
+    const int n = el.X.rows();
+    const double h = (el.X.colwise().maxCoeff() - el.X.colwise().minCoeff()).norm();
+    ElementVector u1(3 * n), u2(3 * n), t(3 * n);
+    for (int i = 0; i < 3 * n; ++i) {
+      u1[i] = 1e-3 * h * u(rng);
+      u2[i] = 1e-3 * h * u(rng);
+    }
+    const Vector3d shift(u(rng), u(rng), u(rng));
+    for (int a = 0; a < n; ++a) t.segment<3>(3 * a) = 1e-3 * h * shift;
+    const ElementMatrix K1 = element_geometric_stiffness(el.type, el.X, kSteel, u1);
+    const ElementMatrix K2 = element_geometric_stiffness(el.type, el.X, kSteel, u2);
+    const ElementMatrix K12 = element_geometric_stiffness(el.type, el.X, kSteel, u1 - 0.5 * u2);
+    const double scale = K1.cwiseAbs().maxCoeff() + K2.cwiseAbs().maxCoeff();
+    EXPECT_LT((K12 - (K1 - 0.5 * K2)).cwiseAbs().maxCoeff(), 1e-13 * scale) << el.name;
+    EXPECT_LT(element_geometric_stiffness(el.type, el.X, kSteel, t).cwiseAbs().maxCoeff(),
+              1e-12 * scale)
+        << el.name;
+    ElementVector ones(3 * n);
+    for (int a = 0; a < n; ++a) ones.segment<3>(3 * a) = shift;
+    EXPECT_LT((K1 * ones).cwiseAbs().maxCoeff(), 1e-12 * scale * shift.norm()) << el.name;
+  }
+}
+
+TEST(GeometricStiffness, ThrowsLikeTheStiffness) {
+  for (const TestElement &el : test_elements()) {
+    const ElementVector ue = ElementVector::Constant(3 * el.X.rows(), 1e-4);
+    ElementCoords inverted = el.X;
+    inverted.col(0) *= -1.0;
+    EXPECT_THROW(element_geometric_stiffness(el.type, inverted, kSteel, ue), flexopt::Error)
+        << el.name;
+    ElementCoords flat = el.X;
+    flat.col(2).setConstant(0.3);
+    EXPECT_THROW(element_geometric_stiffness(el.type, flat, kSteel, ue), flexopt::Error) << el.name;
+    EXPECT_THROW(element_geometric_stiffness(el.type, el.X, kSteel, ue.head(3)), flexopt::Error)
+        << el.name;
+    EXPECT_THROW(element_geometric_stiffness(el.type, el.X, IsotropicMaterial{1.0, 0.6, 1.0}, ue),
+                 flexopt::Error)
+        << el.name;
+  }
+  try {
+    ElementCoords X = reference_nodes(ElementType::Tet4);
+    X.row(3) = X.row(2);
+    element_geometric_stiffness(ElementType::Tet4, X, kSteel, ElementVector::Zero(12));
+    FAIL() << "no exception";
+  } catch (const flexopt::Error &e) {
+    EXPECT_NE(std::string(e.what()).find("degenerate or inverted"), std::string::npos);
   }
 }
 

@@ -1,7 +1,7 @@
 #pragma once
 /// \file Centrifugal stress stiffening of a floating-frame (FFRF) flexible body: reduced geometric
 /// stiffness matrices of the stress that unit centrifugal loads produce in the body clamped at its
-/// frame (docs/theory-elements.md, "Geometric stiffness and centrifugal stiffening").
+/// frame (docs/theory.md section 7.5).
 ///
 /// A body turning with the body-frame angular velocity omega [rad/s] carries the centrifugal body
 /// force density rho (|omega|^2 I - omega omega^T)(x - o) = sum_c s_c(omega) rho B_c (x - o)
