@@ -16,6 +16,8 @@ reads the run's summary.json and compares each check:
           - {path: sensors.tip, component: 1, period: 1.9339, between: [0, 2], rel_tol: 1.0e-4}
           - {path: sensors.s, component: 0, formula: "0.2*np.cos(t)", max_abs_err: 1.0e-8}
           - {path: energy, max_relative_change: 1.0e-6}
+          - {path: sensors.tip, component: 1, minimum: -0.40, rel_tol: 0.05, at: 7.0, time_tol: 0.5}
+          - {path: sensors.tip, component: 1, max_abs_over: [0, 15], max: 1.0}   # bounded
 
 Usage: check_case.py CASE_DIR [--flexopt build/flexopt] [--ranks 2] [--out DIR] [--reference FILE]
 Exit status 0 if every check passes.
@@ -101,6 +103,27 @@ def check_derived(summary, check):
         shown = check["formula"] if len(check["formula"]) < 60 else check.get("name", "formula")
         return err <= check["max_abs_err"], (f"{label}: max |value - ({shown})| "
                                              f"{err:.3g} <= {check['max_abs_err']:.3g} over {len(t)} samples")
+    if "minimum" in check or "maximum" in check:
+        kind = "minimum" if "minimum" in check else "maximum"
+        k = int(np.argmin(v) if kind == "minimum" else np.argmax(v))
+        ref = check[kind]
+        rel = abs(v[k] - ref) / abs(ref)
+        ok = rel <= check["rel_tol"]
+        msg = f"{label}: {kind} {v[k]:.6g} at t = {t[k]:.4g} vs {ref:.6g}, rel err {rel:.3g} <= {check['rel_tol']:.3g}"
+        if "at" in check:
+            dt = abs(t[k] - check["at"])
+            ok = ok and dt <= check["time_tol"]
+            msg += f"; time {t[k]:.4g} vs {check['at']:.4g}, |dt| {dt:.3g} <= {check['time_tol']:.3g}"
+        return ok, msg
+    if "max_abs_over" in check:
+        t0, t1 = check["max_abs_over"]
+        window = np.abs(v[(t >= t0) & (t <= t1)])
+        if window.size == 0:
+            return False, f"{label}: no samples in [{t0}, {t1}]"
+        worst = float(np.max(window))
+        if "max" in check:
+            return worst <= check["max"], f"{label}: max |value| over [{t0}, {t1}] {worst:.6g} <= {check['max']:.6g}"
+        return worst >= check["min"], f"{label}: max |value| over [{t0}, {t1}] {worst:.6g} >= {check['min']:.6g}"
     if "period" in check:
         i, j = check.get("between", [0, 1])
         T = maxima_period(t, v, i, j)
@@ -114,7 +137,8 @@ def check_derived(summary, check):
 
 
 def check_one(summary, check):
-    if any(k in check for k in ("formula", "period", "max_relative_change")):
+    if any(k in check for k in ("formula", "period", "max_relative_change", "minimum", "maximum",
+                                "max_abs_over")):
         return check_derived(summary, check)
     path = check["path"]
     try:

@@ -201,14 +201,16 @@ def element_forces(q, le, ga=GA, ea=EA, tangent=True):
     return f, K
 
 
-def check_tangent():
-    """Max relative deviation of the analytic f and K from central differences of the energy
-    and of f, at a random large deformation."""
-    rng = np.random.default_rng(1)
-    ne, le = 4, 0.7
+def check_tangent(forces=None, ea=EA, ga=GA, ei=EI, le=0.7, amplitude=0.2, seed=1):
+    """Max relative deviation of the analytic f and K of `forces` (default: element_forces)
+    from central differences of the energy and of f, at a random large deformation of 4
+    elements of length le with section data ea, ga, ei."""
+    forces = forces or element_forces
+    rng = np.random.default_rng(seed)
+    ne = 4
     q = np.zeros(3 * (ne + 1))
     q[0::3] = np.arange(ne + 1) * le
-    q += 0.2 * rng.standard_normal(q.size)
+    q += amplitude * rng.standard_normal(q.size)
 
     def energy(qq):
         X, Y, P = qq[0::3], qq[1::3], qq[2::3]
@@ -217,17 +219,12 @@ def check_tangent():
         e = np.cos(pm) * dx + np.sin(pm) * dy - 1.0
         g = -np.sin(pm) * dx + np.cos(pm) * dy
         k = np.diff(P) / le
-        return 0.5 * le * np.sum(EA * e * e + GA * g * g + EI * k * k)
+        return 0.5 * le * np.sum(ea * e * e + ga * g * g + ei * k * k)
 
-    def assemble_f(qq):
-        f, _ = element_forces(qq, le, tangent=False)
-        F = np.zeros(qq.size)
-        for e in range(ne):
-            F[3 * e:3 * e + 6] += f[e]
-        return F
-
-    f, K = element_forces(q, le)
-    F = assemble_f(q)
+    f, K = forces(q, le)
+    F = np.zeros(q.size)
+    for e in range(ne):
+        F[3 * e:3 * e + 6] += f[e]
     h = 1e-6
     err_f = err_k = 0.0
     for i in range(q.size):
@@ -235,12 +232,14 @@ def check_tangent():
         dq[i] = h
         fd = (energy(q + dq) - energy(q - dq)) / (2 * h)
         err_f = max(err_f, abs(fd - F[i]) / np.abs(F).max())
-    for i in range(6):   # columns of element 0's tangent
-        dq = np.zeros(q.size)
-        dq[i] = h
-        fp, _ = element_forces(q + dq, le, tangent=False)
-        fm, _ = element_forces(q - dq, le, tangent=False)
-        err_k = max(err_k, np.abs((fp[0] - fm[0]) / (2 * h) - K[0, :, i]).max() / np.abs(K[0]).max())
+    for e in range(ne):   # every element's tangent, column by column
+        for i in range(6):
+            dq = np.zeros(q.size)
+            dq[3 * e + i] = h
+            fp, _ = forces(q + dq, le, tangent=False)
+            fm, _ = forces(q - dq, le, tangent=False)
+            err_k = max(err_k, np.abs((fp[e] - fm[e]) / (2 * h) - K[e, :, i]).max() /
+                        np.abs(K[e]).max())
     return err_f, err_k
 
 

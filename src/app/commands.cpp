@@ -128,6 +128,21 @@ int run_info(const Context &ctx, const Options &o, const io::Case &c, double t0)
     jb["dofs"] = 3LL * m.global_nodes;
     jb["elements_per_rank"] = rank_counts(elems);
     jb["nodes_per_rank"] = rank_counts(nodes);
+    if (c.analysis == "dynamic" && b.model == "ffrf") {
+      // The reduced size follows from the case alone: 6 static modes per interface after the
+      // frame, plus the fixed-interface modes (flexopt modes --body shows the basis itself).
+      const int statics = 6 * std::max(0, static_cast<int>(b.interfaces.size()) - 1);
+      print0(
+          ctx.comm(),
+          "  ffrf: %d elastic coordinates (%d static modes + %d fixed-interface modes), frame at "
+          "interface '%s', geometric stiffening %s, Rayleigh damping [%g, %g]\n",
+          statics + b.reduction.modes, statics, b.reduction.modes,
+          b.interfaces.empty() ? "(none)" : b.interfaces.front().c_str(),
+          b.reduction.geometric_stiffening ? "on" : "off", b.rayleigh[0], b.rayleigh[1]);
+      jb["elastic_coordinates"] = statics + b.reduction.modes;
+      jb["static_modes"] = statics;
+      jb["fixed_modes"] = b.reduction.modes;
+    }
     bodies.push_back(jb);
     total_dofs += 3LL * m.global_nodes;
     total_elements += m.global_elements;

@@ -177,6 +177,8 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
   const double t_int = wall_time() - t_start;
   const std::string xdmf = writer.close();
 
+  s["coordinates"] = mech.coordinates();
+  s["constraint_rows"] = mech.constraints();
   s["steps"] = steps;
   s["time_step"] = h;
   s["t_end"] = static_cast<double>(steps) * h;
@@ -201,7 +203,8 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
   }
   s["sensors"] = sensors;
   io::Json bl = io::Json::array();
-  for (const auto &b : mech.bodies) {
+  for (std::size_t k = 0; k < mech.bodies.size(); ++k) {
+    const auto &b = mech.bodies[k];
     io::Json j = io::Json::object();
     j["name"] = b->name();
     j["model"] = b->model();
@@ -213,6 +216,9 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
     } else {
       j["frame_origin"] = vec3_json(b->origin());
       j["elastic_coordinates"] = b->elastic_coordinates();
+      j["dofs"] = 3LL * scene.meshes[k].global_nodes;
+      j["elements"] = static_cast<long long>(scene.meshes[k].global_elements);
+      j["reduction_s"] = scene.reduction_seconds[k];
     }
     bl.push_back(j);
   }

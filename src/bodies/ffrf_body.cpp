@@ -22,8 +22,8 @@ Eigen::Matrix<double, 6, 1> centrifugal_factors(const Vec3 &w,
   Eigen::Matrix<double, 6, 1> s;
   s << w(0) * w(0), w(1) * w(1), w(2) * w(2), w(1) * w(2), w(0) * w(2), w(0) * w(1);
   if (ds) {
-    *ds << 2 * w(0), 0, 0, 0, 2 * w(1), 0, 0, 0, 2 * w(2), 0, w(2), w(1), w(2), 0, w(0), w(1),
-        w(0), 0;
+    *ds << 2 * w(0), 0, 0, 0, 2 * w(1), 0, 0, 0, 2 * w(2), 0, w(2), w(1), w(2), 0, w(0), w(1), w(0),
+        0;
   }
   return s;
 }
@@ -106,8 +106,8 @@ void FfrfBody::residual(const ConstVectorRef &q, const ConstVectorRef &v, const 
   const Vec3 Fr = inv.mass * rho + A * yr;
   const Mat3 Pt = P.trace() * I3 - P.transpose();
   const Vec3 Fw = d.cross(rb) + J * wd + Cm * zdd + w.cross(J * w) + 2 * Pt * w;
-  Vector Fz = inv.D.transpose() * rb + Cm.transpose() * wd + mzz_ * zdd + Kg * z +
-              model_.damping * zd;
+  Vector Fz =
+      inv.D.transpose() * rb + Cm.transpose() * wd + mzz_ * zdd + Kg * z + model_.damping * zd;
   for (int k = 0; k < n; ++k) {
     const Mat3 &c = Ck[static_cast<std::size_t>(k)];
     Fz(k) += -(c.trace() * w.squaredNorm() - w.dot(c * w)) + 2 * w.dot(Hm.col(k));
@@ -151,7 +151,8 @@ void FfrfBody::residual(const ConstVectorRef &q, const ConstVectorRef &v, const 
     const Mat34 Fwp = skew(d) * Rp + J * Ap + Ww * Wp;
     Mat3X Fwz(3, n);
     for (int l = 0; l < n; ++l) {
-      Mat3 Sl = inv.S1[static_cast<std::size_t>(l)] + inv.S1[static_cast<std::size_t>(l)].transpose();
+      Mat3 Sl =
+          inv.S1[static_cast<std::size_t>(l)] + inv.S1[static_cast<std::size_t>(l)].transpose();
       Mat3 Pl = Mat3::Zero();
       Vec3 gz = Vec3::Zero();
       for (int k = 0; k < n; ++k) {

@@ -107,9 +107,9 @@ double RigidBody::kinetic_energy(const Vec7 &q, const Vec7 &v) const {
   return 0.5 * props_.mass * v.head<3>().squaredNorm() + 0.5 * w.dot(props_.inertia * w);
 }
 
-void RigidBody::residual(const ConstVectorRef &q, const ConstVectorRef &v,
-                         const ConstVectorRef &a, const Vec3 &gravity, Eigen::Ref<Vector> res,
-                         Matrix *K, Matrix *C, Matrix *M) const {
+void RigidBody::residual(const ConstVectorRef &q, const ConstVectorRef &v, const ConstVectorRef &a,
+                         const Vec3 &gravity, Eigen::Ref<Vector> res, Matrix *K, Matrix *C,
+                         Matrix *M) const {
   Vec7 f;
   Mat7 k, c, m;
   inertial_force(q, v, a, &f, K ? &k : nullptr, C ? &c : nullptr, M ? &m : nullptr);

@@ -186,8 +186,8 @@ void Mechanism::dynamics_blocks(const Vector &q, const Vector &v, const Vector &
   M.resize(nb);
   for (std::size_t b = 0; b < nb; ++b) {
     const int o = offsets_[b], m = bodies[b]->coordinates();
-    bodies[b]->residual(q.segment(o, m), v.segment(o, m), a.segment(o, m), gravity,
-                        r.segment(o, m), &K[b], &C[b], &M[b]);
+    bodies[b]->residual(q.segment(o, m), v.segment(o, m), a.segment(o, m), gravity, r.segment(o, m),
+                        &K[b], &C[b], &M[b]);
   }
   bodies::Mat4 pp;
   Eigen::Matrix<double, 4, Eigen::Dynamic> pz;
@@ -253,8 +253,7 @@ void Mechanism::dynamics(const Vector &q, const Vector &v, const Vector &a, doub
     if (!out) continue;
     out->setZero(n, n);
     for (std::size_t b = 0; b < bodies.size(); ++b)
-      out->block(offsets_[b], offsets_[b], (*blocks)[b].rows(), (*blocks)[b].cols()) =
-          (*blocks)[b];
+      out->block(offsets_[b], offsets_[b], (*blocks)[b].rows(), (*blocks)[b].cols()) = (*blocks)[b];
   }
 }
 

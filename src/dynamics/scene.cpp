@@ -10,9 +10,9 @@
 
 #include <cmath>
 #include <cstdio>
-#include <tuple>
 #include <map>
 #include <memory>
+#include <tuple>
 
 namespace flexopt::dynamics {
 
@@ -187,10 +187,11 @@ Scene build_scene(MPI_Comm comm, const io::Case &c) {
                         reduce::frequency_hz(red->eigenvalues(k)));
           freq += buf;
         }
-        print0(comm, "body %s: reduced frequencies (frame clamped) [Hz]: %s%s\n",
-               spec.name.c_str(), freq.c_str(), red->size() > 8 ? ", ..." : "");
+        print0(comm, "body %s: reduced frequencies (frame clamped) [Hz]: %s%s\n", spec.name.c_str(),
+               freq.c_str(), red->size() > 8 ? ", ..." : "");
       }
       reductions[b] = red;
+      scene.reduction_seconds.push_back(wall_time() - t0);
       mech.bodies.push_back(body);
     } else {
       // Mass properties and interface centroids from the whole mesh on rank 0, broadcast as
@@ -214,10 +215,10 @@ Scene build_scene(MPI_Comm comm, const io::Case &c) {
       p.center = Vec3(buf[1], buf[2], buf[3]);
       for (int k = 0; k < 9; ++k) p.inertia(k / 3, k % 3) = buf[static_cast<std::size_t>(4 + k)];
       for (std::size_t i = 0; i < spec.interfaces.size(); ++i)
-        interfaces[b][spec.interfaces[i]] =
-            Vec3(buf[13 + 3 * i], buf[14 + 3 * i], buf[15 + 3 * i]);
+        interfaces[b][spec.interfaces[i]] = Vec3(buf[13 + 3 * i], buf[14 + 3 * i], buf[15 + 3 * i]);
       mech.bodies.push_back(std::make_shared<bodies::RigidBody>(spec.name, p));
       scene.owned_modes.emplace_back();
+      scene.reduction_seconds.push_back(0.0);
       const Eigen::SelfAdjointEigenSolver<Mat3> principal(p.inertia);
       print0(comm,
              "body %s: rigid, mass %.6g kg, centre of mass (%.6g, %.6g, %.6g), principal inertia "

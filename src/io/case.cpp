@@ -250,8 +250,8 @@ void read_bodies(const Reader &r, const YAML::Node &node, const fs::path &dir, C
     }
     for (const char *key : {"reduction", "damping"})
       if (v[key] && b.model != "ffrf")
-        r.fail(r.key_node(v, key), path + "." + key + ": only an ffrf body takes it (model: " +
-                                       b.model + ")");
+        r.fail(r.key_node(v, key),
+               path + "." + key + ": only an ffrf body takes it (model: " + b.model + ")");
     if (v["reduction"]) {
       const YAML::Node &m = v["reduction"];
       const std::string mp = path + ".reduction";
@@ -260,7 +260,8 @@ void read_bodies(const Reader &r, const YAML::Node &node, const fs::path &dir, C
       if (m["modes"]) {
         b.reduction.modes = r.integer(m["modes"], mp + ".modes");
         if (b.reduction.modes < 0 || b.reduction.modes > 100)
-          r.fail(m["modes"], mp + ".modes: the number of fixed-interface modes must be in [0, 100]");
+          r.fail(m["modes"],
+                 mp + ".modes: the number of fixed-interface modes must be in [0, 100]");
       }
       if (m["geometric_stiffening"])
         b.reduction.geometric_stiffening =

@@ -6,10 +6,10 @@ namespace flexopt::joints {
 
 namespace {
 
-using Mat4X = Eigen::Matrix<double, 4, Eigen::Dynamic, Eigen::ColMajor, 4,
-                            bodies::kMaxBodyCoordinates>;
-using MatX4 = Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::ColMajor,
-                            bodies::kMaxBodyCoordinates, 4>;
+using Mat4X =
+    Eigen::Matrix<double, 4, Eigen::Dynamic, Eigen::ColMajor, 4, bodies::kMaxBodyCoordinates>;
+using MatX4 =
+    Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::ColMajor, bodies::kMaxBodyCoordinates, 4>;
 
 /// One side of an equation: a body (or the ground) with its coordinate block.
 struct Side {
@@ -61,8 +61,7 @@ void add_rotation_hessian(Sink &H, const Side &b, const Vec3 &s, const Elastic &
   if (b.n == 0) return;
   const Vec4 p = b.p();
   Mat4X pz(4, b.n);
-  for (int l = 0; l < b.n; ++l)
-    pz.col(l) = bodies::rotate_jacobian(p, S.col(l)).transpose() * w;
+  for (int l = 0; l < b.n; ++l) pz.col(l) = bodies::rotate_jacobian(p, S.col(l)).transpose() * w;
   const MatX4 zp = pz.transpose();
   H.add_block(b.ref, b.ref, 3, 7, pz);
   H.add_block(b.ref, b.ref, 7, 3, zp);
@@ -191,8 +190,7 @@ void Equation::gradient(const Vector &q, double t, Sink &J, int row) const {
     const Vec3 d = B.point(sb, Sb) - A.point(sa, Sa);
     if (!A.ground())
       add_row(J, row, A,
-              d.transpose() * A.jacobian(ua, Ua, false) -
-                  u.transpose() * A.jacobian(sa, Sa, true));
+              d.transpose() * A.jacobian(ua, Ua, false) - u.transpose() * A.jacobian(sa, Sa, true));
     if (!B.ground()) add_row(J, row, B, u.transpose() * B.jacobian(sb, Sb, true));
     return;
   }

@@ -66,16 +66,7 @@ void craig_bampton(const mesh::DistributedMesh &mesh, Mat K, Mat M,
   constrained.erase(std::unique(constrained.begin(), constrained.end()), constrained.end());
 
   // Static modes: K with every interface DOF constrained, factorized once (MUMPS).
-  Mat Kc;
-  FX_PETSC(MatDuplicate(K, MAT_COPY_VALUES, &Kc));
-  FX_PETSC(MatZeroRowsColumns(Kc, static_cast<PetscInt>(constrained.size()), constrained.data(),
-                              1.0, nullptr, nullptr));
-  KSP ksp;
-  FX_PETSC(KSPCreate(mesh.comm, &ksp));
-  FX_PETSC(KSPSetOptionsPrefix(ksp, "cb_"));
-  FX_PETSC(KSPSetOperators(ksp, Kc, Kc));
-  use_mumps_lu(ksp);
-  FX_PETSC(KSPSetFromOptions(ksp));
+  const ClampedSolver clamped(mesh.comm, K, constrained, "cb_");
   Vec ud, b;
   FX_PETSC(MatCreateVecs(K, &ud, &b));
   for (Vec &v : out.vectors) FX_PETSC(VecDestroy(&v));
@@ -116,20 +107,12 @@ void craig_bampton(const mesh::DistributedMesh &mesh, Mat K, Mat M,
       }
       Vec x;
       FX_PETSC(VecDuplicate(b, &x));
-      FX_PETSC(KSPSolve(ksp, b, x));
-      KSPConvergedReason reason;
-      FX_PETSC(KSPGetConvergedReason(ksp, &reason));
-      if (reason < 0)
-        throw Error("Craig-Bampton: the static-mode solve failed (KSP reason " +
-                        std::to_string(static_cast<int>(reason)) + ")",
-                    true);
+      clamped.solve(b, x, "Craig-Bampton: the static-mode solve");
       out.vectors.push_back(x);
     }
   out.static_modes = static_cast<int>(out.vectors.size());
   FX_PETSC(VecDestroy(&ud));
   FX_PETSC(VecDestroy(&b));
-  FX_PETSC(KSPDestroy(&ksp));
-  FX_PETSC(MatDestroy(&Kc));
 
   // Fixed-interface modes: every interface surface clamped.
   out.fixed_modes = fixed_modes;

@@ -88,9 +88,8 @@ void reduce_flexible_body(const mesh::DistributedMesh &mesh, const fem::Isotropi
   }
   out.geometric.clear();
   if (geometric_stiffening) {
-    const auto G =
-        centrifugal_geometric_stiffness(mesh, material, K, M, interfaces.front(), out.origin,
-                                        out.basis);
+    const auto G = centrifugal_geometric_stiffness(mesh, material, K, M, interfaces.front(),
+                                                   out.origin, out.basis);
     out.geometric.assign(G.begin(), G.end());
   }
   FX_PETSC(MatDestroy(&K));

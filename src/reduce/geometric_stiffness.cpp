@@ -63,16 +63,7 @@ centrifugal_geometric_stiffness(const mesh::DistributedMesh &mesh,
   if (n == 0) return G;
 
   // The body clamped at its frame: one factorization for the six load cases.
-  Mat Kc;
-  FX_PETSC(MatDuplicate(K, MAT_COPY_VALUES, &Kc));
-  FX_PETSC(MatZeroRowsColumns(Kc, static_cast<PetscInt>(frame.size()), frame.data(), 1.0, nullptr,
-                              nullptr));
-  KSP ksp;
-  FX_PETSC(KSPCreate(mesh.comm, &ksp));
-  FX_PETSC(KSPSetOptionsPrefix(ksp, "gs_"));
-  FX_PETSC(KSPSetOperators(ksp, Kc, Kc));
-  use_mumps_lu(ksp);
-  FX_PETSC(KSPSetFromOptions(ksp));
+  const ClampedSolver clamped(mesh.comm, K, frame, "gs_");
 
   Vec w, f, Kv;
   FX_PETSC(MatCreateVecs(M, &w, &f));
@@ -82,6 +73,13 @@ centrifugal_geometric_stiffness(const mesh::DistributedMesh &mesh,
   PetscInt lo;
   FX_PETSC(VecGetOwnershipRange(f, &lo, nullptr));
   std::vector<PetscScalar> dots(static_cast<std::size_t>(n));
+  auto destroy = [&] {
+    MatDestroy(&Ks);
+    VecDestroy(&u);
+    VecDestroy(&Kv);
+    VecDestroy(&f);
+    VecDestroy(&w);
+  };
   for (int c = 0; c < 6; ++c) {
     // Load: f_c = M w_c, w_c = B_c (X - origin) at the owned nodes, zero on the clamped DOFs.
     const Eigen::Matrix3d B = centrifugal_load_matrix(c);
@@ -104,22 +102,15 @@ centrifugal_geometric_stiffness(const mesh::DistributedMesh &mesh,
       for (PetscInt dof : frame) fa[dof - lo] = 0.0;
       FX_PETSC(VecRestoreArray(f, &fa));
     }
-    FX_PETSC(KSPSolve(ksp, f, u));
-    KSPConvergedReason reason;
-    FX_PETSC(KSPGetConvergedReason(ksp, &reason));
-    if (reason < 0) {
-      FX_PETSC(MatDestroy(&Ks));
-      FX_PETSC(VecDestroy(&u));
-      FX_PETSC(VecDestroy(&Kv));
-      FX_PETSC(VecDestroy(&f));
-      FX_PETSC(VecDestroy(&w));
-      FX_PETSC(KSPDestroy(&ksp));
-      FX_PETSC(MatDestroy(&Kc));
-      throw Error(std::string("centrifugal geometric stiffness: the solve of load case ") +
-                      kCentrifugalCases[static_cast<std::size_t>(c)] + " with '" + frame_interface +
-                      "' clamped failed (" + KSPConvergedReasons[reason] +
-                      "). Does the frame surface hold the body against rigid motion?",
-                  true);
+    try {
+      clamped.solve(f, u,
+                    std::string("centrifugal geometric stiffness: the solve of load case ") +
+                        kCentrifugalCases[static_cast<std::size_t>(c)] + " with '" +
+                        frame_interface + "' clamped",
+                    ". Does the frame surface hold the body against rigid motion?");
+    } catch (const Error &) {
+      destroy();
+      throw;
     }
     FX_PETSC(VecGhostUpdateBegin(u, INSERT_VALUES, SCATTER_FORWARD));
     FX_PETSC(VecGhostUpdateEnd(u, INSERT_VALUES, SCATTER_FORWARD));
@@ -134,13 +125,7 @@ centrifugal_geometric_stiffness(const mesh::DistributedMesh &mesh,
     }
     Gc = 0.5 * (Gc + Gc.transpose()).eval();
   }
-  FX_PETSC(MatDestroy(&Ks));
-  FX_PETSC(VecDestroy(&u));
-  FX_PETSC(VecDestroy(&Kv));
-  FX_PETSC(VecDestroy(&f));
-  FX_PETSC(VecDestroy(&w));
-  FX_PETSC(KSPDestroy(&ksp));
-  FX_PETSC(MatDestroy(&Kc));
+  destroy();
   return G;
 }
 

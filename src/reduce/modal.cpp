@@ -103,4 +103,28 @@ void solve_modes(Mat K, Mat M, const std::vector<PetscInt> &fixed_dofs, int coun
   FX_PETSC(ISDestroy(&is));
 }
 
+ClampedSolver::ClampedSolver(MPI_Comm comm, Mat K, const std::vector<PetscInt> &clamped,
+                             const char *prefix) {
+  FX_PETSC(MatDuplicate(K, MAT_COPY_VALUES, &Kc_));
+  FX_PETSC(MatZeroRowsColumns(Kc_, static_cast<PetscInt>(clamped.size()), clamped.data(), 1.0,
+                              nullptr, nullptr));
+  FX_PETSC(KSPCreate(comm, &ksp_));
+  FX_PETSC(KSPSetOptionsPrefix(ksp_, prefix));
+  FX_PETSC(KSPSetOperators(ksp_, Kc_, Kc_));
+  use_mumps_lu(ksp_);
+  FX_PETSC(KSPSetFromOptions(ksp_));
+}
+
+ClampedSolver::~ClampedSolver() {
+  KSPDestroy(&ksp_);
+  MatDestroy(&Kc_);
+}
+
+void ClampedSolver::solve(Vec b, Vec x, const std::string &what, const std::string &hint) const {
+  FX_PETSC(KSPSolve(ksp_, b, x));
+  KSPConvergedReason reason;
+  FX_PETSC(KSPGetConvergedReason(ksp_, &reason));
+  if (reason < 0) throw Error(what + " failed (" + KSPConvergedReasons[reason] + ")" + hint, true);
+}
+
 } // namespace flexopt::reduce

@@ -445,23 +445,23 @@ TEST_F(CaseFiles, ReductionAndDampingErrors) {
                                  "    interfaces: [pin_a, pin_b]\n    reduction: {modes: 8}\n"),
                     "case.yaml:14:", "bodies[1].reduction: only an ffrf body takes it");
   const std::string ffrf = "    interfaces: [pin_a, pin_b]\n    model: ffrf\n";
-  EXPECT_CASE_ERROR(dynamic_with("    interfaces: [pin_a, pin_b]\n",
-                                 ffrf + "    reduction: {modes: -1}\n"),
-                    "case.yaml:15:", "bodies[1].reduction.modes: the number of fixed-interface");
-  EXPECT_CASE_ERROR(dynamic_with("    interfaces: [pin_a, pin_b]\n",
-                                 ffrf + "    reduction: {nodes: 3}\n"),
-                    "case.yaml:15:", "unknown key 'bodies[1].reduction.nodes'");
-  EXPECT_CASE_ERROR(dynamic_with("    interfaces: [pin_a, pin_b]\n",
-                                 ffrf + "    damping: {rayleigh: [0.1]}\n"),
-                    "case.yaml:15:", "bodies[1].damping.rayleigh: expected [a, b]");
+  EXPECT_CASE_ERROR(
+      dynamic_with("    interfaces: [pin_a, pin_b]\n", ffrf + "    reduction: {modes: -1}\n"),
+      "case.yaml:15:", "bodies[1].reduction.modes: the number of fixed-interface");
+  EXPECT_CASE_ERROR(
+      dynamic_with("    interfaces: [pin_a, pin_b]\n", ffrf + "    reduction: {nodes: 3}\n"),
+      "case.yaml:15:", "unknown key 'bodies[1].reduction.nodes'");
+  EXPECT_CASE_ERROR(
+      dynamic_with("    interfaces: [pin_a, pin_b]\n", ffrf + "    damping: {rayleigh: [0.1]}\n"),
+      "case.yaml:15:", "bodies[1].damping.rayleigh: expected [a, b]");
   EXPECT_CASE_ERROR(dynamic_with("    interfaces: [pin_a, pin_b]\n",
                                  ffrf + "    damping: {rayleigh: [0.1, -2]}\n"),
                     "case.yaml:15:", "bodies[1].damping.rayleigh[1]: must not be negative");
 }
 
 TEST_F(CaseFiles, AcfNotSupportedYetInDynamicAnalysis) {
-  EXPECT_CASE_ERROR(dynamic_with("model: rigid", "model: acf"), "case.yaml:6:12:",
-                    "bodies[0].model: 'acf' is not supported yet");
+  EXPECT_CASE_ERROR(dynamic_with("model: rigid", "model: acf"),
+                    "case.yaml:6:12:", "bodies[0].model: 'acf' is not supported yet");
 }
 
 TEST_F(CaseFiles, StaticAnalysisIgnoresModel) {

@@ -19,9 +19,9 @@
 
 using namespace flexopt;
 using bodies::Mat3;
+using bodies::Matrix;
 using bodies::Vec3;
 using bodies::Vec4;
-using bodies::Matrix;
 using bodies::Vector;
 
 namespace {
@@ -60,8 +60,8 @@ reduce::FfrfInvariants invariants_of(const Particles &p) {
   const int n = p.n;
   inv.D = Eigen::Matrix3Xd::Zero(3, n);
   inv.S1.assign(static_cast<std::size_t>(n), Mat3::Zero());
-  inv.S2.assign(static_cast<std::size_t>(n), std::vector<Mat3>(static_cast<std::size_t>(n),
-                                                                Mat3::Zero()));
+  inv.S2.assign(static_cast<std::size_t>(n),
+                std::vector<Mat3>(static_cast<std::size_t>(n), Mat3::Zero()));
   for (std::size_t i = 0; i < p.m.size(); ++i) {
     const double m = p.m[i];
     inv.mass += m;
@@ -203,7 +203,8 @@ TEST(FfrfBody, EqualsDAlembertOnParticles) {
     const Eigen::Matrix4d project = Eigen::Matrix4d::Identity() - p * p.transpose();
     f.segment<4>(3) = project * f.segment<4>(3);
     r.segment<4>(3) = project * r.segment<4>(3);
-    EXPECT_LT(rel_error(r, f), 1e-6) << "FFRF\n" << r.transpose() << "\nparticles\n"
+    EXPECT_LT(rel_error(r, f), 1e-6) << "FFRF\n"
+                                     << r.transpose() << "\nparticles\n"
                                      << f.transpose();
     // Kinetic energy 1/2 sum m |x'|^2 (x' = dx/dq v) plus the potential of gravity.
     double T = 0, V = 0;
@@ -275,15 +276,16 @@ dynamics::Mechanism flexible_mechanism(int n) {
   auto driver = std::make_shared<const Expression>("0.3 + 2*t + 0.5*sin(3*t)");
   // (a, b) = (flex, rigid), (rigid, flex), (ground, flex), (flex, ground).
   for (auto [a, b] : {std::pair{0, 1}, std::pair{1, 0}, std::pair{-1, 0}, std::pair{0, -1}})
-    for (K k :
-         {K::Coincide, K::Perpendicular, K::PointOnPlane, K::RotationDriver, K::TranslationDriver}) {
+    for (K k : {K::Coincide, K::Perpendicular, K::PointOnPlane, K::RotationDriver,
+                K::TranslationDriver}) {
       joints::Equation e;
       e.kind = k, e.a = a, e.b = b, e.c = 0.1, e.driver = driver, e.owner = "test";
       e.sa = random3(), e.sb = random3(), e.ua = random3(), e.vb = random3(), e.ua2 = random3();
       if (a == 0)
         e.Sa = 0.5 * joints::Elastic::Random(3, n), e.Ua = 0.5 * joints::Elastic::Random(3, n),
         e.Ua2 = 0.5 * joints::Elastic::Random(3, n);
-      if (b == 0) e.Sb = 0.5 * joints::Elastic::Random(3, n), e.Vb = 0.5 * joints::Elastic::Random(3, n);
+      if (b == 0)
+        e.Sb = 0.5 * joints::Elastic::Random(3, n), e.Vb = 0.5 * joints::Elastic::Random(3, n);
       m.equations.push_back(e);
     }
   dynamics::PointForce f;

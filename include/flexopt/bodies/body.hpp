@@ -39,9 +39,9 @@ public:
   ///   res = M(q) a + Q_v(q, v) + Q_int(q, v) - Q_gravity(q)
   /// and its exact derivatives K = d res/dq, C = d res/dv, M = d res/da (coordinates() square),
   /// each of which may be null. `res` has coordinates() entries.
-  virtual void residual(const ConstVectorRef &q, const ConstVectorRef &v,
-                        const ConstVectorRef &a, const Vec3 &gravity, Eigen::Ref<Vector> res,
-                        Matrix *K, Matrix *C, Matrix *M) const = 0;
+  virtual void residual(const ConstVectorRef &q, const ConstVectorRef &v, const ConstVectorRef &a,
+                        const Vec3 &gravity, Eigen::Ref<Vector> res, Matrix *K, Matrix *C,
+                        Matrix *M) const = 0;
   /// Kinetic energy plus strain energy plus the potential of gravity, -g . (sum of m x).
   virtual double energy(const ConstVectorRef &q, const ConstVectorRef &v,
                         const Vec3 &gravity) const = 0;

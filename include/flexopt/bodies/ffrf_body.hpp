@@ -57,9 +57,9 @@ public:
 private:
   FfrfModel model_;
   int n_ = 0;
-  Matrix mzz_;                 ///< M_zz(k, l) = tr S2[k][l]
-  std::vector<Vec3> g_;        ///< g_lk = axial(S2[l][k]), index l * n + k
-  std::vector<Mat3> s2_;       ///< S2[l][k], index l * n + k
+  Matrix mzz_;           ///< M_zz(k, l) = tr S2[k][l]
+  std::vector<Vec3> g_;  ///< g_lk = axial(S2[l][k]), index l * n + k
+  std::vector<Mat3> s2_; ///< S2[l][k], index l * n + k
 };
 
 /// axial(P) = sum a x b for P = sum a b^T: (P23 - P32, P31 - P13, P12 - P21).

@@ -91,7 +91,7 @@ private:
   const Mechanism &mech_;
   AlphaParameters par_;
   NewtonSettings settings_;
-  std::unique_ptr<detail::SparseIteration> sparse_; ///< null: dense Newton systems
+  std::unique_ptr<detail::SparseIteration> sparse_;      ///< null: dense Newton systems
   mutable std::vector<Matrix> work_K_, work_C_, work_M_; ///< body blocks, reused across iterations
 };
 

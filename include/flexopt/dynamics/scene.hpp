@@ -31,7 +31,8 @@ struct Scene {
   /// Per body: the reduction basis at the owned nodes, (3 owned nodes) x n, node-major (empty
   /// for rigid bodies): the deformed mesh of the output.
   std::vector<Eigen::MatrixXd> owned_modes;
-  Vector q0, v0;                             ///< placed coordinates and velocities at t = 0
+  std::vector<double> reduction_seconds; ///< per body: wall time of its reduction (0: rigid)
+  Vector q0, v0;                         ///< placed coordinates and velocities at t = 0
   std::vector<BoundSensor> sensors;
   std::vector<std::string> redundant_rows; ///< constraint rows found redundant and not enforced
   double length_scale = 1;                 ///< largest extent of the placed scene [m]

@@ -11,9 +11,9 @@
 /// displacements [m], moduli and stresses [Pa], density [kg/m^3], forces [N]).
 /// Conventions: DOF order is node-major, [ux, uy, uz] per node. Voigt order is xx, yy, zz, yz, xz,
 /// xy; stresses use tensor components, strains use engineering shear (gamma_ij = 2 eps_ij).
-/// Node orderings are Gmsh's. The equations are written out in docs/theory.md (section 3; geometric stiffness: section 7.5).
-/// Errors (bad input sizes, invalid material, degenerate or inverted elements) throw
-/// flexopt::Error.
+/// Node orderings are Gmsh's. The equations are written out in docs/theory.md (section 3; geometric
+/// stiffness: section 7.5). Errors (bad input sizes, invalid material, degenerate or inverted
+/// elements) throw flexopt::Error.
 #include "flexopt/core/error.hpp"
 
 #include <Eigen/Dense>

@@ -30,8 +30,8 @@ using Matrix = Eigen::MatrixXd;
 using Elastic = Eigen::Matrix3Xd;
 
 /// A gradient row over one body's coordinates (fixed capacity: no heap allocation).
-using Row = Eigen::Matrix<double, 1, Eigen::Dynamic, Eigen::RowMajor, 1,
-                          bodies::kMaxBodyCoordinates>;
+using Row =
+    Eigen::Matrix<double, 1, Eigen::Dynamic, Eigen::RowMajor, 1, bodies::kMaxBodyCoordinates>;
 /// The 3 x (7 + n_b) Jacobian of a body point or vector.
 using Jacobian =
     Eigen::Matrix<double, 3, Eigen::Dynamic, Eigen::ColMajor, 3, bodies::kMaxBodyCoordinates>;

@@ -2,6 +2,7 @@
 /// \file Natural frequencies and mode shapes: K phi = omega^2 M phi with SLEPc.
 #include <petscksp.h>
 #include <petscmat.h>
+#include <string>
 #include <vector>
 
 namespace flexopt::reduce {
@@ -27,6 +28,25 @@ void solve_modes(Mat K, Mat M, const std::vector<PetscInt> &fixed_dofs, int coun
 
 /// Makes `ksp` a direct solve: preonly + LU with MUMPS (options still override). Not collective.
 void use_mumps_lu(KSP ksp);
+
+/// A direct solver of K with the DOFs `clamped` (owned global numbers) held fixed: K_c is K with
+/// those rows and columns replaced by the identity, factored once by MUMPS LU (options prefix
+/// `prefix`). Used for the static modes of the Craig-Bampton basis and the centrifugal load
+/// cases of the geometric stiffness. Collective.
+class ClampedSolver {
+public:
+  ClampedSolver(MPI_Comm comm, Mat K, const std::vector<PetscInt> &clamped, const char *prefix);
+  ~ClampedSolver();
+  ClampedSolver(const ClampedSolver &) = delete;
+  ClampedSolver &operator=(const ClampedSolver &) = delete;
+  /// Solves K_c x = b; throws a collective flexopt::Error "<what> failed (<reason>)<hint>" if
+  /// the solve does not converge.
+  void solve(Vec b, Vec x, const std::string &what, const std::string &hint = "") const;
+
+private:
+  Mat Kc_ = nullptr;
+  KSP ksp_ = nullptr;
+};
 
 /// Frequency in Hz of an eigenvalue omega^2: sign(omega^2) sqrt(|omega^2|) / (2 pi).
 double frequency_hz(double eigenvalue);

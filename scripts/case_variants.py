@@ -1,0 +1,36 @@
+#!/usr/bin/python3
+"""Runs variants of a case directory: copies case.yaml with text replacements (geometry paths
+made absolute) into OUT/NAME and runs flexopt there. Shared by the FFRF checks and studies."""
+import json
+import os
+import re
+import subprocess
+import sys
+
+
+def run_variant(flexopt, case, out, name, replace, ranks=2, end=None):
+    """Runs `flexopt simulate` on CASE's case.yaml with each (old, new) of `replace` applied
+    (old must occur) and, if given, time.end set to `end`; returns the summary."""
+    text = open(os.path.join(case, "case.yaml")).read()
+    text = re.sub(r"geometry: ([./]*)meshes/",
+                  lambda m: "geometry: " + os.path.abspath(os.path.join(case, m.group(1), "meshes")) + "/",
+                  text)
+    if end is not None:
+        text = re.sub(r"time: \{end: [0-9.e+-]+", f"time: {{end: {end}", text)
+    for a, b in replace:
+        if a not in text:
+            sys.exit(f"'{a}' not in {case}/case.yaml")
+        text = text.replace(a, b)
+    d = os.path.join(out, name)
+    os.makedirs(d, exist_ok=True)
+    with open(os.path.join(d, "case.yaml"), "w") as f:
+        f.write(text)
+    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
+               OMPI_MCA_rmaps_base_oversubscribe="1")
+    cmd = ["mpirun", "-n", str(ranks), flexopt, "simulate", d, "--out", os.path.join(d, "out")]
+    print("$ " + " ".join(cmd), flush=True)
+    proc = subprocess.run(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    if proc.returncode != 0:
+        sys.stdout.write(proc.stdout)
+        sys.exit(f"{name}: flexopt failed")
+    return json.load(open(os.path.join(d, "out", "summary.json")))
