@@ -8,6 +8,7 @@
 #include "flexopt/dynamics/generalized_alpha.hpp"
 #include "flexopt/dynamics/mechanism.hpp"
 #include "flexopt/dynamics/scene.hpp"
+#include "newton_paths.hpp"
 
 #include <gtest/gtest.h>
 #include <memory>
@@ -402,26 +403,12 @@ dynamics::Mechanism chain(int links, Vector &q0) {
 TEST(GeneralizedAlpha, SparseAndDensePathsAgree) {
   Vector q0;
   const auto m = chain(8, q0);
-  const Vector v0 = Vector::Zero(q0.size());
-  dynamics::NewtonSettings dense, sparse;
-  dense.dense_limit = 1000;
-  sparse.dense_limit = 10;
-  const auto par = dynamics::AlphaParameters::from_rho_inf(0.8);
-  dynamics::GeneralizedAlpha gd(m, par, dense), gs(m, par, sparse);
-  dynamics::State sd = gd.initial_state(q0, v0, 0), ss = gs.initial_state(q0, v0, 0), next;
-  int its_dense = 0, its_sparse = 0;
   // A large step (20 ms), where the stiffness and constraint-Hessian terms of the iteration
   // matrix matter for Newton's convergence rate.
-  for (int k = 0; k < 50; ++k) {
-    dynamics::StepInfo a, b;
-    ASSERT_TRUE(gd.advance(sd, 0.02, next, a));
-    sd = next;
-    ASSERT_TRUE(gs.advance(ss, 0.02, next, b));
-    ss = next;
-    its_dense += a.iterations, its_sparse += b.iterations;
-  }
+  const auto r = test_support::run_newton_paths(m, q0, 0.02, 50, 10);
+  const auto &sd = r.dense, &ss = r.sparse;
   // Both Jacobians are exact: Newton converges alike (a missing term would cost iterations).
-  EXPECT_EQ(its_dense, its_sparse);
+  EXPECT_EQ(r.dense_iterations, r.sparse_iterations);
   EXPECT_LT((sd.q - ss.q).cwiseAbs().maxCoeff(), 1e-10 * 8);
   EXPECT_LT((sd.lambda - ss.lambda).cwiseAbs().maxCoeff(), 1e-8 * sd.lambda.cwiseAbs().maxCoeff());
   // The chain has moved: the check is not comparing two resting states.

@@ -13,6 +13,7 @@
 #include "flexopt/bodies/rigid_body.hpp"
 #include "flexopt/dynamics/generalized_alpha.hpp"
 #include "flexopt/dynamics/mechanism.hpp"
+#include "newton_paths.hpp"
 
 #include <gtest/gtest.h>
 #include <random>
@@ -449,23 +450,9 @@ TEST(FfrfMechanism, SparseAndDensePathsAgree) {
   m.finalize();
   Vector q0 = Vector::Zero(m.coordinates());
   q0(3) = 1;
-  const Vector v0 = Vector::Zero(q0.size());
-  dynamics::NewtonSettings dense, sparse;
-  dense.dense_limit = 1000;
-  sparse.dense_limit = 0;
-  const auto par = dynamics::AlphaParameters::from_rho_inf(0.8);
-  dynamics::GeneralizedAlpha gd(m, par, dense), gs(m, par, sparse);
-  dynamics::State sd = gd.initial_state(q0, v0, 0), ss = gs.initial_state(q0, v0, 0), next;
-  int its_dense = 0, its_sparse = 0;
-  for (int k = 0; k < 40; ++k) {
-    dynamics::StepInfo a, b;
-    ASSERT_TRUE(gd.advance(sd, 0.01, next, a));
-    sd = next;
-    ASSERT_TRUE(gs.advance(ss, 0.01, next, b));
-    ss = next;
-    its_dense += a.iterations, its_sparse += b.iterations;
-  }
-  EXPECT_EQ(its_dense, its_sparse);
+  const auto r = test_support::run_newton_paths(m, q0, 0.01, 40, 0);
+  const auto &sd = r.dense, &ss = r.sparse;
+  EXPECT_EQ(r.dense_iterations, r.sparse_iterations);
   EXPECT_LT((sd.q - ss.q).cwiseAbs().maxCoeff(), 1e-10);
   EXPECT_GT((sd.q - q0).cwiseAbs().maxCoeff(), 0.05); // it has moved and deformed
   EXPECT_GT(sd.q.tail(n).cwiseAbs().maxCoeff(), 1e-4);
