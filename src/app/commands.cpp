@@ -74,15 +74,6 @@ fem::IsotropicMaterial material_of(const io::Case &c, const io::BodySpec &b) {
   return fem::IsotropicMaterial{m.E, m.nu, m.density};
 }
 
-/// The body's stiffness and consistent mass matrices (same layout). Collective.
-void assemble_stiffness_and_mass(const mesh::DistributedMesh &m, const fem::IsotropicMaterial &mat,
-                                 Mat &K, Mat &M) {
-  K = fem::create_matrix(m);
-  FX_PETSC(MatDuplicate(K, MAT_DO_NOT_COPY_VALUES, &M));
-  fem::assemble_stiffness(m, mat, {}, K);
-  fem::assemble_mass(m, mat.density, {}, M);
-}
-
 /// Writes the owner rank of each local element as a cell field.
 std::vector<double> owner_field(const mesh::DistributedMesh &m) {
   return std::vector<double>(static_cast<std::size_t>(m.local_elements()),
@@ -250,7 +241,7 @@ int run_reduction(const Context &ctx, const Options &o, const io::Case &c, doubl
   mesh::DistributedMesh m = mesh::load_body_mesh(ctx.comm(), *body);
   const fem::IsotropicMaterial mat = material_of(c, *body);
   Mat K, M;
-  assemble_stiffness_and_mass(m, mat, K, M);
+  fem::assemble_stiffness_and_mass(m, mat, K, M);
   const double t_red = wall_time();
   reduce::CraigBamptonBasis cb;
   reduce::craig_bampton(m, K, M, body->interfaces, o.count, cb);
@@ -339,7 +330,7 @@ int run_modes(const Context &ctx, const Options &o, const io::Case &c, double t0
                     std::to_string(dofs - total_fixed) + " free DOFs of the body",
                 true);
   Mat K, M;
-  assemble_stiffness_and_mass(m, mat, K, M);
+  fem::assemble_stiffness_and_mass(m, mat, K, M);
   print0(ctx.comm(),
          "modes: %lld DOFs (%lld fixed) on %d rank(s), %s; K and M assembled (set-up %.2f s)\n",
          static_cast<long long>(dofs), static_cast<long long>(total_fixed), ctx.size(),

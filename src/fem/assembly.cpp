@@ -208,6 +208,14 @@ void assemble_geometric_stiffness(const mesh::DistributedMesh &mesh,
   FX_PETSC(VecGhostRestoreLocalForm(u_ghosted, &local));
 }
 
+void assemble_stiffness_and_mass(const mesh::DistributedMesh &mesh,
+                                 const IsotropicMaterial &material, Mat &K, Mat &M) {
+  K = create_matrix(mesh);
+  FX_PETSC(MatDuplicate(K, MAT_DO_NOT_COPY_VALUES, &M));
+  assemble_stiffness(mesh, material, {}, K);
+  assemble_mass(mesh, material.density, {}, M);
+}
+
 void add_body_force(const mesh::DistributedMesh &mesh, const Eigen::Vector3d &b, Vec f) {
   const int npe = mesh.nodes_per_element();
   std::vector<PetscInt> rows(static_cast<std::size_t>(npe));

@@ -129,29 +129,8 @@ void craig_bampton(const mesh::DistributedMesh &mesh, Mat K, Mat M,
     }
   }
 
-  // Reduced matrices V^T K V, V^T M V (every rank gets the same numbers from VecMDot).
-  const int n = static_cast<int>(out.vectors.size());
-  if (n == 0) {
-    out.K.resize(0, 0);
-    out.M.resize(0, 0);
-    return;
-  }
-  out.K.resize(n, n);
-  out.M.resize(n, n);
-  Vec w;
-  FX_PETSC(VecDuplicate(out.vectors.front(), &w));
-  std::vector<PetscScalar> dots(static_cast<std::size_t>(n));
-  for (int j = 0; j < n; ++j) {
-    FX_PETSC(MatMult(K, out.vectors[static_cast<std::size_t>(j)], w));
-    FX_PETSC(VecMDot(w, n, out.vectors.data(), dots.data()));
-    for (int i = 0; i < n; ++i) out.K(i, j) = dots[static_cast<std::size_t>(i)];
-    FX_PETSC(MatMult(M, out.vectors[static_cast<std::size_t>(j)], w));
-    FX_PETSC(VecMDot(w, n, out.vectors.data(), dots.data()));
-    for (int i = 0; i < n; ++i) out.M(i, j) = dots[static_cast<std::size_t>(i)];
-  }
-  FX_PETSC(VecDestroy(&w));
-  out.K = 0.5 * (out.K + out.K.transpose()).eval();
-  out.M = 0.5 * (out.M + out.M.transpose()).eval();
+  out.K = project(K, out.vectors);
+  out.M = project(M, out.vectors);
 }
 
 } // namespace flexopt::reduce

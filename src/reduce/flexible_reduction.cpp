@@ -13,35 +13,12 @@ FlexibleReduction::~FlexibleReduction() {
   for (Vec &v : basis) VecDestroy(&v);
 }
 
-namespace {
-
-/// w^T A v for every pair of `vectors` (replicated).
-Eigen::MatrixXd project(Mat A, const std::vector<Vec> &vectors) {
-  const int n = static_cast<int>(vectors.size());
-  Eigen::MatrixXd out(n, n);
-  if (n == 0) return out;
-  Vec w;
-  FX_PETSC(VecDuplicate(vectors.front(), &w));
-  std::vector<PetscScalar> dots(static_cast<std::size_t>(n));
-  for (int j = 0; j < n; ++j) {
-    FX_PETSC(MatMult(A, vectors[static_cast<std::size_t>(j)], w));
-    FX_PETSC(VecMDot(w, n, vectors.data(), dots.data()));
-    for (int i = 0; i < n; ++i) out(i, j) = dots[static_cast<std::size_t>(i)];
-  }
-  FX_PETSC(VecDestroy(&w));
-  return 0.5 * (out + out.transpose());
-}
-
-} // namespace
-
 void reduce_flexible_body(const mesh::DistributedMesh &mesh, const fem::IsotropicMaterial &material,
                           const std::vector<std::string> &interfaces, int fixed_modes,
                           bool geometric_stiffening, FlexibleReduction &out) {
   LogScope log("FxFlexReduce");
-  Mat K = fem::create_matrix(mesh), M;
-  FX_PETSC(MatDuplicate(K, MAT_DO_NOT_COPY_VALUES, &M));
-  fem::assemble_stiffness(mesh, material, {}, K);
-  fem::assemble_mass(mesh, material.density, {}, M);
+  Mat K, M;
+  fem::assemble_stiffness_and_mass(mesh, material, K, M);
   CraigBamptonBasis cb;
   craig_bampton(mesh, K, M, interfaces, fixed_modes, cb);
   out.static_modes = cb.static_modes;
@@ -73,8 +50,10 @@ void reduce_flexible_body(const mesh::DistributedMesh &mesh, const fem::Isotropi
     FX_PETSC(VecMAXPY(v, n, Y.col(k).data(), cb.vectors.data()));
     out.basis.push_back(v);
   }
-  out.K = project(K, out.basis);
-  out.M = project(M, out.basis);
+  // Psi = V Y: the reduced matrices follow from the Craig-Bampton ones without another
+  // projection of the full matrices.
+  out.K = Y.transpose() * cb.K * Y;
+  out.M = Y.transpose() * cb.M * Y;
   out.eigenvalues = out.K.diagonal();
   out.invariants = ffrf_invariants(mesh, M, out.basis, out.origin);
   // Interface nodes: static mode 6 (k - 1) + c moves interface k by unit translation (c < 3)

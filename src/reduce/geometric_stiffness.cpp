@@ -65,18 +65,15 @@ centrifugal_geometric_stiffness(const mesh::DistributedMesh &mesh,
   // The body clamped at its frame: one factorization for the six load cases.
   const ClampedSolver clamped(mesh.comm, K, frame, "gs_");
 
-  Vec w, f, Kv;
+  Vec w, f;
   FX_PETSC(MatCreateVecs(M, &w, &f));
-  FX_PETSC(VecDuplicate(basis.front(), &Kv));
   Vec u = fem::create_ghosted_vector(mesh);
   Mat Ks = fem::create_matrix(mesh);
   PetscInt lo;
   FX_PETSC(VecGetOwnershipRange(f, &lo, nullptr));
-  std::vector<PetscScalar> dots(static_cast<std::size_t>(n));
   auto destroy = [&] {
     MatDestroy(&Ks);
     VecDestroy(&u);
-    VecDestroy(&Kv);
     VecDestroy(&f);
     VecDestroy(&w);
   };
@@ -115,15 +112,9 @@ centrifugal_geometric_stiffness(const mesh::DistributedMesh &mesh,
     FX_PETSC(VecGhostUpdateBegin(u, INSERT_VALUES, SCATTER_FORWARD));
     FX_PETSC(VecGhostUpdateEnd(u, INSERT_VALUES, SCATTER_FORWARD));
 
-    // G_c = V^T K_sigma(u_c) V; VecMDot gives every rank the same numbers.
+    // G_c = V^T K_sigma(u_c) V.
     fem::assemble_geometric_stiffness(mesh, material, u, Ks);
-    Eigen::MatrixXd &Gc = G[static_cast<std::size_t>(c)];
-    for (int j = 0; j < n; ++j) {
-      FX_PETSC(MatMult(Ks, basis[static_cast<std::size_t>(j)], Kv));
-      FX_PETSC(VecMDot(Kv, n, basis.data(), dots.data()));
-      for (int i = 0; i < n; ++i) Gc(i, j) = dots[static_cast<std::size_t>(i)];
-    }
-    Gc = 0.5 * (Gc + Gc.transpose()).eval();
+    G[static_cast<std::size_t>(c)] = project(Ks, basis);
   }
   destroy();
   return G;

@@ -103,6 +103,22 @@ void solve_modes(Mat K, Mat M, const std::vector<PetscInt> &fixed_dofs, int coun
   FX_PETSC(ISDestroy(&is));
 }
 
+Eigen::MatrixXd project(Mat A, const std::vector<Vec> &vectors) {
+  const int n = static_cast<int>(vectors.size());
+  Eigen::MatrixXd out(n, n);
+  if (n == 0) return out;
+  Vec w;
+  FX_PETSC(VecDuplicate(vectors.front(), &w));
+  std::vector<PetscScalar> dots(static_cast<std::size_t>(n));
+  for (int j = 0; j < n; ++j) {
+    FX_PETSC(MatMult(A, vectors[static_cast<std::size_t>(j)], w));
+    FX_PETSC(VecMDot(w, n, vectors.data(), dots.data()));
+    for (int i = 0; i < n; ++i) out(i, j) = dots[static_cast<std::size_t>(i)];
+  }
+  FX_PETSC(VecDestroy(&w));
+  return 0.5 * (out + out.transpose());
+}
+
 ClampedSolver::ClampedSolver(MPI_Comm comm, Mat K, const std::vector<PetscInt> &clamped,
                              const char *prefix) {
   FX_PETSC(MatDuplicate(K, MAT_COPY_VALUES, &Kc_));

@@ -38,6 +38,11 @@ void assemble_mass(const mesh::DistributedMesh &mesh, double density,
 void assemble_geometric_stiffness(const mesh::DistributedMesh &mesh,
                                   const IsotropicMaterial &material, Vec u_ghosted, Mat A);
 
+/// Creates and assembles the body's stiffness K and consistent mass M (same layout, no
+/// factors). Collective; the caller destroys both.
+void assemble_stiffness_and_mass(const mesh::DistributedMesh &mesh,
+                                 const IsotropicMaterial &material, Mat &K, Mat &M);
+
 /// Adds the consistent load of a constant body force b [N/m^3] to f. Collective.
 void add_body_force(const mesh::DistributedMesh &mesh, const Eigen::Vector3d &b, Vec f);
 

@@ -1,5 +1,6 @@
 #pragma once
 /// \file Natural frequencies and mode shapes: K phi = omega^2 M phi with SLEPc.
+#include <Eigen/Dense>
 #include <petscksp.h>
 #include <petscmat.h>
 #include <string>
@@ -47,6 +48,10 @@ private:
   Mat Kc_ = nullptr;
   KSP ksp_ = nullptr;
 };
+
+/// The reduced matrix V^T A V of the full-size `vectors` V (symmetrized; every rank gets the same
+/// numbers from VecMDot). Collective.
+Eigen::MatrixXd project(Mat A, const std::vector<Vec> &vectors);
 
 /// Frequency in Hz of an eigenvalue omega^2: sign(omega^2) sqrt(|omega^2|) / (2 pi).
 double frequency_hz(double eigenvalue);
