@@ -18,7 +18,7 @@ struct Side {
   const Vector &q;
   Side(const Vector &q_, int body, int offset, int elastic) : n(elastic), q(q_) {
     ref.index = body;
-    ref.offset = offset >= 0 ? offset : 7 * body;
+    ref.offset = offset;
   }
   bool ground() const { return ref.index < 0; }
   int size() const { return 7 + n; }
@@ -105,6 +105,14 @@ DriverVectors driver_vectors(const Equation &e, double t) {
   return d;
 }
 
+/// The vector on body a of a Perpendicular row (u_a) or of a RotationDriver row (u(t)), with its
+/// elastic part.
+std::pair<Vec3, Elastic> vector_a(const Equation &e, double t) {
+  if (e.kind != Equation::Kind::RotationDriver) return {e.ua, e.Ua};
+  DriverVectors dv = driver_vectors(e, t);
+  return {dv.u, std::move(dv.U)};
+}
+
 int elastic(const Elastic &M) {
   return static_cast<int>(M.cols());
 }
@@ -140,8 +148,11 @@ void Equation::value(const Vector &q, double t, double *out) const {
     return;
   }
   case Kind::Perpendicular:
-    out[0] = A.vector(ua, Ua).dot(B.vector(vb, Vb)) - c;
+  case Kind::RotationDriver: { // c = 0 for drivers
+    const auto [u, U] = vector_a(*this, t);
+    out[0] = A.vector(u, U).dot(B.vector(vb, Vb)) - c;
     return;
+  }
   case Kind::PointOnPlane:
   case Kind::TranslationDriver: {
     const Vec3 d = B.point(sb, Sb) - A.point(sa, Sa);
@@ -152,11 +163,6 @@ void Equation::value(const Vector &q, double t, double *out) const {
   case Kind::Normalize:
     out[0] = 0.5 * (A.p().squaredNorm() - 1);
     return;
-  case Kind::RotationDriver: {
-    const DriverVectors dv = driver_vectors(*this, t);
-    out[0] = A.vector(dv.u, dv.U).dot(B.vector(vb, Vb));
-    return;
-  }
   }
 }
 
@@ -173,12 +179,7 @@ void Equation::gradient(const Vector &q, double t, Sink &J, int row) const {
   }
   case Kind::Perpendicular:
   case Kind::RotationDriver: {
-    Vec3 uu = ua;
-    Elastic UU = Ua;
-    if (kind == Kind::RotationDriver) {
-      const DriverVectors dv = driver_vectors(*this, t);
-      uu = dv.u, UU = dv.U;
-    }
+    const auto [uu, UU] = vector_a(*this, t);
     const Vec3 u = A.vector(uu, UU), v = B.vector(vb, Vb);
     if (!A.ground()) add_row(J, row, A, v.transpose() * A.jacobian(uu, UU, false));
     if (!B.ground()) add_row(J, row, B, u.transpose() * B.jacobian(vb, Vb, false));
@@ -213,12 +214,7 @@ void Equation::add_hessian(const Vector &q, double t, const double *lambda, Sink
   }
   case Kind::Perpendicular:
   case Kind::RotationDriver: {
-    Vec3 uu = ua;
-    Elastic UU = Ua;
-    if (kind == Kind::RotationDriver) {
-      const DriverVectors dv = driver_vectors(*this, t);
-      uu = dv.u, UU = dv.U;
-    }
+    const auto [uu, UU] = vector_a(*this, t);
     const double l = lambda[0];
     const Vec3 u = A.vector(uu, UU), v = B.vector(vb, Vb);
     add_rotation_hessian(H, A, uu, UU, l * v);

@@ -168,6 +168,18 @@ TEST(RigidBody, RotationalEquationIsEulers) {
 
 namespace {
 
+/// The coordinate offsets of a mechanism of rigid bodies (7 per body), which
+/// Mechanism::finalize() sets for equations used inside a mechanism.
+joints::Equation rigid_layout(joints::Equation e) {
+  e.oa = 7 * std::max(e.a, 0);
+  e.ob = 7 * std::max(e.b, 0);
+  return e;
+}
+std::vector<joints::Equation> rigid_layout(std::vector<joints::Equation> eqs) {
+  for (auto &e : eqs) e = rigid_layout(e);
+  return eqs;
+}
+
 /// One equation of each kind between body 0 and body 1 (and to the ground).
 std::vector<joints::Equation> all_kinds() {
   using K = joints::Equation::Kind;
@@ -183,13 +195,13 @@ std::vector<joints::Equation> all_kinds() {
       e.kind = k;
       e.driver = driver;
       e.owner = "test";
-      eqs.push_back(e);
+      eqs.push_back(rigid_layout(e));
     }
   }
   joints::Equation n;
   n.kind = K::Normalize;
   n.a = 1;
-  eqs.push_back(n);
+  eqs.push_back(rigid_layout(n));
   return eqs;
 }
 
@@ -457,7 +469,7 @@ TEST(Joints, EveryTypeAsBuilt) {
     const Vec3 x = random3();
     const RandomPair pair(x, type == "prismatic" ? Vec3(x + 0.3 * random3()) : x);
     const Vector &q = pair.q;
-    const auto eqs = dynamics::joint_equations(type, pair.A, pair.B, axis, "joint");
+    const auto eqs = rigid_layout(dynamics::joint_equations(type, pair.A, pair.B, axis, "joint"));
     int rows = 0;
     for (const auto &e : eqs) rows += e.rows();
     const int expected = type == "spherical" ? 3 : type == "fixed" ? 6 : 5;
@@ -527,7 +539,7 @@ TEST(Joints, DriversPrescribeTheJointCoordinate) {
   const Mat3 *R = pair.R;
   const double t = 0.9, value = 0.8 * t + 0.3 * t * t;
   for (const std::string type : {"revolute", "prismatic"}) {
-    const auto e = dynamics::driver_equation(type, A, B, axis, f, "driver");
+    const auto e = rigid_layout(dynamics::driver_equation(type, A, B, axis, f, "driver"));
     double phi0 = 1, phit = 1;
     e.value(q, 0.0, &phi0);
     EXPECT_LT(std::abs(phi0), 1e-14) << type;

@@ -83,7 +83,7 @@ struct Equation {
     Perpendicular,    ///< u_a . v_b - c = 0                                (1 row)
     PointOnPlane,     ///< u_a . (x_b(s_b) - x_a(s_a)) - c = 0              (1 row)
     Normalize,        ///< (p_a . p_a - 1) / 2 = 0                          (1 row)
-    RotationDriver,   ///< u_a(t) . v_b = 0, u_a(t) = sin f(t) u1 - cos f(t) u2 (1 row)
+    RotationDriver,   ///< u_a(t) . v_b - c = 0, u_a(t) = sin f(t) u1 - cos f(t) u2 (1 row)
     TranslationDriver ///< u_a . (x_b - x_a) - c - f(t) = 0                (1 row)
   };
   Kind kind = Kind::Coincide;
@@ -94,9 +94,8 @@ struct Equation {
   /// Elastic parts of the points and vectors (3 x n_a or 3 x n_b; empty for rigid bodies;
   /// Mechanism::finalize() fills unset ones of flexible bodies with zeros).
   Elastic Sa, Sb, Ua, Vb, Ua2;
-  /// Coordinate offsets of bodies a and b in q (-1: 7 a, a mechanism of rigid bodies only).
-  /// Mechanism::finalize() sets them.
-  int oa = -1, ob = -1;
+  /// Coordinate offsets of bodies a and b in q (Mechanism::finalize() sets them).
+  int oa = 0, ob = 0;
   /// Elastic coordinates of bodies a and b (Mechanism::finalize() sets them).
   int na = 0, nb = 0;
   double c = 0;
