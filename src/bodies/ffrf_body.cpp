@@ -1,6 +1,7 @@
 #include "flexopt/bodies/ffrf_body.hpp"
 
 #include "flexopt/core/error.hpp"
+#include "flexopt/reduce/geometric_stiffness.hpp"
 
 namespace flexopt::bodies {
 
@@ -14,18 +15,6 @@ Mat34 rotate_transpose_jacobian(const Vec4 &p, const Vec3 &w) {
   Mat34 d = rotate_jacobian(conj, w);
   d.rightCols<3>() *= -1;
   return d;
-}
-
-/// s(omega) = (wx^2, wy^2, wz^2, wy wz, wx wz, wx wy) and ds/domega (6 x 3).
-Eigen::Matrix<double, 6, 1> centrifugal_factors(const Vec3 &w,
-                                                Eigen::Matrix<double, 6, 3> *ds = nullptr) {
-  Eigen::Matrix<double, 6, 1> s;
-  s << w(0) * w(0), w(1) * w(1), w(2) * w(2), w(1) * w(2), w(0) * w(2), w(0) * w(1);
-  if (ds) {
-    *ds << 2 * w(0), 0, 0, 0, 2 * w(1), 0, 0, 0, 2 * w(2), 0, w(2), w(1), w(2), 0, w(0), w(1), w(0),
-        0;
-  }
-  return s;
 }
 
 } // namespace
@@ -56,6 +45,18 @@ FfrfBody::FfrfBody(std::string name, FfrfModel model)
     }
 }
 
+void FfrfBody::couplings(const Vector &z, std::vector<Mat3> &Ck, Eigen::Matrix3Xd &Cm) const {
+  const int n = n_;
+  Ck.resize(static_cast<std::size_t>(n));
+  Cm.resize(3, n);
+  for (int k = 0; k < n; ++k) {
+    Mat3 c = model_.invariants.S1[static_cast<std::size_t>(k)];
+    for (int l = 0; l < n; ++l) c += z(l) * s2_[static_cast<std::size_t>(l * n + k)];
+    Ck[static_cast<std::size_t>(k)] = c;
+    Cm.col(k) = axial(c);
+  }
+}
+
 void FfrfBody::residual(const ConstVectorRef &q, const ConstVectorRef &v, const ConstVectorRef &a,
                         const Vec3 &gravity, Eigen::Ref<Vector> res, Matrix *K, Matrix *C,
                         Matrix *M) const {
@@ -73,32 +74,26 @@ void FfrfBody::residual(const ConstVectorRef &q, const ConstVectorRef &v, const 
   const Mat3 J = S.trace() * I3 - S;
   // C_k = S1[k] + sum_l zeta_l S2[l][k] (sum m u_i Psi_jk^T), c_k = axial(C_k),
   // P = sum_k zeta'_k C_k, h_k = sum_l zeta'_l g_lk.
-  std::vector<Mat3> Ck(static_cast<std::size_t>(n));
-  Mat3X Cm(3, n), Hm(3, n);
+  std::vector<Mat3> Ck;
+  Mat3X Cm, Hm(3, n);
+  couplings(z, Ck, Cm);
   Mat3 P = Mat3::Zero();
   for (int k = 0; k < n; ++k) {
-    Mat3 c = inv.S1[static_cast<std::size_t>(k)];
     Vec3 h = Vec3::Zero();
-    for (int l = 0; l < n; ++l) {
-      c += z(l) * s2_[static_cast<std::size_t>(l * n + k)];
-      h += zd(l) * g_[static_cast<std::size_t>(l * n + k)];
-    }
-    Ck[static_cast<std::size_t>(k)] = c;
-    Cm.col(k) = axial(c);
+    for (int l = 0; l < n; ++l) h += zd(l) * g_[static_cast<std::size_t>(l * n + k)];
     Hm.col(k) = h;
-    P += zd(k) * c;
+    P += zd(k) * Ck[static_cast<std::size_t>(k)];
   }
   const Vec3 Dzd = inv.D * zd, Dzdd = inv.D * zdd;
   Eigen::Matrix<double, 6, 3> ds;
-  const Eigen::Matrix<double, 6, 1> s = centrifugal_factors(w, &ds);
-  Matrix Kg = model_.stiffness;
-  Mat3X Gz; // column c: G_c zeta (n x 6 stored as rows below)
-  Matrix GzAll;
+  const Eigen::Matrix<double, 6, 1> s = reduce::centrifugal_coefficients(w, &ds);
+  // K_r + sum_c s_c G_c and the columns G_c zeta (for the omega derivatives).
+  Matrix Kg = model_.stiffness, Gz;
   if (stiffening()) {
-    GzAll.resize(n, 6);
+    Gz.resize(n, 6);
     for (int c = 0; c < 6; ++c) {
       Kg += s(c) * model_.geometric[static_cast<std::size_t>(c)];
-      GzAll.col(c) = model_.geometric[static_cast<std::size_t>(c)] * z;
+      Gz.col(c) = model_.geometric[static_cast<std::size_t>(c)] * z;
     }
   }
 
@@ -141,7 +136,7 @@ void FfrfBody::residual(const ConstVectorRef &q, const ConstVectorRef &v, const 
     Fzw.row(k) = -(2 * c.trace() * w.transpose() - w.transpose() * (c + c.transpose())) +
                  2 * Hm.col(k).transpose();
   }
-  if (stiffening()) Fzw += GzAll * ds;
+  if (stiffening()) Fzw += Gz * ds;
   if (K) {
     K->setZero(N, N);
     // Row block r.
@@ -209,12 +204,9 @@ double FfrfBody::energy(const ConstVectorRef &q, const ConstVectorRef &v,
   const Vec3 d = inv.first_moment(z);
   const Mat3 S = inv.second_moment(z);
   const Mat3 J = S.trace() * Mat3::Identity() - S;
-  Mat3X Cm(3, n);
-  for (int k = 0; k < n; ++k) {
-    Mat3 c = inv.S1[static_cast<std::size_t>(k)];
-    for (int l = 0; l < n; ++l) c += z(l) * s2_[static_cast<std::size_t>(l * n + k)];
-    Cm.col(k) = axial(c);
-  }
+  std::vector<Mat3> Ck;
+  Mat3X Cm;
+  couplings(z, Ck, Cm);
   const double T = 0.5 * (inv.mass * rd.squaredNorm() + 2 * rd.dot(A * (w.cross(d) + inv.D * zd)) +
                           w.dot(J * w) + 2 * w.dot(Cm * zd) + zd.dot(mzz_ * zd));
   const double U = 0.5 * z.dot(model_.stiffness * z);

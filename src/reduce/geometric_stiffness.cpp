@@ -12,10 +12,12 @@ namespace flexopt::reduce {
 
 const std::array<const char *, 6> kCentrifugalCases = {"xx", "yy", "zz", "yz", "xz", "xy"};
 
-Eigen::Matrix<double, 6, 1> centrifugal_coefficients(const Eigen::Vector3d &omega) {
+Eigen::Matrix<double, 6, 1> centrifugal_coefficients(const Eigen::Vector3d &omega,
+                                                     Eigen::Matrix<double, 6, 3> *derivative) {
+  const double x = omega.x(), y = omega.y(), z = omega.z();
   Eigen::Matrix<double, 6, 1> s;
-  s << omega.x() * omega.x(), omega.y() * omega.y(), omega.z() * omega.z(), omega.y() * omega.z(),
-      omega.x() * omega.z(), omega.x() * omega.y();
+  s << x * x, y * y, z * z, y * z, x * z, x * y;
+  if (derivative) *derivative << 2 * x, 0, 0, 0, 2 * y, 0, 0, 0, 2 * z, 0, z, y, z, 0, x, y, x, 0;
   return s;
 }
 

@@ -55,6 +55,9 @@ public:
                 const Vec3 &gravity) const override;
 
 private:
+  /// C_k = S1[k] + sum_l zeta_l S2[l][k] and their axial vectors c_k (columns of Cm).
+  void couplings(const Vector &z, std::vector<Mat3> &Ck, Eigen::Matrix3Xd &Cm) const;
+
   FfrfModel model_;
   int n_ = 0;
   Matrix mzz_;           ///< M_zz(k, l) = tr S2[k][l]

@@ -30,8 +30,11 @@ namespace flexopt::reduce {
 extern const std::array<const char *, 6> kCentrifugalCases;
 
 /// Coefficients s(omega) = (wx^2, wy^2, wz^2, wy wz, wx wz, wx wy) [rad^2/s^2] of the six load
-/// cases for the body-frame angular velocity omega [rad/s]. Not collective.
-Eigen::Matrix<double, 6, 1> centrifugal_coefficients(const Eigen::Vector3d &omega);
+/// cases for the body-frame angular velocity omega [rad/s] and, if `derivative` is given, ds/domega
+/// (6 x 3). Not collective.
+Eigen::Matrix<double, 6, 1>
+centrifugal_coefficients(const Eigen::Vector3d &omega,
+                         Eigen::Matrix<double, 6, 3> *derivative = nullptr);
 
 /// The 3x3 matrix B_c of load case c (0..5) above, so that
 /// sum_c s_c(omega) B_c = |omega|^2 I - omega omega^T. Throws flexopt::Error for c outside 0..5.
