@@ -8,11 +8,11 @@
 #include "flexopt/reduce/flexible_reduction.hpp"
 #include "flexopt/reduce/modal.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <map>
 #include <memory>
-#include <tuple>
 
 namespace flexopt::dynamics {
 
@@ -136,11 +136,10 @@ Scene build_scene(MPI_Comm comm, const io::Case &c) {
   Scene scene;
   Mechanism &mech = scene.mechanism;
   std::map<std::string, int> body_index;
-  // Per body: interface centroids (mesh coordinates) by name, and for flexible bodies the
-  // interface nodes' elastic motion; initial rotation and origin.
+  // Per body: interface centroids (mesh coordinates) by name, the reduction of flexible
+  // bodies (interface motion in the order of spec.interfaces); initial rotation and origin.
   const std::size_t nbodies = c.bodies.size();
   std::vector<std::map<std::string, Vec3>> interfaces(nbodies);
-  std::vector<std::map<std::string, std::pair<joints::Elastic, joints::Elastic>>> elastic(nbodies);
   std::vector<std::shared_ptr<reduce::FlexibleReduction>> reductions(nbodies);
   std::vector<Mat3> R0(nbodies);
   std::vector<Vec3> origin(nbodies);
@@ -169,7 +168,6 @@ Scene build_scene(MPI_Comm comm, const io::Case &c) {
       auto body = std::make_shared<bodies::FfrfBody>(spec.name, std::move(model));
       for (std::size_t i = 0; i < spec.interfaces.size(); ++i) {
         interfaces[b][spec.interfaces[i]] = red->centroids[i];
-        elastic[b][spec.interfaces[i]] = {red->translation[i], red->rotation[i]};
       }
       scene.owned_modes.push_back(reduce::owned_basis_values(*red, m.owned_nodes));
       print0(comm,
@@ -247,6 +245,11 @@ Scene build_scene(MPI_Comm comm, const io::Case &c) {
   std::map<std::string, Vec3> ground;
   for (const auto &g : c.ground) ground[g.name] = v3(g.origin);
 
+  // Position of a (validated) interface in the body's list: the index of its reduction data.
+  auto interface_index = [&](std::size_t b, const std::string &iface) {
+    const auto &list = c.bodies[b].interfaces;
+    return static_cast<std::size_t>(std::find(list.begin(), list.end(), iface) - list.begin());
+  };
   auto attach = [&](const std::string &body, const std::string &iface) {
     Attachment a;
     if (body == "ground") {
@@ -261,7 +264,11 @@ Scene build_scene(MPI_Comm comm, const io::Case &c) {
     a.s = X - mech.bodies[ub]->origin();
     a.R = R0[ub];
     a.world = origin[ub] + a.R * X;
-    if (reductions[ub]) std::tie(a.translation, a.rotation) = elastic[ub].at(iface);
+    if (reductions[ub]) {
+      const std::size_t i = interface_index(ub, iface);
+      a.translation = reductions[ub]->translation[i];
+      a.rotation = reductions[ub]->rotation[i];
+    }
     return a;
   };
 
@@ -305,7 +312,7 @@ Scene build_scene(MPI_Comm comm, const io::Case &c) {
     pf.body = body_index.at(f.body);
     const auto ub = static_cast<std::size_t>(pf.body);
     pf.s = interfaces[ub].at(f.interface) - mech.bodies[ub]->origin();
-    if (reductions[ub]) pf.S = elastic[ub].at(f.interface).first;
+    if (reductions[ub]) pf.S = reductions[ub]->translation[interface_index(ub, f.interface)];
     for (int k = 0; k < 3; ++k)
       pf.value[static_cast<std::size_t>(k)] = Expression(f.value[static_cast<std::size_t>(k)]);
     mech.forces.push_back(pf);
