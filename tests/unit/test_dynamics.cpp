@@ -4,11 +4,11 @@
 //
 // Tolerances: central differences with step 1e-6 on functions of order 1 have truncation
 // ~1e-12 and round-off ~1e-10; the checks use 1e-7 relative to the largest entry.
+#include "dynamics_checks.hpp"
 #include "flexopt/bodies/rigid_body.hpp"
 #include "flexopt/dynamics/generalized_alpha.hpp"
 #include "flexopt/dynamics/mechanism.hpp"
 #include "flexopt/dynamics/scene.hpp"
-#include "newton_paths.hpp"
 
 #include <gtest/gtest.h>
 #include <memory>
@@ -298,28 +298,10 @@ TEST(Mechanism, DynamicsDerivatives) {
   const Vector q = random_q(2);
   Vector v(14), a(14);
   for (int i = 0; i < 14; ++i) v(i) = uniform(), a(i) = uniform();
-  const double t = 0.6;
-  Vector r;
-  Matrix K, C, M;
-  m.dynamics(q, v, a, t, r, &K, &C, &M);
-  auto rq = [&](const Vector &x) -> Vector {
-    Vector out;
-    m.dynamics(x, v, a, t, out, nullptr, nullptr, nullptr);
-    return out;
-  };
-  auto rv = [&](const Vector &x) -> Vector {
-    Vector out;
-    m.dynamics(q, x, a, t, out, nullptr, nullptr, nullptr);
-    return out;
-  };
-  auto ra = [&](const Vector &x) -> Vector {
-    Vector out;
-    m.dynamics(q, v, x, t, out, nullptr, nullptr, nullptr);
-    return out;
-  };
-  expect_close(K, fd_jacobian(rq, q, 14), "dr/dq");
-  expect_close(C, fd_jacobian(rv, v, 14), "dr/dv");
-  expect_close(M, fd_jacobian(ra, a, 14), "M");
+  const auto d = test_support::dynamics_derivatives(m, q, v, a, 0.6);
+  expect_close(d[0].analytic, d[0].differences, "dr/dq");
+  expect_close(d[1].analytic, d[1].differences, "dr/dv");
+  expect_close(d[2].analytic, d[2].differences, "M");
 }
 
 TEST(GeneralizedAlpha, StepResidualJacobians) {
@@ -337,26 +319,9 @@ TEST(GeneralizedAlpha, StepResidualJacobians) {
   };
   fill(s0, 0.2);
   fill(s1, 0.25);
-  const double h = 0.05;
-  Vector R;
-  Matrix D1, D0;
-  ga.residual(s1, s0, h, R, &D1, &D0);
-  auto r1 = [&](const Vector &x) -> Vector {
-    dynamics::State s = s1;
-    s.unpack(x, n, mm);
-    Vector out;
-    ga.residual(s, s0, h, out, nullptr, nullptr);
-    return out;
-  };
-  auto r0 = [&](const Vector &x) -> Vector {
-    dynamics::State s = s0;
-    s.unpack(x, n, mm);
-    Vector out;
-    ga.residual(s1, s, h, out, nullptr, nullptr);
-    return out;
-  };
-  expect_close(D1, fd_jacobian(r1, s1.pack(), static_cast<int>(R.size())), "dR/ds_{n+1}");
-  expect_close(D0, fd_jacobian(r0, s0.pack(), static_cast<int>(R.size())), "dR/ds_n");
+  const auto d = test_support::step_derivatives(ga, s1, s0, 0.05);
+  expect_close(d[0].analytic, d[0].differences, "dR/ds_{n+1}");
+  expect_close(d[1].analytic, d[1].differences, "dR/ds_n");
 }
 
 TEST(GeneralizedAlpha, ParametersOfChungHulbert) {

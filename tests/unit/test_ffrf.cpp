@@ -9,11 +9,11 @@
 // generalized inertial force sum_i m_i (dx_i/dq)^T x_i''. Its r and zeta rows are exact; its p
 // rows differ from the FFRF form 2 Gbar^T F_w by a multiple of p (the direction the
 // normalization multiplier absorbs), so they are compared after projecting p out.
+#include "dynamics_checks.hpp"
 #include "flexopt/bodies/ffrf_body.hpp"
 #include "flexopt/bodies/rigid_body.hpp"
 #include "flexopt/dynamics/generalized_alpha.hpp"
 #include "flexopt/dynamics/mechanism.hpp"
-#include "newton_paths.hpp"
 
 #include <gtest/gtest.h>
 #include <random>
@@ -372,27 +372,10 @@ TEST(FfrfMechanism, EveryDerivative) {
   };
   EXPECT_LT(rel_error(m.constraint_convective(q, v, t), fd_jacobian(jv_q, q) * v), 1e-7);
 
-  Vector r;
-  Matrix K, C, M;
-  m.dynamics(q, v, a, t, r, &K, &C, &M);
-  auto rq = [&](const Vector &x) {
-    Vector out;
-    m.dynamics(x, v, a, t, out, nullptr, nullptr, nullptr);
-    return out;
-  };
-  auto rv = [&](const Vector &x) {
-    Vector out;
-    m.dynamics(q, x, a, t, out, nullptr, nullptr, nullptr);
-    return out;
-  };
-  auto ra = [&](const Vector &x) {
-    Vector out;
-    m.dynamics(q, v, x, t, out, nullptr, nullptr, nullptr);
-    return out;
-  };
-  EXPECT_LT(rel_error(K, fd_jacobian(rq, q)), 1e-7) << "dr/dq";
-  EXPECT_LT(rel_error(C, fd_jacobian(rv, v)), 1e-7) << "dr/dv";
-  EXPECT_LT(rel_error(M, fd_jacobian(ra, a)), 1e-7) << "dr/da";
+  const auto dd = test_support::dynamics_derivatives(m, q, v, a, t);
+  EXPECT_LT(rel_error(dd[0].analytic, dd[0].differences), 1e-7) << "dr/dq";
+  EXPECT_LT(rel_error(dd[1].analytic, dd[1].differences), 1e-7) << "dr/dv";
+  EXPECT_LT(rel_error(dd[2].analytic, dd[2].differences), 1e-7) << "dr/da";
 
   dynamics::GeneralizedAlpha ga(m, dynamics::AlphaParameters::from_rho_inf(0.7));
   dynamics::State s0, s1;
@@ -406,26 +389,9 @@ TEST(FfrfMechanism, EveryDerivative) {
   };
   fill(s0, 0.2);
   fill(s1, 0.25);
-  const double h = 0.05;
-  Vector R;
-  Matrix D1, D0;
-  ga.residual(s1, s0, h, R, &D1, &D0);
-  auto r1 = [&](const Vector &x) {
-    dynamics::State s = s1;
-    s.unpack(x, N, rows);
-    Vector out;
-    ga.residual(s, s0, h, out, nullptr, nullptr);
-    return out;
-  };
-  auto r0 = [&](const Vector &x) {
-    dynamics::State s = s0;
-    s.unpack(x, N, rows);
-    Vector out;
-    ga.residual(s1, s, h, out, nullptr, nullptr);
-    return out;
-  };
-  EXPECT_LT(rel_error(D1, fd_jacobian(r1, s1.pack())), 1e-7) << "dR/ds_{n+1}";
-  EXPECT_LT(rel_error(D0, fd_jacobian(r0, s0.pack())), 1e-7) << "dR/ds_n";
+  const auto sd = test_support::step_derivatives(ga, s1, s0, 0.05);
+  EXPECT_LT(rel_error(sd[0].analytic, sd[0].differences), 1e-7) << "dR/ds_{n+1}";
+  EXPECT_LT(rel_error(sd[1].analytic, sd[1].differences), 1e-7) << "dR/ds_n";
 }
 
 // A flexible pendulum of the synthetic body on a spherical joint: the sparse Newton path (block
