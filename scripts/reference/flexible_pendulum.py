@@ -224,17 +224,10 @@ def fe_setup(n_el, rho_i):
         for j in range(2):
             for d in range(3):
                 Me[3 * i + d, 3 * j + d] = md[d] * le / 6.0 * (2.0 if i == j else 1.0)
-    e = np.arange(n_el)
-    A_, B_ = np.meshgrid(np.arange(6), np.arange(6), indexing="ij")
-    gi = 3 * e[:, None, None] + A_[None] - 2
-    gj = 3 * e[:, None, None] + B_[None] - 2
-    ok = (gi >= 0) & (gj >= 0)
-    band_idx = ((ku + gi - gj) * nf + gj)[ok]
+    band_idx, ok, f_idx, f_ok = sub.band_pattern(n_el, nf, ku, 2)
     nb = (2 * ku + 1) * nf
     Mband = np.bincount(band_idx, np.broadcast_to(Me, (n_el, 6, 6))[ok], minlength=nb).reshape(2 * ku + 1, nf)
-    f_idx = 3 * e[:, None] + np.arange(6)[None, :] - 2
-    f_ok = f_idx >= 0
-    return le, nd, nf, ku, Mband, band_idx, ok, f_idx[f_ok], f_ok
+    return le, nd, nf, ku, Mband, band_idx, ok, f_idx, f_ok
 
 
 def band_matvec(Mband, ku, x):

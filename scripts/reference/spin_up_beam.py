@@ -243,6 +243,21 @@ def check_tangent(forces=None, ea=EA, ga=GA, ei=EI, le=0.7, amplitude=0.2, seed=
     return err_f, err_k
 
 
+def band_pattern(n_el, nf, ku, fixed):
+    """Scatter indices of the 6 x 6 element blocks of n_el 2-node elements (3 DOFs per node) into
+    the band storage (half bandwidth ku) of the nf free DOFs, the first `fixed` DOFs removed:
+    band indices and the mask of kept block entries, element-force indices and their mask."""
+    e = np.arange(n_el)
+    A_, B_ = np.meshgrid(np.arange(6), np.arange(6), indexing="ij")
+    gi = 3 * e[:, None, None] + A_[None] - fixed
+    gj = 3 * e[:, None, None] + B_[None] - fixed
+    ok = (gi >= 0) & (gj >= 0)
+    band_idx = ((ku + gi - gj) * nf + gj)[ok]
+    f_idx = 3 * e[:, None] + np.arange(6)[None, :] - fixed
+    f_ok = f_idx >= 0
+    return band_idx, ok, f_idx[f_ok], f_ok
+
+
 def run_fe(ws, n_el, dt, t_end=T_END, ga=GA, rho_i=RHO_I, ea=EA, rho_inf=RHO_INF):
     """Model (A). Returns dict(t, v = tip deflection in the hub frame, u = tip axial displacement
     in the hub frame, newton = mean Newton iterations per step, wall)."""
@@ -272,15 +287,7 @@ def run_fe(ws, n_el, dt, t_end=T_END, ga=GA, rho_i=RHO_I, ea=EA, rho_inf=RHO_INF
         return out
 
     # scatter pattern of element tangents into the band of the free DOFs
-    e = np.arange(n_el)
-    A_, B_ = np.meshgrid(np.arange(6), np.arange(6), indexing="ij")
-    gi = 3 * e[:, None, None] + A_[None] - 3
-    gj = 3 * e[:, None, None] + B_[None] - 3
-    ok = (gi >= 0) & (gj >= 0)
-    band_idx = ((ku + gi - gj) * nf + gj)[ok]
-    f_idx = (3 * e[:, None] + np.arange(6)[None, :] - 3)
-    f_ok = f_idx >= 0
-    f_idx = f_idx[f_ok]
+    band_idx, ok, f_idx, f_ok = band_pattern(n_el, nf, ku, 3)
 
     am = (2.0 * rho_inf - 1.0) / (rho_inf + 1.0)
     af = rho_inf / (rho_inf + 1.0)
@@ -466,28 +473,22 @@ def main():
             fe_runs[key] = res
         return fe_runs[key]
 
-    prev = None
-    mesh_vals = []
-    for n_el in FE_MESHES:
-        r = fe(ws, n_el, FE_DT)
-        mesh_vals.append(r["v_min"])
-        say("   %6d %8g %14.7f %10.4f %10s %8.2f %8.1f" % (n_el, FE_DT, r["v_min"], r["t_min"],
-            "" if prev is None else "%.2e" % (r["v_min"] - prev), r["newton"], r["wall"]))
-        prev = r["v_min"]
-    d = np.diff(mesh_vals)
-    p_mesh = np.log2(d[:-1] / d[1:])
-    say("   observed order in n_el: %s (expected 2)" % ", ".join("%.2f" % p for p in p_mesh))
-    prev = None
-    step_vals = []
-    for dt in FE_STEPS:
-        r = fe(ws, FE_NEL, dt)
-        step_vals.append(r["v_min"])
-        say("   %6d %8g %14.7f %10.4f %10s %8.2f %8.1f" % (FE_NEL, dt, r["v_min"], r["t_min"],
-            "" if prev is None else "%.2e" % (r["v_min"] - prev), r["newton"], r["wall"]))
-        prev = r["v_min"]
-    d = np.diff(step_vals)
-    p_step = np.log2(d[:-1] / d[1:])
-    say("   observed order in dt: %s (expected 2)" % ", ".join("%.2f" % p for p in p_step))
+    def refinement(levels, label):
+        """Runs the levels [(n_el, dt)], prints a table row each and the observed order."""
+        prev, vals = None, []
+        for n_el, dt in levels:
+            r = fe(ws, n_el, dt)
+            vals.append(r["v_min"])
+            say("   %6d %8g %14.7f %10.4f %10s %8.2f %8.1f" % (n_el, dt, r["v_min"], r["t_min"],
+                "" if prev is None else "%.2e" % (r["v_min"] - prev), r["newton"], r["wall"]))
+            prev = r["v_min"]
+        d = np.diff(vals)
+        p = np.log2(d[:-1] / d[1:])
+        say("   observed order in %s: %s (expected 2)" % (label, ", ".join("%.2f" % x for x in p)))
+        return vals, p
+
+    mesh_vals, p_mesh = refinement([(n, FE_DT) for n in FE_MESHES], "n_el")
+    step_vals, p_step = refinement([(FE_NEL, dt) for dt in FE_STEPS], "dt")
     fine = fe(ws, *FE_FINE)
     say("   %6d %8g %14.7f %10.4f %10s %8.2f %8.1f   <- written to the CSV"
         % (FE_FINE[0], FE_FINE[1], fine["v_min"], fine["t_min"], "", fine["newton"], fine["wall"]))
