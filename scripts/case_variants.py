@@ -8,6 +8,19 @@ import subprocess
 import sys
 
 
+def run_flexopt(cmd):
+    """Runs a command line (mpirun ... flexopt ...) as root-capable MPI job; exits with its
+    output on failure."""
+    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
+               OMPI_MCA_rmaps_base_oversubscribe="1")
+    print("$ " + " ".join(cmd), flush=True)
+    proc = subprocess.run(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    if proc.returncode != 0:
+        sys.stdout.write(proc.stdout)
+        sys.exit(f"failed (exit {proc.returncode}): {' '.join(cmd)}")
+    return proc.stdout
+
+
 def run_variant(flexopt, case, out, name, replace, ranks=2, end=None):
     """Runs `flexopt simulate` on CASE's case.yaml with each (old, new) of `replace` applied
     (old must occur) and, if given, time.end set to `end`; returns the summary."""
@@ -25,12 +38,5 @@ def run_variant(flexopt, case, out, name, replace, ranks=2, end=None):
     os.makedirs(d, exist_ok=True)
     with open(os.path.join(d, "case.yaml"), "w") as f:
         f.write(text)
-    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
-               OMPI_MCA_rmaps_base_oversubscribe="1")
-    cmd = ["mpirun", "-n", str(ranks), flexopt, "simulate", d, "--out", os.path.join(d, "out")]
-    print("$ " + " ".join(cmd), flush=True)
-    proc = subprocess.run(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-    if proc.returncode != 0:
-        sys.stdout.write(proc.stdout)
-        sys.exit(f"{name}: flexopt failed")
+    run_flexopt(["mpirun", "-n", str(ranks), flexopt, "simulate", d, "--out", os.path.join(d, "out")])
     return json.load(open(os.path.join(d, "out", "summary.json")))

@@ -15,31 +15,22 @@ the oscillation must be the static deflection q L^4 / (8 E I) of Euler-Bernoulli
 """
 import json
 import os
-import subprocess
 import sys
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "scripts"))
+from case_variants import run_flexopt  # noqa: E402
 from check_case import maxima_period  # noqa: E402
-
-
-def run(args):
-    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
-               OMPI_MCA_rmaps_base_oversubscribe="1")
-    print("$ " + " ".join(args), flush=True)
-    proc = subprocess.run(args, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-    sys.stdout.write(proc.stdout)
-    if proc.returncode != 0:
-        sys.exit(f"failed (exit {proc.returncode})")
 
 
 def main():
     import numpy as np
     flexopt, case, out = sys.argv[1:4]
-    run(["mpirun", "-n", "2", flexopt, "modes", case, "--body", "bar", "--count", "2",
-         "--out", os.path.join(out, "modes")])
+    sys.stdout.write(run_flexopt(["mpirun", "-n", "2", flexopt, "modes", case, "--body", "bar",
+                                  "--count", "2", "--out", os.path.join(out, "modes")]))
     modes = json.load(open(os.path.join(out, "modes", "summary.json")))["reduction"]
     f1 = modes["full_frequencies_hz"][0]
-    run(["mpirun", "-n", "2", flexopt, "simulate", case, "--out", os.path.join(out, "sim")])
+    sys.stdout.write(run_flexopt(["mpirun", "-n", "2", flexopt, "simulate", case, "--out",
+                                  os.path.join(out, "sim")]))
     s = json.load(open(os.path.join(out, "sim", "summary.json")))
     tip = s["sensors"]["tip_elastic"]
     t = np.array(tip["t"])
