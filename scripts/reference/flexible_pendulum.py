@@ -253,11 +253,7 @@ def run_fe(n_el, dt, t_end=T_END, rho_inf=RHO_INF, ea=EA, ga=GA, ei=EI, rho_i=RH
     Fg[1] *= 0.5
     Fg[-2] *= 0.5
     Ff = Fg[2:]
-    am = (2.0 * rho_inf - 1.0) / (rho_inf + 1.0)
-    af = rho_inf / (rho_inf + 1.0)
-    gm = 0.5 + af - am
-    beta = 0.25 * (gm + 0.5) ** 2
-    dq_da = dt * dt * beta * (1.0 - af) / (1.0 - am)
+    am, af, gm, beta, dq_da = sub.alpha_parameters(rho_inf, dt)
     q = np.zeros(nd)
     q[0::3] = np.arange(n_el + 1) * le
     v = np.zeros(nd)

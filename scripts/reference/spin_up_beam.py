@@ -243,6 +243,16 @@ def check_tangent(forces=None, ea=EA, ga=GA, ei=EI, le=0.7, amplitude=0.2, seed=
     return err_f, err_k
 
 
+def alpha_parameters(rho_inf, dt):
+    """Chung-Hulbert generalized-alpha parameters alpha_m, alpha_f, gamma, beta and
+    dq/da = dt^2 beta (1 - alpha_f) / (1 - alpha_m) of a step in the algorithmic acceleration."""
+    am = (2.0 * rho_inf - 1.0) / (rho_inf + 1.0)
+    af = rho_inf / (rho_inf + 1.0)
+    gm = 0.5 + af - am
+    beta = 0.25 * (gm + 0.5) ** 2
+    return am, af, gm, beta, dt * dt * beta * (1.0 - af) / (1.0 - am)
+
+
 def band_pattern(n_el, nf, ku, fixed):
     """Scatter indices of the 6 x 6 element blocks of n_el 2-node elements (3 DOFs per node) into
     the band storage (half bandwidth ku) of the nf free DOFs, the first `fixed` DOFs removed:
@@ -289,11 +299,7 @@ def run_fe(ws, n_el, dt, t_end=T_END, ga=GA, rho_i=RHO_I, ea=EA, rho_inf=RHO_INF
     # scatter pattern of element tangents into the band of the free DOFs
     band_idx, ok, f_idx, f_ok = band_pattern(n_el, nf, ku, 3)
 
-    am = (2.0 * rho_inf - 1.0) / (rho_inf + 1.0)
-    af = rho_inf / (rho_inf + 1.0)
-    gm = 0.5 + af - am
-    beta = 0.25 * (gm + 0.5) ** 2
-    dq_da = dt * dt * beta * (1.0 - af) / (1.0 - am)
+    am, af, gm, beta, dq_da = alpha_parameters(rho_inf, dt)
 
     q = np.zeros(nd)
     q[0::3] = np.arange(nn) * le
