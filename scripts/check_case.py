@@ -18,6 +18,9 @@ reads the run's summary.json and compares each check:
           - {path: energy, max_relative_change: 1.0e-6}
           - {path: sensors.tip, component: 1, minimum: -0.40, rel_tol: 0.05, at: 7.0, time_tol: 0.5}
           - {path: sensors.tip, component: 1, max_abs_over: [0, 15], max: 1.0}   # bounded
+          # distance of a position sensor from the line through two others, signed by the
+          # normal n: ((b - a) x (m - a)) . n / |b - a|, at the sample nearest `at`
+          - {path: sensors.mid, chord: [end_a, end_b], normal: [0, 0, 1], at: 0.1, value: 1.9e-4, rel_tol: 0.1}
 
 Usage: check_case.py CASE_DIR [--flexopt build/flexopt] [--ranks 2] [--out DIR] [--reference FILE]
 Exit status 0 if every check passes.
@@ -33,14 +36,14 @@ import yaml
 
 
 def select(summary, path):
-    """Returns the value at a dotted path with [i] or [a:b] indices."""
+    """Returns the value at a dotted path with [i] (negative: from the end) or [a:b] indices."""
     value = summary
     for part in path.split("."):
-        m = re.fullmatch(r"([A-Za-z_][A-Za-z0-9_]*)((?:\[[0-9:]+\])*)", part)
+        m = re.fullmatch(r"([A-Za-z_][A-Za-z0-9_]*)((?:\[-?[0-9:]+\])*)", part)
         if not m:
             raise KeyError(f"bad path component '{part}'")
         value = value[m.group(1)]
-        for idx in re.findall(r"\[([0-9:]+)\]", m.group(2)):
+        for idx in re.findall(r"\[(-?[0-9:]+)\]", m.group(2)):
             if ":" in idx:
                 a, b = idx.split(":")
                 value = value[int(a) if a else None:int(b) if b else None]
@@ -103,6 +106,17 @@ def check_derived(summary, check):
         shown = check["formula"] if len(check["formula"]) < 60 else check.get("name", "formula")
         return err <= check["max_abs_err"], (f"{label}: max |value - ({shown})| "
                                              f"{err:.3g} <= {check['max_abs_err']:.3g} over {len(t)} samples")
+    if "chord" in check:
+        a, b = (np.array(select(summary, "sensors." + n)["value"], dtype=float) for n in check["chord"])
+        d = b - a
+        off = np.cross(d, v - a) @ np.array(check["normal"], dtype=float) / np.linalg.norm(d, axis=1)
+        k = int(np.argmin(np.abs(t - check["at"])))
+        if abs(t[k] - check["at"]) > 1e-9 * max(1.0, abs(check["at"])):
+            return False, f"{label}: no sample at t = {check['at']}"
+        ref = check["value"]
+        rel = abs(off[k] - ref) / abs(ref)
+        return rel <= check["rel_tol"], (f"{label}: distance from the chord {'-'.join(check['chord'])} at "
+                                         f"t = {t[k]:.6g}: {off[k]:.6g} vs {ref:.6g}, rel err {rel:.3g} <= {check['rel_tol']:.3g}")
     if "minimum" in check or "maximum" in check:
         kind = "minimum" if "minimum" in check else "maximum"
         k = int(np.argmin(v) if kind == "minimum" else np.argmax(v))
@@ -138,7 +152,7 @@ def check_derived(summary, check):
 
 def check_one(summary, check):
     if any(k in check for k in ("formula", "period", "max_relative_change", "minimum", "maximum",
-                                "max_abs_over")):
+                                "max_abs_over", "chord")):
         return check_derived(summary, check)
     path = check["path"]
     try:

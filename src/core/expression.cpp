@@ -1,10 +1,12 @@
 #include "flexopt/core/expression.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cctype>
 #include <cmath>
 #include <muParser.h>
 #include <numbers>
+#include <vector>
 
 namespace flexopt {
 
@@ -57,28 +59,35 @@ ExpressionError::ExpressionError(std::string text, std::string message, int posi
     : std::runtime_error(format_error(text, message, position)), text_(std::move(text)),
       message_(std::move(message)), position_(position) {}
 
-struct Expression::Impl {
+/// A compiled expression in up to three named variables (Expression: t; PointExpression: x, y,
+/// z).
+struct ExpressionImpl {
   std::string text;
-  double t = 0; ///< the variable `t`; the parser holds its address, so Impl never moves
+  std::vector<std::string> names; ///< the variables, bound to var[0], var[1], ...
+  /// The variables' values; the parser holds their addresses, so an ExpressionImpl never moves.
+  std::array<double, 3> var{0, 0, 0};
   mu::Parser parser;
 
-  explicit Impl(const std::string &s) : text(s) {
+  ExpressionImpl(const std::string &s, std::vector<std::string> variables)
+      : text(s), names(std::move(variables)) {
+    std::string listed; // "t" or "x, y, z", for the messages
+    for (const auto &n : names) listed += (listed.empty() ? "" : ", ") + n;
     auto fail = [&](const std::string &reason, int pos) {
       throw ExpressionError(text, "cannot parse \"" + text + "\": " + reason, pos);
     };
     const std::string blank = " \t\r\n";
     if (text.find_first_not_of(blank) == std::string::npos)
-      throw ExpressionError(text, "empty expression (write a number or an expression in t)", -1);
+      throw ExpressionError(
+          text, "empty expression (write a number or an expression in " + listed + ")", -1);
     const int eq = assignment_position(text);
     if (eq >= 0) fail("'=' assigns, which an expression may not (compare with ==)", eq);
     try {
-      parser.DefineVar("t", &t);
+      for (std::size_t k = 0; k < names.size(); ++k) parser.DefineVar(names[k], &var[k]);
       // muParser built with GCC defines _pi as 3.141592653589 (muParserTemplateMagic.h, to keep
       // sin(_pi*a) fast); redefine it to the double nearest pi.
       parser.DefineConst("_pi", std::numbers::pi);
       parser.DefineConst("_e", std::numbers::e);
       parser.SetExpr(text);
-      t = 0;
       parser.Eval(); // muParser parses lazily: this reports syntax errors
     } catch (const mu::Parser::exception_type &e) {
       const int pos = static_cast<int>(e.GetPos());
@@ -93,7 +102,8 @@ struct Expression::Impl {
                    kFunctions + ")",
                pos);
         fail("unknown name \"" + tok + "\" at position " + std::to_string(pos) +
-                 " (the only variable is t; constants: _pi, _e)",
+                 (names.size() == 1 ? " (the only variable is " : " (the variables are ") + listed +
+                 "; constants: _pi, _e)",
              pos);
       }
       fail(clean_reason(e.GetMsg(), pos), pos);
@@ -104,14 +114,18 @@ struct Expression::Impl {
     if (!std::isfinite(v0))
       throw ExpressionError(text,
                             "\"" + text + "\" evaluates to " + (std::isnan(v0) ? "nan" : "inf") +
-                                " at t = 0 (an expression must be finite)",
+                                " at " + listed + " = 0 (an expression must be finite)",
                             -1);
   }
 
   double eval(double at) {
-    t = at;
+    var[0] = at;
     return parser.Eval();
   }
+};
+
+struct Expression::Impl : ExpressionImpl {
+  explicit Impl(const std::string &s) : ExpressionImpl(s, {"t"}) {}
 };
 
 Expression::Expression() : Expression("0") {}
@@ -159,6 +173,21 @@ double Expression::second_derivative(double t) const {
 }
 
 const std::string &Expression::text() const {
+  return impl_->text;
+}
+
+struct PointExpression::Impl : ExpressionImpl {
+  explicit Impl(const std::string &s) : ExpressionImpl(s, {"x", "y", "z"}) {}
+};
+
+PointExpression::PointExpression(const std::string &text) : impl_(std::make_shared<Impl>(text)) {}
+
+double PointExpression::operator()(double x, double y, double z) const {
+  impl_->var = {x, y, z};
+  return impl_->parser.Eval();
+}
+
+const std::string &PointExpression::text() const {
   return impl_->text;
 }
 

@@ -4,7 +4,9 @@
 #include "flexopt/bodies/rigid_body.hpp"
 #include "flexopt/core/context.hpp"
 #include "flexopt/core/error.hpp"
+#include "flexopt/core/expression.hpp"
 #include "flexopt/mesh/load.hpp"
+#include "flexopt/reduce/field_projection.hpp"
 #include "flexopt/reduce/flexible_reduction.hpp"
 #include "flexopt/reduce/modal.hpp"
 
@@ -130,6 +132,33 @@ Matrix rayleigh(const reduce::FlexibleReduction &r, const std::array<double, 2> 
   return ab[0] * r.M + ab[1] * r.K;
 }
 
+/// The initial elastic displacement (or velocity, if `rate`) of an FFRF body: its
+/// `initial.elastic_displacement` (`elastic_velocity`) field projected onto the basis
+/// (docs/theory.md section 7.6); empty if the case gives none. Logs how much of the field the
+/// basis represents.
+bodies::Vector initial_elastic(MPI_Comm comm, const io::BodySpec &spec,
+                               const mesh::DistributedMesh &mesh, double density,
+                               const reduce::FlexibleReduction &red, bool rate) {
+  const auto &text = rate ? spec.initial.elastic_velocity : spec.initial.elastic_displacement;
+  if (text[0].empty()) return {};
+  const std::array<PointExpression, 3> f{PointExpression(text[0]), PointExpression(text[1]),
+                                         PointExpression(text[2])};
+  const reduce::FieldProjection p = reduce::project_field(mesh, density, red, [&](const Vec3 &x) {
+    return Vec3(f[0](x.x(), x.y(), x.z()), f[1](x.x(), x.y(), x.z()), f[2](x.x(), x.y(), x.z()));
+  });
+  const char *what = rate ? "elastic_velocity" : "elastic_displacement";
+  print0(comm,
+         "body %s: initial.%s projected onto the basis: ||u||_M = %.6g, %.3g %% of it outside "
+         "the basis\n",
+         spec.name.c_str(), what, p.norm, 100 * p.residual);
+  if (p.residual > 0.1)
+    print0(comm,
+           "body %s: warning: the basis represents initial.%s poorly (%.3g %% left out); the "
+           "field should vanish, with its rotation, on interface '%s', where the frame is\n",
+           spec.name.c_str(), what, 100 * p.residual, spec.interfaces.front().c_str());
+  return p.coordinates;
+}
+
 } // namespace
 
 Scene build_scene(MPI_Comm comm, const io::Case &c) {
@@ -143,6 +172,7 @@ Scene build_scene(MPI_Comm comm, const io::Case &c) {
   std::vector<std::shared_ptr<reduce::FlexibleReduction>> reductions(nbodies);
   std::vector<Mat3> R0(nbodies);
   std::vector<Vec3> origin(nbodies);
+  std::vector<bodies::Vector> elastic0(nbodies), elastic_rate0(nbodies); // zeta, zeta' at t = 0
   for (std::size_t b = 0; b < nbodies; ++b) {
     const io::BodySpec &spec = c.bodies[b];
     const auto &mat = c.material(spec.material);
@@ -190,6 +220,8 @@ Scene build_scene(MPI_Comm comm, const io::Case &c) {
       }
       reductions[b] = red;
       scene.reduction_seconds.push_back(wall_time() - t0);
+      elastic0[b] = initial_elastic(comm, spec, m, mat.density, *red, false);
+      elastic_rate0[b] = initial_elastic(comm, spec, m, mat.density, *red, true);
       mech.bodies.push_back(body);
     } else {
       // Mass properties and interface centroids from the whole mesh on rank 0, broadcast as
@@ -239,6 +271,11 @@ Scene build_scene(MPI_Comm comm, const io::Case &c) {
     scene.q0.segment(static_cast<Eigen::Index>(o), n) = q;
     scene.v0.segment(static_cast<Eigen::Index>(o), n) = body.placement_velocity(
         q, v3(c.bodies[b].initial.velocity), v3(c.bodies[b].initial.angular_velocity));
+    // FFRF: the elastic coordinates follow the 7 frame coordinates.
+    if (elastic0[b].size() > 0)
+      scene.q0.segment(static_cast<Eigen::Index>(o) + 7, n - 7) = elastic0[b];
+    if (elastic_rate0[b].size() > 0)
+      scene.v0.segment(static_cast<Eigen::Index>(o) + 7, n - 7) = elastic_rate0[b];
     o += static_cast<std::size_t>(n);
   }
 

@@ -155,6 +155,25 @@ public:
     return n.Scalar();
   }
 
+  /// A list of three numbers or muParser expressions in x, y, z (a vector field over a body),
+  /// each compiled to check it; returns the texts as written.
+  std::array<std::string, 3> point_field(const YAML::Node &n, const std::string &path) const {
+    if (!n.IsSequence() || n.size() != 3)
+      fail(n, path + ": expected [fx, fy, fz]: three numbers or expressions in x, y, z");
+    std::array<std::string, 3> out;
+    for (std::size_t k = 0; k < 3; ++k) {
+      const std::string p = path + "[" + std::to_string(k) + "]";
+      if (!n[k].IsScalar()) fail(n[k], p + ": expected a number or an expression in x, y, z");
+      try {
+        const PointExpression compiled(n[k].Scalar());
+      } catch (const ExpressionError &e) {
+        fail(n[k], p + ": " + e.what());
+      }
+      out[k] = n[k].Scalar();
+    }
+    return out;
+  }
+
   /// The key node (not the value) of `key` in the mapping `map`, for messages about the key.
   YAML::Node key_node(const YAML::Node &map, const std::string &key) const {
     for (const auto &kv : map)
@@ -205,9 +224,12 @@ std::string join(const std::vector<std::string> &names, const char *none = "none
   return out.empty() ? none : out;
 }
 
-void read_initial(const Reader &r, const YAML::Node &v, const std::string &path, InitialSpec &s) {
+void read_initial(const Reader &r, const YAML::Node &v, const std::string &path,
+                  const std::string &model, InitialSpec &s) {
   r.require_map(v, path);
-  r.check_keys(v, path, {"position", "rotation", "velocity", "angular_velocity"});
+  r.check_keys(v, path,
+               {"position", "rotation", "velocity", "angular_velocity", "elastic_displacement",
+                "elastic_velocity"});
   if (v["position"]) s.position = r.vector3(v["position"], path + ".position");
   if (v["rotation"]) {
     const YAML::Node &rot = v["rotation"];
@@ -220,6 +242,15 @@ void read_initial(const Reader &r, const YAML::Node &v, const std::string &path,
   if (v["velocity"]) s.velocity = r.vector3(v["velocity"], path + ".velocity");
   if (v["angular_velocity"])
     s.angular_velocity = r.vector3(v["angular_velocity"], path + ".angular_velocity");
+  for (const char *key : {"elastic_displacement", "elastic_velocity"}) {
+    if (!v[key]) continue;
+    if (model != "ffrf")
+      r.fail(r.key_node(v, key),
+             path + "." + key + ": only an ffrf body has elastic coordinates (model: " + model +
+                 ")");
+    (std::string(key) == "elastic_velocity" ? s.elastic_velocity : s.elastic_displacement) =
+        r.point_field(v[key], path + "." + key);
+  }
 }
 
 void read_bodies(const Reader &r, const YAML::Node &node, const fs::path &dir, Case &c) {
@@ -324,7 +355,7 @@ void read_bodies(const Reader &r, const YAML::Node &node, const fs::path &dir, C
         r.fail(r.key_node(v, "initial"),
                path + ".initial: needs analysis: dynamic (a static analysis does not place or "
                       "move bodies)");
-      read_initial(r, v["initial"], path + ".initial", b.initial);
+      read_initial(r, v["initial"], path + ".initial", b.model, b.initial);
     }
     c.bodies.push_back(b);
   }

@@ -459,6 +459,41 @@ TEST_F(CaseFiles, ReductionAndDampingErrors) {
                     "case.yaml:15:", "bodies[1].damping.rayleigh[1]: must not be negative");
 }
 
+TEST_F(CaseFiles, FfrfInitialElasticFields) {
+  const std::string ffrf = "    interfaces: [pin_a, pin_b]\n    model: ffrf\n";
+  const std::string fields = "      elastic_displacement: [\"1e-3*x^2\", 0, 0]\n"
+                             "      elastic_velocity: [0, \"0.4*sin(_pi*x/0.3)\", 0]\n";
+  std::string y =
+      dynamic_with("      velocity: [1, 2, 3]\n", "      velocity: [1, 2, 3]\n" + fields);
+  y.replace(y.find("    interfaces: [pin_a, pin_b]\n"), 31, ffrf);
+  write(y);
+  const flexopt::io::Case c = load_case(dir_.string());
+  EXPECT_EQ(c.bodies[1].initial.elastic_displacement[0], "1e-3*x^2");
+  EXPECT_EQ(c.bodies[1].initial.elastic_velocity[1], "0.4*sin(_pi*x/0.3)");
+  EXPECT_EQ(c.bodies[1].initial.elastic_velocity[2], "0");
+  EXPECT_TRUE(c.bodies[0].initial.elastic_displacement[0].empty()); // none given: zero
+}
+
+TEST_F(CaseFiles, InitialElasticFieldErrors) {
+  const std::string field = "      velocity: [1, 2, 3]\n      elastic_velocity: [0, \"x\", 0]\n";
+  // A rigid body has no elastic coordinates.
+  EXPECT_CASE_ERROR(
+      dynamic_with("      velocity: [1, 2, 3]\n", field), "case.yaml:18:",
+      "bodies[1].initial.elastic_velocity: only an ffrf body has elastic coordinates");
+  auto ffrf_with = [&](const std::string &to) {
+    std::string y = dynamic_with("      velocity: [1, 2, 3]\n", to);
+    y.replace(y.find("    interfaces: [pin_a, pin_b]\n"), 31,
+              "    interfaces: [pin_a, pin_b]\n    model: ffrf\n");
+    return y;
+  };
+  EXPECT_CASE_ERROR(ffrf_with("      velocity: [1, 2, 3]\n      elastic_velocity: [0, 1]\n"),
+                    "case.yaml:19:", "bodies[1].initial.elastic_velocity: expected [fx, fy, fz]");
+  EXPECT_CASE_ERROR(
+      ffrf_with("      velocity: [1, 2, 3]\n      elastic_displacement: [0, \"t*x\", 0]\n"),
+      "case.yaml:19:",
+      "bodies[1].initial.elastic_displacement[1]: cannot parse \"t*x\": unknown name \"t\"");
+}
+
 TEST_F(CaseFiles, AcfNotSupportedYetInDynamicAnalysis) {
   EXPECT_CASE_ERROR(dynamic_with("model: rigid", "model: acf"),
                     "case.yaml:6:12:", "bodies[0].model: 'acf' is not supported yet");

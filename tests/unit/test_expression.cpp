@@ -227,3 +227,23 @@ TEST(Expression, OtherRejections) {
   // Finite at t = 0 is all that is checked: 1/(t-1) compiles and is inf at t = 1.
   EXPECT_TRUE(std::isinf(Expression("1/(t-1)")(1.0)));
 }
+
+TEST(PointExpression, ValuesAndErrors) {
+  const flexopt::PointExpression f("x + 2*y - z^2 + sin(_pi*x/0.3)");
+  EXPECT_NEAR(f(0.15, 1.0, 3.0), 0.15 + 2 - 9 + 1.0, 1e-15);
+  const flexopt::PointExpression copy = f; // copies share the parser; still evaluates
+  EXPECT_NEAR(copy(0.0, 0.0, 0.0), 0.0, 0.0);
+  try {
+    flexopt::PointExpression("x*t");
+    FAIL() << "t must be an unknown name in a point expression";
+  } catch (const flexopt::ExpressionError &e) {
+    EXPECT_TRUE(contains(e.message(), "unknown name \"t\" at position 2")) << e.message();
+    EXPECT_TRUE(contains(e.message(), "the variables are x, y, z")) << e.message();
+  }
+  try {
+    flexopt::PointExpression("1/x");
+    FAIL() << "inf at the origin must be rejected";
+  } catch (const flexopt::ExpressionError &e) {
+    EXPECT_TRUE(contains(e.message(), "at x, y, z = 0")) << e.message();
+  }
+}

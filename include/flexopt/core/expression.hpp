@@ -93,4 +93,20 @@ private:
   std::unique_ptr<Impl> impl_; ///< the parser and the variable it is bound to (by address)
 };
 
+/// A compiled muParser expression in the coordinates x, y, z [m] of a point (the syntax of
+/// Expression; `bodies[].initial.elastic_displacement`). Copies share the parser: evaluate one
+/// PointExpression (and its copies) from one thread at a time.
+class PointExpression {
+public:
+  /// Compiles `text`; throws ExpressionError for a syntax error, a name other than x, y, z and
+  /// the constants, or a value at the origin that is not finite.
+  explicit PointExpression(const std::string &text);
+  double operator()(double x, double y, double z) const;
+  const std::string &text() const;
+
+private:
+  struct Impl;
+  std::shared_ptr<Impl> impl_;
+};
+
 } // namespace flexopt
