@@ -65,27 +65,41 @@ void craig_bampton(const mesh::DistributedMesh &mesh, Mat K, Mat M,
   std::sort(constrained.begin(), constrained.end());
   constrained.erase(std::unique(constrained.begin(), constrained.end()), constrained.end());
 
-  // Static modes: K with every interface DOF constrained, factorized once (MUMPS).
-  const ClampedSolver clamped(mesh.comm, K, constrained, "cb_");
-  Vec ud, b;
-  FX_PETSC(MatCreateVecs(K, &ud, &b));
+  // Every interface clamped: K_ii (the interior) factorized ONCE by MUMPS Cholesky, which
+  // serves the static modes and the shift-and-invert of the fixed-interface modes alike.
   for (Vec &v : out.vectors) FX_PETSC(VecDestroy(&v));
   out.vectors.clear();
+  out.fixed_modes = fixed_modes;
+  out.fixed_eigenvalues.clear();
+  const std::size_t ns = 6 * (ni - 1);
+  out.static_modes = static_cast<int>(ns);
+  out.interior.reset();
+  if (ns == 0 && fixed_modes <= 0) { // no elastic coordinates: nothing to factorize
+    out.K.resize(0, 0);
+    out.M.resize(0, 0);
+    return;
+  }
+  out.interior = std::make_shared<ClampedProblem>(K, M, constrained, fixed_modes, "cb_");
+  ClampedProblem &clamped = *out.interior;
+  // Static modes: prescribed rigid motion u_D of interface k, the others clamped.
+  std::vector<Vec> rhs(ns), x(ns);
   for (std::size_t k = 1; k < ni; ++k)
     for (int c = 0; c < 6; ++c) {
-      // Prescribed rigid motion of surface k: unit translation e_c, or unit rotation about
-      // e_{c-3} through the centroid: u = e x (x - centroid).
+      Vec ud, b;
+      FX_PETSC(MatCreateVecs(K, &ud, &b));
+      // Unit translation e_c, or unit rotation about e_{c-3} through the centroid:
+      // u = e x (x - centroid).
       FX_PETSC(VecZeroEntries(ud));
       for (PetscInt node : nodes[k]) {
         const PetscInt local = node - mesh.node_start;
-        const Eigen::Vector3d x(mesh.coordinates[3 * static_cast<std::size_t>(local)],
-                                mesh.coordinates[3 * static_cast<std::size_t>(local) + 1],
-                                mesh.coordinates[3 * static_cast<std::size_t>(local) + 2]);
+        const Eigen::Vector3d xn(mesh.coordinates[3 * static_cast<std::size_t>(local)],
+                                 mesh.coordinates[3 * static_cast<std::size_t>(local) + 1],
+                                 mesh.coordinates[3 * static_cast<std::size_t>(local) + 2]);
         Eigen::Vector3d u = Eigen::Vector3d::Zero();
         if (c < 3)
           u(c) = 1;
         else
-          u = Eigen::Vector3d::Unit(c - 3).cross(x - out.centroids[k]);
+          u = Eigen::Vector3d::Unit(c - 3).cross(xn - out.centroids[k]);
         const PetscInt rows[3] = {3 * node, 3 * node + 1, 3 * node + 2};
         FX_PETSC(VecSetValues(ud, 3, rows, u.data(), INSERT_VALUES));
       }
@@ -105,27 +119,30 @@ void craig_bampton(const mesh::DistributedMesh &mesh, Mat K, Mat M,
         FX_PETSC(VecRestoreArrayRead(ud, &ua));
         FX_PETSC(VecRestoreArray(b, &ba));
       }
-      Vec x;
-      FX_PETSC(VecDuplicate(b, &x));
-      clamped.solve(b, x, "Craig-Bampton: the static-mode solve");
-      out.vectors.push_back(x);
+      FX_PETSC(VecDestroy(&ud));
+      const std::size_t j = 6 * (k - 1) + static_cast<std::size_t>(c);
+      rhs[j] = b;
+      FX_PETSC(VecDuplicate(b, &x[j]));
     }
-  out.static_modes = static_cast<int>(out.vectors.size());
-  FX_PETSC(VecDestroy(&ud));
-  FX_PETSC(VecDestroy(&b));
+  try {
+    clamped.solve(rhs, x, "Craig-Bampton: the static-mode solve");
+  } catch (const Error &) {
+    for (Vec &v : rhs) VecDestroy(&v);
+    for (Vec &v : x) VecDestroy(&v);
+    throw;
+  }
+  for (Vec &v : rhs) FX_PETSC(VecDestroy(&v));
+  out.vectors = x;
 
   // Fixed-interface modes: every interface surface clamped.
-  out.fixed_modes = fixed_modes;
-  out.fixed_eigenvalues.clear();
   if (fixed_modes > 0) {
     ModalResult modes;
-    solve_modes(K, M, constrained, fixed_modes, -1.0, modes);
+    clamped.lowest_modes(modes);
     for (int i = 0; i < fixed_modes; ++i) {
       out.fixed_eigenvalues.push_back(modes.eigenvalues[static_cast<std::size_t>(i)]);
-      Vec v;
-      FX_PETSC(VecDuplicate(modes.modes[static_cast<std::size_t>(i)], &v));
-      FX_PETSC(VecCopy(modes.modes[static_cast<std::size_t>(i)], v));
-      out.vectors.push_back(v);
+      // Take the vector over instead of copying it.
+      out.vectors.push_back(modes.modes[static_cast<std::size_t>(i)]);
+      modes.modes[static_cast<std::size_t>(i)] = nullptr;
     }
   }
 

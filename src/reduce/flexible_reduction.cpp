@@ -21,6 +21,11 @@ void reduce_flexible_body(const mesh::DistributedMesh &mesh, const fem::Isotropi
   fem::assemble_stiffness_and_mass(mesh, material, K, M);
   CraigBamptonBasis cb;
   craig_bampton(mesh, K, M, interfaces, fixed_modes, cb);
+  // With a single interface (the frame), the Craig-Bampton problem (every interface clamped) is
+  // the frame-clamped one of the geometric stiffness: its factorization is kept for those solves
+  // (one MUMPS factorization instead of two), otherwise released now.
+  const bool share_factorization = geometric_stiffening && interfaces.size() == 1;
+  if (!share_factorization) cb.interior.reset();
   out.static_modes = cb.static_modes;
   out.fixed_modes = cb.fixed_modes;
   out.centroids = cb.centroids;
@@ -67,8 +72,9 @@ void reduce_flexible_body(const mesh::DistributedMesh &mesh, const fem::Isotropi
   }
   out.geometric.clear();
   if (geometric_stiffening) {
-    const auto G = centrifugal_geometric_stiffness(mesh, material, K, M, interfaces.front(),
-                                                   out.origin, out.basis);
+    const auto G = centrifugal_geometric_stiffness(
+        mesh, material, K, M, interfaces.front(), out.origin, out.basis,
+        share_factorization ? cb.interior.get() : nullptr);
     out.geometric.assign(G.begin(), G.end());
   }
   FX_PETSC(MatDestroy(&K));

@@ -5,6 +5,8 @@
 #include "flexopt/fem/assembly.hpp"
 #include "flexopt/reduce/modal.hpp"
 
+#include <algorithm>
+#include <memory>
 #include <petscksp.h>
 #include <string>
 
@@ -49,7 +51,7 @@ std::array<Eigen::MatrixXd, 6>
 centrifugal_geometric_stiffness(const mesh::DistributedMesh &mesh,
                                 const fem::IsotropicMaterial &material, Mat K, Mat M,
                                 const std::string &frame_interface, const Eigen::Vector3d &origin,
-                                const std::vector<Vec> &basis) {
+                                const std::vector<Vec> &basis, ClampedProblem *frame_clamped) {
   LogScope log("FxGeomStiffness");
   const int n = static_cast<int>(basis.size());
   std::array<Eigen::MatrixXd, 6> G;
@@ -64,23 +66,28 @@ centrifugal_geometric_stiffness(const mesh::DistributedMesh &mesh,
                                                         "centrifugal geometric stiffness frame");
   if (n == 0) return G;
 
-  // The body clamped at its frame: one factorization for the six load cases.
-  const ClampedSolver clamped(mesh.comm, K, frame, "gs_");
+  // The body clamped at its frame: one factorization for the six load cases (the caller's if
+  // it has one).
+  std::unique_ptr<ClampedProblem> own;
+  if (!frame_clamped) {
+    std::vector<PetscInt> sorted(frame);
+    std::sort(sorted.begin(), sorted.end());
+    sorted.erase(std::unique(sorted.begin(), sorted.end()), sorted.end());
+    own = std::make_unique<ClampedProblem>(K, M, sorted, 0, "gs_");
+    frame_clamped = own.get();
+  }
 
-  Vec w, f;
-  FX_PETSC(MatCreateVecs(M, &w, &f));
-  Vec u = fem::create_ghosted_vector(mesh);
-  Mat Ks = fem::create_matrix(mesh);
-  PetscInt lo;
-  FX_PETSC(VecGetOwnershipRange(f, &lo, nullptr));
+  // Loads f_c = M w_c, w_c = B_c (X - origin) at the owned nodes, zero on the clamped DOFs.
+  std::vector<Vec> f(6), u(6);
   auto destroy = [&] {
-    MatDestroy(&Ks);
-    VecDestroy(&u);
-    VecDestroy(&f);
-    VecDestroy(&w);
+    for (Vec &v : f) VecDestroy(&v);
+    for (Vec &v : u) VecDestroy(&v);
   };
+  Vec w;
+  FX_PETSC(MatCreateVecs(M, &w, nullptr));
+  PetscInt lo;
+  FX_PETSC(VecGetOwnershipRange(w, &lo, nullptr));
   for (int c = 0; c < 6; ++c) {
-    // Load: f_c = M w_c, w_c = B_c (X - origin) at the owned nodes, zero on the clamped DOFs.
     const Eigen::Matrix3d B = centrifugal_load_matrix(c);
     {
       PetscScalar *wa;
@@ -94,30 +101,37 @@ centrifugal_geometric_stiffness(const mesh::DistributedMesh &mesh,
       }
       FX_PETSC(VecRestoreArray(w, &wa));
     }
-    FX_PETSC(MatMult(M, w, f));
-    {
-      PetscScalar *fa;
-      FX_PETSC(VecGetArray(f, &fa));
-      for (PetscInt dof : frame) fa[dof - lo] = 0.0;
-      FX_PETSC(VecRestoreArray(f, &fa));
-    }
-    try {
-      clamped.solve(f, u,
-                    std::string("centrifugal geometric stiffness: the solve of load case ") +
-                        kCentrifugalCases[static_cast<std::size_t>(c)] + " with '" +
-                        frame_interface + "' clamped",
-                    ". Does the frame surface hold the body against rigid motion?");
-    } catch (const Error &) {
-      destroy();
-      throw;
-    }
-    FX_PETSC(VecGhostUpdateBegin(u, INSERT_VALUES, SCATTER_FORWARD));
-    FX_PETSC(VecGhostUpdateEnd(u, INSERT_VALUES, SCATTER_FORWARD));
+    const auto k = static_cast<std::size_t>(c);
+    FX_PETSC(MatCreateVecs(M, &u[k], &f[k]));
+    FX_PETSC(MatMult(M, w, f[k]));
+    PetscScalar *fa;
+    FX_PETSC(VecGetArray(f[k], &fa));
+    for (PetscInt dof : frame) fa[dof - lo] = 0.0;
+    FX_PETSC(VecRestoreArray(f[k], &fa));
+  }
+  FX_PETSC(VecDestroy(&w));
+  try {
+    frame_clamped->solve(f, u,
+                         "centrifugal geometric stiffness: the solve of the load cases with '" +
+                             frame_interface + "' clamped",
+                         ". Does the frame surface hold the body against rigid motion?");
+  } catch (const Error &) {
+    destroy();
+    throw;
+  }
 
-    // G_c = V^T K_sigma(u_c) V.
-    fem::assemble_geometric_stiffness(mesh, material, u, Ks);
+  // G_c = V^T K_sigma(u_c) V.
+  Vec ug = fem::create_ghosted_vector(mesh);
+  Mat Ks = fem::create_matrix(mesh);
+  for (int c = 0; c < 6; ++c) {
+    FX_PETSC(VecCopy(u[static_cast<std::size_t>(c)], ug));
+    FX_PETSC(VecGhostUpdateBegin(ug, INSERT_VALUES, SCATTER_FORWARD));
+    FX_PETSC(VecGhostUpdateEnd(ug, INSERT_VALUES, SCATTER_FORWARD));
+    fem::assemble_geometric_stiffness(mesh, material, ug, Ks);
     G[static_cast<std::size_t>(c)] = project(Ks, basis);
   }
+  FX_PETSC(MatDestroy(&Ks));
+  FX_PETSC(VecDestroy(&ug));
   destroy();
   return G;
 }

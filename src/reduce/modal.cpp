@@ -17,52 +17,71 @@ double frequency_hz(double eigenvalue) {
   return std::copysign(std::sqrt(std::abs(eigenvalue)), eigenvalue) / (2.0 * M_PI);
 }
 
-void use_mumps_lu(KSP ksp) {
+void use_mumps_cholesky(KSP ksp) {
   FX_PETSC(KSPSetType(ksp, KSPPREONLY));
   PC pc;
   FX_PETSC(KSPGetPC(ksp, &pc));
-  FX_PETSC(PCSetType(pc, PCLU));
+  FX_PETSC(PCSetType(pc, PCCHOLESKY));
   FX_PETSC(PCFactorSetMatSolverType(pc, MATSOLVERMUMPS));
 }
 
-void solve_modes(Mat K, Mat M, const std::vector<PetscInt> &fixed_dofs, int count, double shift,
-                 ModalResult &result) {
+namespace {
+
+/// The owned DOFs of K's row range that are not in `fixed` (sorted owned global numbers).
+IS free_dofs(Mat K, const std::vector<PetscInt> &fixed) {
   MPI_Comm comm;
   FX_PETSC(PetscObjectGetComm(reinterpret_cast<PetscObject>(K), &comm));
   PetscInt lo, hi;
   FX_PETSC(MatGetOwnershipRange(K, &lo, &hi));
   std::vector<PetscInt> free;
   free.reserve(static_cast<std::size_t>(hi - lo));
-  auto fit = fixed_dofs.begin();
+  auto fit = fixed.begin();
   for (PetscInt i = lo; i < hi; ++i) {
-    while (fit != fixed_dofs.end() && *fit < i) ++fit;
-    if (fit != fixed_dofs.end() && *fit == i) continue;
+    while (fit != fixed.end() && *fit < i) ++fit;
+    if (fit != fixed.end() && *fit == i) continue;
     free.push_back(i);
   }
   IS is;
   FX_PETSC(ISCreateGeneral(comm, static_cast<PetscInt>(free.size()), free.data(), PETSC_COPY_VALUES,
                            &is));
-  Mat Kf, Mf;
-  FX_PETSC(MatCreateSubMatrix(K, is, is, MAT_INITIAL_MATRIX, &Kf));
-  FX_PETSC(MatCreateSubMatrix(M, is, is, MAT_INITIAL_MATRIX, &Mf));
+  return is;
+}
 
+/// Krylov-Schur for the `count` eigenvalues of (Kf, Mf) nearest `shift`, shift-and-invert with
+/// MUMPS Cholesky, then the -eps_* / -st_* options.
+EPS create_eps(Mat Kf, Mat Mf, int count, double shift) {
+  MPI_Comm comm;
+  FX_PETSC(PetscObjectGetComm(reinterpret_cast<PetscObject>(Kf), &comm));
   EPS eps;
   FX_PETSC(EPSCreate(comm, &eps));
   FX_PETSC(EPSSetOperators(eps, Kf, Mf));
   FX_PETSC(EPSSetProblemType(eps, EPS_GHEP));
   FX_PETSC(EPSSetDimensions(eps, count, PETSC_DEFAULT, PETSC_DEFAULT));
+  // Relative to the eigenvalue; the residuals come out far below (the Ritz values of the
+  // shift-and-invert operator converge quickly at the low end of the spectrum).
   FX_PETSC(EPSSetTolerances(eps, 1e-10, 1000));
   FX_PETSC(EPSSetWhichEigenpairs(eps, EPS_TARGET_REAL));
   FX_PETSC(EPSSetTarget(eps, shift));
+  // Purification (one more solve per eigenvector) is for a singular B; M restricted to the free
+  // DOFs is positive definite.
+  FX_PETSC(EPSSetPurify(eps, PETSC_FALSE));
   ST st;
   FX_PETSC(EPSGetST(eps, &st));
   FX_PETSC(STSetType(st, STSINVERT));
+  // K - shift M (shift != 0) fits K's pattern: the mass stores a subset of it
+  // (fem::assemble_mass leaves out its zero off-component entries), so no new pattern is built.
+  FX_PETSC(STSetMatStructure(st, SUBSET_NONZERO_PATTERN));
   KSP ksp;
   FX_PETSC(STGetKSP(st, &ksp));
-  use_mumps_lu(ksp);
+  // K - shift M is symmetric: Cholesky (LDL^T), about half the work of LU.
+  use_mumps_cholesky(ksp);
   FX_PETSC(EPSSetFromOptions(eps));
-  FX_PETSC(EPSSolve(eps));
+  return eps;
+}
 
+/// The `count` lowest converged eigenpairs of `eps` (ascending), mapped from the free DOFs `is`
+/// into full-size vectors of K's layout (zero on the fixed DOFs).
+void extract_modes(EPS eps, Mat K, Mat Kf, IS is, int count, ModalResult &result) {
   PetscInt nconv = 0, its = 0;
   FX_PETSC(EPSGetConverged(eps, &nconv));
   FX_PETSC(EPSGetIterationNumber(eps, &its));
@@ -97,10 +116,134 @@ void solve_modes(Mat K, Mat M, const std::vector<PetscInt> &fixed_dofs, int coun
     result.modes.push_back(full);
   }
   FX_PETSC(VecDestroy(&xf));
+}
+
+} // namespace
+
+void solve_modes(Mat K, Mat M, const std::vector<PetscInt> &fixed_dofs, int count, double shift,
+                 ModalResult &result) {
+  IS is = free_dofs(K, fixed_dofs);
+  Mat Kf, Mf;
+  FX_PETSC(MatCreateSubMatrix(K, is, is, MAT_INITIAL_MATRIX, &Kf));
+  FX_PETSC(MatCreateSubMatrix(M, is, is, MAT_INITIAL_MATRIX, &Mf));
+  EPS eps = create_eps(Kf, Mf, count, shift);
+  FX_PETSC(EPSSolve(eps));
+  extract_modes(eps, K, Kf, is, count, result);
   FX_PETSC(EPSDestroy(&eps));
   FX_PETSC(MatDestroy(&Kf));
   FX_PETSC(MatDestroy(&Mf));
   FX_PETSC(ISDestroy(&is));
+}
+
+ClampedProblem::ClampedProblem(Mat K, Mat M, const std::vector<PetscInt> &clamped, int modes,
+                               const char *prefix)
+    : K_(K), modes_(modes) {
+  MPI_Comm comm;
+  FX_PETSC(PetscObjectGetComm(reinterpret_cast<PetscObject>(K), &comm));
+  free_ = free_dofs(K, clamped);
+  FX_PETSC(MatCreateSubMatrix(K, free_, free_, MAT_INITIAL_MATRIX, &Kf_));
+  // The clamped surfaces hold the body: K_ff is positive definite, so MUMPS can factor without
+  // pivoting (its SYM = 1 variant).
+  FX_PETSC(MatSetOption(Kf_, MAT_SPD, PETSC_TRUE));
+  if (modes_ > 0) {
+    FX_PETSC(MatCreateSubMatrix(M, free_, free_, MAT_INITIAL_MATRIX, &Mf_));
+    // Shift 0: the shift-and-invert operator is K_ff^-1 M_ff, and SLEPc factors K_ff itself
+    // (no K - sigma M is formed), which the static solves then reuse.
+    eps_ = create_eps(Kf_, Mf_, modes_, 0.0);
+    FX_PETSC(EPSSetUp(eps_)); // the factorization
+    ST st;
+    FX_PETSC(EPSGetST(eps_, &st));
+    KSP ksp;
+    FX_PETSC(STGetKSP(st, &ksp));
+    Mat op = nullptr;
+    FX_PETSC(KSPGetOperators(ksp, &op, nullptr));
+    // Shared only if the ST really solves with K_ff (options may move the shift or change the
+    // transformation).
+    if (op == Kf_) {
+      FX_PETSC(PetscObjectReference(reinterpret_cast<PetscObject>(ksp)));
+      ksp_ = ksp;
+    }
+  }
+  if (!ksp_) {
+    FX_PETSC(KSPCreate(comm, &ksp_));
+    FX_PETSC(KSPSetOptionsPrefix(ksp_, prefix));
+    FX_PETSC(KSPSetOperators(ksp_, Kf_, Kf_));
+    use_mumps_cholesky(ksp_);
+    FX_PETSC(KSPSetFromOptions(ksp_));
+  }
+}
+
+ClampedProblem::~ClampedProblem() {
+  KSPDestroy(&ksp_);
+  EPSDestroy(&eps_);
+  MatDestroy(&Kf_);
+  MatDestroy(&Mf_);
+  ISDestroy(&free_);
+}
+
+void ClampedProblem::solve(const std::vector<Vec> &b, const std::vector<Vec> &x,
+                           const std::string &what, const std::string &hint) {
+  const auto n = static_cast<PetscInt>(b.size());
+  if (n == 0) return;
+  MPI_Comm comm;
+  FX_PETSC(PetscObjectGetComm(reinterpret_cast<PetscObject>(Kf_), &comm));
+  PetscInt nf, Nf, lo;
+  FX_PETSC(MatGetLocalSize(Kf_, &nf, nullptr));
+  FX_PETSC(MatGetSize(Kf_, &Nf, nullptr));
+  FX_PETSC(MatGetOwnershipRange(K_, &lo, nullptr));
+  const PetscInt *idx;
+  FX_PETSC(ISGetIndices(free_, &idx));
+  // All right-hand sides as the columns of one dense matrix: MUMPS then streams its factors
+  // once for the whole block instead of once per right-hand side.
+  Mat B, X;
+  FX_PETSC(MatCreateDense(comm, nf, PETSC_DECIDE, Nf, n, nullptr, &B));
+  FX_PETSC(MatCreateDense(comm, nf, PETSC_DECIDE, Nf, n, nullptr, &X));
+  {
+    PetscScalar *ba;
+    PetscInt lda;
+    FX_PETSC(MatDenseGetLDA(B, &lda));
+    FX_PETSC(MatDenseGetArrayWrite(B, &ba));
+    for (PetscInt k = 0; k < n; ++k) {
+      const PetscScalar *v;
+      FX_PETSC(VecGetArrayRead(b[static_cast<std::size_t>(k)], &v));
+      for (PetscInt i = 0; i < nf; ++i) ba[k * lda + i] = v[idx[i] - lo];
+      FX_PETSC(VecRestoreArrayRead(b[static_cast<std::size_t>(k)], &v));
+    }
+    FX_PETSC(MatDenseRestoreArrayWrite(B, &ba));
+  }
+  FX_PETSC(KSPMatSolve(ksp_, B, X));
+  KSPConvergedReason reason;
+  FX_PETSC(KSPGetConvergedReason(ksp_, &reason));
+  if (reason < 0) {
+    MatDestroy(&B);
+    MatDestroy(&X);
+    ISRestoreIndices(free_, &idx);
+    throw Error(what + " failed (" + KSPConvergedReasons[reason] + ")" + hint, true);
+  }
+  {
+    const PetscScalar *xa;
+    PetscInt lda;
+    FX_PETSC(MatDenseGetLDA(X, &lda));
+    FX_PETSC(MatDenseGetArrayRead(X, &xa));
+    for (PetscInt k = 0; k < n; ++k) {
+      // Clamped rows carry b itself (the identity rows of the clamped operator).
+      FX_PETSC(VecCopy(b[static_cast<std::size_t>(k)], x[static_cast<std::size_t>(k)]));
+      PetscScalar *v;
+      FX_PETSC(VecGetArray(x[static_cast<std::size_t>(k)], &v));
+      for (PetscInt i = 0; i < nf; ++i) v[idx[i] - lo] = xa[k * lda + i];
+      FX_PETSC(VecRestoreArray(x[static_cast<std::size_t>(k)], &v));
+    }
+    FX_PETSC(MatDenseRestoreArrayRead(X, &xa));
+  }
+  FX_PETSC(ISRestoreIndices(free_, &idx));
+  FX_PETSC(MatDestroy(&B));
+  FX_PETSC(MatDestroy(&X));
+}
+
+void ClampedProblem::lowest_modes(ModalResult &result) {
+  if (!eps_) return;
+  FX_PETSC(EPSSolve(eps_));
+  extract_modes(eps_, K_, Kf_, free_, modes_, result);
 }
 
 Eigen::MatrixXd project(Mat A, const std::vector<Vec> &vectors) {
@@ -117,30 +260,6 @@ Eigen::MatrixXd project(Mat A, const std::vector<Vec> &vectors) {
   }
   FX_PETSC(VecDestroy(&w));
   return 0.5 * (out + out.transpose());
-}
-
-ClampedSolver::ClampedSolver(MPI_Comm comm, Mat K, const std::vector<PetscInt> &clamped,
-                             const char *prefix) {
-  FX_PETSC(MatDuplicate(K, MAT_COPY_VALUES, &Kc_));
-  FX_PETSC(MatZeroRowsColumns(Kc_, static_cast<PetscInt>(clamped.size()), clamped.data(), 1.0,
-                              nullptr, nullptr));
-  FX_PETSC(KSPCreate(comm, &ksp_));
-  FX_PETSC(KSPSetOptionsPrefix(ksp_, prefix));
-  FX_PETSC(KSPSetOperators(ksp_, Kc_, Kc_));
-  use_mumps_lu(ksp_);
-  FX_PETSC(KSPSetFromOptions(ksp_));
-}
-
-ClampedSolver::~ClampedSolver() {
-  KSPDestroy(&ksp_);
-  MatDestroy(&Kc_);
-}
-
-void ClampedSolver::solve(Vec b, Vec x, const std::string &what, const std::string &hint) const {
-  FX_PETSC(KSPSolve(ksp_, b, x));
-  KSPConvergedReason reason;
-  FX_PETSC(KSPGetConvergedReason(ksp_, &reason));
-  if (reason < 0) throw Error(what + " failed (" + KSPConvergedReasons[reason] + ")" + hint, true);
 }
 
 } // namespace flexopt::reduce

@@ -4,8 +4,8 @@
 /// DOFs are node-major with block size 3: global DOF 3*g + k is component k of global node g.
 /// Matrices are MATAIJ (MPIAIJ on several ranks) with block size 3, preallocated exactly from
 /// the node graph of the mesh (shared rows completed by their owners), and carry the
-/// local-to-global mapping of the mesh's local nodes so that element blocks are added with
-/// MatSetValuesBlockedLocal.
+/// local-to-global mapping of the mesh's local nodes (for MatSetValuesLocal). The kernels here
+/// add element matrices with global DOF numbers in ascending order.
 #include "flexopt/fem/element.hpp"
 #include "flexopt/mesh/distributed_mesh.hpp"
 
@@ -28,7 +28,9 @@ Vec create_ghosted_vector(const mesh::DistributedMesh &mesh);
 void assemble_stiffness(const mesh::DistributedMesh &mesh, const IsotropicMaterial &material,
                         const std::vector<double> &modulus_factor, Mat A);
 
-/// Consistent mass matrix, M = sum_e factor_e M_e (factor empty: 1). Collective.
+/// Consistent mass matrix, M = sum_e factor_e M_e (factor empty: 1), into A (zeroed first).
+/// Only the nonzeros m_ab of M_e = m (x) I_3 are added, so once assembled A stores the
+/// same-component entries of the pattern only (a third of a stiffness matrix's). Collective.
 void assemble_mass(const mesh::DistributedMesh &mesh, double density,
                    const std::vector<double> &density_factor, Mat A);
 

@@ -6,8 +6,10 @@
 /// its centroid, the others clamped); the lowest fixed-interface eigenmodes (all interface
 /// surfaces clamped) complete the basis.
 #include "flexopt/mesh/distributed_mesh.hpp"
+#include "flexopt/reduce/modal.hpp"
 
 #include <Eigen/Dense>
+#include <memory>
 #include <petscmat.h>
 #include <string>
 #include <vector>
@@ -23,6 +25,10 @@ struct CraigBamptonBasis {
   std::vector<double> fixed_eigenvalues; ///< omega^2 of the fixed-interface modes [rad^2/s^2]
   Eigen::MatrixXd K, M; ///< reduced stiffness and mass V^T K V, V^T M V (replicated)
   std::vector<Eigen::Vector3d> centroids; ///< area-weighted centroid of each interface surface
+  /// The factorization of K with every interface clamped that built the basis, kept for further
+  /// solves of that problem (e.g. the geometric stiffness of a body whose only interface is its
+  /// frame); release it to free its memory. Null if the basis is empty.
+  std::shared_ptr<ClampedProblem> interior;
   CraigBamptonBasis() = default;
   CraigBamptonBasis(const CraigBamptonBasis &) = delete;
   CraigBamptonBasis &operator=(const CraigBamptonBasis &) = delete;
@@ -31,9 +37,12 @@ struct CraigBamptonBasis {
 
 /// Builds the basis for the mesh's interfaces `interfaces` (physical surfaces; the first is the
 /// clamped reference frame) with `fixed_modes` fixed-interface modes, from the assembled full
-/// stiffness K and mass M (block size 3). The static modes come from one MUMPS factorization of
-/// K with all interface DOFs constrained (options prefix `cb_`). Collective; throws a collective
-/// flexopt::Error for a missing surface or a failed solve.
+/// stiffness K and mass M (block size 3). One MUMPS Cholesky factorization of the interior
+/// stiffness K_ii (all interface DOFs constrained) serves both the static modes (one block solve
+/// with all their right-hand sides) and the SLEPc shift-and-invert about 0 of the
+/// fixed-interface modes (reduce::ClampedProblem; -eps_* / -st_* options; the static solves fall
+/// back to their own factorization, options prefix `cb_`, if options move the shift off 0).
+/// Collective; throws a collective flexopt::Error for a missing surface or a failed solve.
 void craig_bampton(const mesh::DistributedMesh &mesh, Mat K, Mat M,
                    const std::vector<std::string> &interfaces, int fixed_modes,
                    CraigBamptonBasis &out);

@@ -16,6 +16,7 @@
 /// usual first-order stiffening model).
 #include "flexopt/fem/element.hpp"
 #include "flexopt/mesh/distributed_mesh.hpp"
+#include "flexopt/reduce/modal.hpp"
 
 #include <Eigen/Dense>
 #include <array>
@@ -47,18 +48,20 @@ Eigen::Matrix3d centrifugal_load_matrix(int c);
 /// u_c solves K u_c = M w_c with every DOF of the surface `frame_interface` clamped, where w_c is
 /// the nodal vector B_c (X_j - origin): since M (the consistent mass, density included) is exact
 /// for the linear field B_c (x - origin), M w_c is exactly the consistent load of the body force
-/// rho B_c (x - origin). One MUMPS LU of the clamped K (options prefix `gs_`) serves all six
-/// solves. K_sigma(u_c) is assembled from element_geometric_stiffness with `material` (its density
-/// is not used: the mass comes from M). `origin` is the frame origin in mesh coordinates [m].
-/// An empty basis gives six 0 x 0 matrices (and no solve).
+/// rho B_c (x - origin). One MUMPS Cholesky factorization of the clamped K (options prefix
+/// `gs_`) serves all six solves, done as one block solve; `frame_clamped`, if given, must be K
+/// with exactly the frame's DOFs clamped (e.g. the Craig-Bampton factorization of a body whose
+/// only interface is its frame, CraigBamptonBasis::interior) and is used instead of a new
+/// factorization. K_sigma(u_c) is assembled from element_geometric_stiffness with `material`
+/// (its density is not used: the mass comes from M). `origin` is the frame origin in mesh
+/// coordinates [m]. An empty basis gives six 0 x 0 matrices (and no solve).
 ///
 /// Collective. Throws a collective flexopt::Error for a missing frame surface, an invalid
 /// material or a failed solve (e.g. a frame surface that does not hold the body).
-std::array<Eigen::MatrixXd, 6>
-centrifugal_geometric_stiffness(const mesh::DistributedMesh &mesh,
-                                const fem::IsotropicMaterial &material, Mat K, Mat M,
-                                const std::string &frame_interface, const Eigen::Vector3d &origin,
-                                const std::vector<Vec> &basis);
+std::array<Eigen::MatrixXd, 6> centrifugal_geometric_stiffness(
+    const mesh::DistributedMesh &mesh, const fem::IsotropicMaterial &material, Mat K, Mat M,
+    const std::string &frame_interface, const Eigen::Vector3d &origin,
+    const std::vector<Vec> &basis, ClampedProblem *frame_clamped = nullptr);
 
 /// sum_c s_c(omega) G_c: the stiffening of the reduced stiffness at the body-frame angular
 /// velocity omega [rad/s]. Not collective.

@@ -3,6 +3,7 @@
 #include <Eigen/Dense>
 #include <petscksp.h>
 #include <petscmat.h>
+#include <slepceps.h>
 #include <string>
 #include <vector>
 
@@ -21,32 +22,51 @@ struct ModalResult {
 
 /// Lowest `count` eigenpairs of the generalized symmetric problem on the free DOFs (the
 /// complement of `fixed_dofs`, owned global DOF numbers). Shift-and-invert about `shift`
-/// [rad^2/s^2] with a direct factorization (MUMPS by default; options prefix none, so
+/// [rad^2/s^2] with a direct factorization (MUMPS Cholesky by default; options prefix none, so
 /// -eps_*, -st_* and -st_pc_* options apply). A negative shift keeps K - shift M
-/// non-singular for free bodies. Collective.
+/// non-singular for free bodies. M's stored nonzero pattern must lie within K's (as from
+/// fem::assemble_stiffness_and_mass). Collective.
 void solve_modes(Mat K, Mat M, const std::vector<PetscInt> &fixed_dofs, int count, double shift,
                  ModalResult &result);
 
-/// Makes `ksp` a direct solve: preonly + LU with MUMPS (options still override). Not collective.
-void use_mumps_lu(KSP ksp);
+/// Makes `ksp` a direct solve of a symmetric matrix: preonly + MUMPS Cholesky (LDL^T; options
+/// still override). About half the flops, memory and solve time of LU for the same solution (to
+/// round-off). MUMPS takes the positive definite variant (no pivoting) if the operator carries
+/// MAT_SPD. Not collective.
+void use_mumps_cholesky(KSP ksp);
 
-/// A direct solver of K with the DOFs `clamped` (owned global numbers) held fixed: K_c is K with
-/// those rows and columns replaced by the identity, factored once by MUMPS LU (options prefix
-/// `prefix`). Used for the static modes of the Craig-Bampton basis and the centrifugal load
-/// cases of the geometric stiffness. Collective.
-class ClampedSolver {
+/// The fixed-interface problem of a body: its stiffness K and mass M restricted to the free DOFs
+/// (the complement of `clamped`, owned global DOF numbers), K_ff symmetric positive definite.
+/// ONE MUMPS Cholesky factorization of K_ff serves both the static solves (solve) and the SLEPc
+/// shift-and-invert about 0 for the lowest `modes` eigenpairs (modes): the factorization is the
+/// dominant cost of a Craig-Bampton reduction. The eigensolver takes the -eps_* and -st_*
+/// options as solve_modes does; if they move the shift off 0 (or change the spectral
+/// transformation) the static solves get their own factorization (options prefix `prefix`).
+/// With `modes` = 0 it is just the factorization of K_ff for solve (no M_ff, no eigensolver).
+/// K_ff must be positive definite: the clamped DOFs hold the body. Collective.
+class ClampedProblem {
 public:
-  ClampedSolver(MPI_Comm comm, Mat K, const std::vector<PetscInt> &clamped, const char *prefix);
-  ~ClampedSolver();
-  ClampedSolver(const ClampedSolver &) = delete;
-  ClampedSolver &operator=(const ClampedSolver &) = delete;
-  /// Solves K_c x = b; throws a collective flexopt::Error "<what> failed (<reason>)<hint>" if
-  /// the solve does not converge.
-  void solve(Vec b, Vec x, const std::string &what, const std::string &hint = "") const;
+  ClampedProblem(Mat K, Mat M, const std::vector<PetscInt> &clamped, int modes, const char *prefix);
+  ~ClampedProblem();
+  ClampedProblem(const ClampedProblem &) = delete;
+  ClampedProblem &operator=(const ClampedProblem &) = delete;
+  /// For every full-size right-hand side b[k]: x[k] = b[k] on the clamped DOFs and
+  /// K_ff x_f = b_f on the free ones, i.e. the solve with K whose clamped rows and columns are
+  /// replaced by the identity. All right-hand sides in one block solve (MUMPS reads its
+  /// factors once for the block). Throws a collective flexopt::Error
+  /// "<what> failed (<reason>)<hint>" if the solve fails.
+  void solve(const std::vector<Vec> &b, const std::vector<Vec> &x, const std::string &what,
+             const std::string &hint = "");
+  /// The lowest `modes` eigenpairs K phi = omega^2 M phi with phi = 0 on the clamped DOFs
+  /// (full-size, M-orthonormal), ascending.
+  void lowest_modes(ModalResult &result);
 
 private:
-  Mat Kc_ = nullptr;
-  KSP ksp_ = nullptr;
+  IS free_ = nullptr;
+  Mat K_ = nullptr, Kf_ = nullptr, Mf_ = nullptr;
+  EPS eps_ = nullptr;
+  KSP ksp_ = nullptr; ///< the factorization of K_ff used by solve (the EPS's when shared)
+  int modes_ = 0;
 };
 
 /// The reduced matrix V^T A V of the full-size `vectors` V (symmetrized; every rank gets the same
