@@ -12,8 +12,8 @@ flexopt="${FLEXOPT_BIN:-$root/build/flexopt}"
 work="$root/build/bench/dynamics"
 mkdir -p "$work"
 results="$work/results.md"
-echo "| scene | bodies | coordinates + multipliers | steps | Newton iterations / step | steps/s | µs/step |" > "$results"
-echo "|---|---|---|---|---|---|---|" >> "$results"
+echo "| scene | bodies | coordinates + multipliers | steps | Newton iterations / step | factorizations / step | steps/s | µs/step |" > "$results"
+echo "|---|---|---|---|---|---|---|---|" >> "$results"
 
 report() { # name dir
   /usr/bin/python3 - "$1" "$2" >> "$results" <<'PY'
@@ -26,7 +26,7 @@ m = re.search(r"mechanism: (\d+) bodies, (\d+) coordinates, (\d+) constraint row
 nb, n, m_ = (int(x) for x in m.groups())
 steps = s["steps"]
 print(f"| {name} | {nb} | {n} + {m_} | {steps} | {s['newton_iterations_total'] / steps:.2f} | "
-      f"{s['steps_per_second']:.0f} | {1e6 / s['steps_per_second']:.1f} |")
+      f"{s['newton_factorizations_total'] / steps:.3f} | {s['steps_per_second']:.0f} | {1e6 / s['steps_per_second']:.1f} |")
 PY
   tail -n 1 "$results"
 }

@@ -73,15 +73,18 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
   s["redundant_constraints"] = redundant;
 
   const auto par = dynamics::AlphaParameters::from_rho_inf(c.time.rho_inf);
-  const dynamics::GeneralizedAlpha ga(mech, par);
+  dynamics::NewtonSettings newton;
+  newton.reuse_contraction = c.time.newton_reuse;
+  const dynamics::GeneralizedAlpha ga(mech, par, newton);
   dynamics::State state = ga.initial_state(scene.q0, scene.v0, 0.0);
   const double h = c.time.step;
   const long long steps = std::llround(c.time.end / h);
   print0(ctx.comm(),
          "integrate: generalized-alpha rho_inf = %g (alpha_m %.4f, alpha_f %.4f, gamma %.4f, beta "
-         "%.4f), %lld steps of %g s to t = %g s\n",
+         "%.4f), %lld steps of %g s to t = %g s; Newton matrix kept while the contraction is <= "
+         "%g\n",
          par.rho_inf, par.alpha_m, par.alpha_f, par.gamma, par.beta, steps, h,
-         static_cast<double>(steps) * h);
+         static_cast<double>(steps) * h, newton.reuse_contraction);
 
   std::vector<io::MotionBody> mb;
   for (std::size_t b = 0; b < mech.bodies.size(); ++b)
@@ -125,7 +128,7 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
   monitor(state);
   record(state);
 
-  long long newton_total = 0;
+  long long newton_total = 0, factorizations_total = 0;
   int newton_max = 0, halvings_max = 0;
   const double t_start = wall_time();
   double last_print = t_start;
@@ -161,6 +164,7 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
                       "bodies away from it.",
                   true);
     newton_total += info.iterations;
+    factorizations_total += info.factorizations;
     newton_max = std::max(newton_max, info.iterations);
     halvings_max = std::max(halvings_max, info.halvings);
     if ((n + 1) % c.output_every == 0 || n + 1 == steps) record(state);
@@ -188,6 +192,8 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
   s["constraint_violation_max"] = max_violation;
   s["newton_iterations_total"] = newton_total;
   s["newton_iterations_max"] = newton_max;
+  s["newton_factorizations_total"] = factorizations_total;
+  s["newton_reuse"] = newton.reuse_contraction;
   s["step_halvings_max"] = halvings_max;
   s["integration_s"] = t_int;
   s["steps_per_second"] = static_cast<double>(steps) / std::max(t_int, 1e-9);
@@ -225,9 +231,10 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
   s["bodies"] = bl;
   print0(ctx.comm(),
          "integrate: %lld steps in %.3f s (%.0f steps/s), %lld Newton iterations (max %d per "
-         "step), max constraint violation %.3e, energy %.9g -> %.9g\n",
+         "step) on %lld factorized matrices, max constraint violation %.3e, energy %.9g -> "
+         "%.9g\n",
          steps, t_int, static_cast<double>(steps) / std::max(t_int, 1e-9), newton_total, newton_max,
-         max_violation, energy.front(), energy.back());
+         factorizations_total, max_violation, energy.front(), energy.back());
   detail::write_summary(ctx, dir, s, t0);
   print0(ctx.comm(), "wrote %s (open in ParaView and press play) and %s/summary.json\n",
          xdmf.c_str(), dir.c_str());

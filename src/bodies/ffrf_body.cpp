@@ -7,14 +7,28 @@ namespace flexopt::bodies {
 
 namespace {
 
-using Mat3X = Eigen::Matrix3Xd;
+constexpr int kMaxElastic = kMaxBodyCoordinates - 7;
+// Fixed-capacity work arrays: an evaluation allocates nothing.
+using VecN = Eigen::Matrix<double, Eigen::Dynamic, 1, Eigen::ColMajor, kMaxElastic, 1>;
+using Mat3N = Eigen::Matrix<double, 3, Eigen::Dynamic, Eigen::ColMajor, 3, kMaxElastic>;
+using Mat9N = Eigen::Matrix<double, 9, Eigen::Dynamic, Eigen::ColMajor, 9, kMaxElastic>;
+using MatN3 = Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::ColMajor, kMaxElastic, 3>;
+using MatN6 = Eigen::Matrix<double, Eigen::Dynamic, 6, Eigen::ColMajor, kMaxElastic, 6>;
+using Vec9 = Eigen::Matrix<double, 9, 1>;
+using ConstMap = Eigen::Map<const Matrix>;
+using VecMap = Eigen::Map<Eigen::VectorXd>;
+using ConstMat3Map = Eigen::Map<const Mat3>;
 
-/// d(A(p)^T w)/dp: A(p)^T = A(p*) with p* = (e0, -e).
-Mat34 rotate_transpose_jacobian(const Vec4 &p, const Vec3 &w) {
-  const Vec4 conj(p(0), -p(1), -p(2), -p(3));
-  Mat34 d = rotate_jacobian(conj, w);
-  d.rightCols<3>() *= -1;
-  return d;
+/// vec(|w|^2 I - w w^T): vec(B) . this = tr(B) |w|^2 - w^T B w.
+Vec9 centrifugal_weights(const Vec3 &w) {
+  Vec9 c;
+  for (int j = 0; j < 3; ++j)
+    for (int i = 0; i < 3; ++i) c(3 * j + i) = (i == j ? w.squaredNorm() : 0.0) - w(i) * w(j);
+  return c;
+}
+
+Vec9 vec(const Mat3 &B) {
+  return Eigen::Map<const Vec9>(B.data());
 }
 
 } // namespace
@@ -33,28 +47,47 @@ FfrfBody::FfrfBody(std::string name, FfrfModel model)
   if (model_.damping.size() == 0) model_.damping = Matrix::Zero(n_, n_);
   if (!model_.geometric.empty() && model_.geometric.size() != 6)
     throw Error("FFRF body '" + this->name() + "': 6 geometric stiffness matrices expected", true);
-  mzz_.resize(n_, n_);
-  g_.resize(static_cast<std::size_t>(n_ * n_));
-  s2_.resize(static_cast<std::size_t>(n_ * n_));
-  for (int l = 0; l < n_; ++l)
-    for (int k = 0; k < n_; ++k) {
+  const int n = n_;
+  mzz_.resize(n, n);
+  s2_by_k_.resize(9, n * n);
+  s2_by_l_.resize(9, n * n);
+  g_by_k_.resize(3, n * n);
+  g_by_l_.resize(3, n * n);
+  for (int l = 0; l < n; ++l)
+    for (int k = 0; k < n; ++k) {
       const Mat3 &S = inv.S2[static_cast<std::size_t>(l)][static_cast<std::size_t>(k)];
-      s2_[static_cast<std::size_t>(l * n_ + k)] = S;
-      g_[static_cast<std::size_t>(l * n_ + k)] = axial(S);
+      s2_by_k_.col(l * n + k) = vec(S);
+      s2_by_l_.col(k * n + l) = vec(S);
+      g_by_k_.col(l * n + k) = axial(S);
+      g_by_l_.col(k * n + l) = axial(S);
       mzz_(l, k) = S.trace();
     }
+  s1_.resize(9, n);
+  s1t_.resize(9, n);
+  a1_.resize(3, n);
+  for (int k = 0; k < n; ++k) {
+    const Mat3 &S = inv.S1[static_cast<std::size_t>(k)];
+    s1_.col(k) = vec(S);
+    s1t_.col(k) = vec(S.transpose());
+    a1_.col(k) = axial(S);
+  }
 }
 
-void FfrfBody::couplings(const Vector &z, std::vector<Mat3> &Ck, Eigen::Matrix3Xd &Cm) const {
+void FfrfBody::couplings(const ConstVectorRef &z, Mat9N &Cv, Mat3N &Cm, Mat3 &S) const {
   const int n = n_;
-  Ck.resize(static_cast<std::size_t>(n));
+  Cv.resize(9, n);
   Cm.resize(3, n);
-  for (int k = 0; k < n; ++k) {
-    Mat3 c = model_.invariants.S1[static_cast<std::size_t>(k)];
-    for (int l = 0; l < n; ++l) c += z(l) * s2_[static_cast<std::size_t>(l * n + k)];
-    Ck[static_cast<std::size_t>(k)] = c;
-    Cm.col(k) = axial(c);
-  }
+  // Linear in zeta: vec C = vec S1 + (S2 as 9n x n) zeta, and likewise the axial vectors.
+  VecMap cv(Cv.data(), 9 * n), cm(Cm.data(), 3 * n);
+  cv.noalias() = ConstMap(s2_by_k_.data(), 9 * n, n) * z;
+  cv += Eigen::Map<const Eigen::VectorXd>(s1_.data(), 9 * n);
+  cm.noalias() = ConstMap(g_by_k_.data(), 3 * n, n) * z;
+  cm += Eigen::Map<const Eigen::VectorXd>(a1_.data(), 3 * n);
+  // sum_kl zeta_k zeta_l S2[l][k] = sum_k zeta_k (C_k - S1[k]).
+  Vec9 s = vec(model_.invariants.S0);
+  s.noalias() += s1t_ * z;
+  s.noalias() += Cv * z;
+  S = ConstMat3Map(s.data());
 }
 
 void FfrfBody::residual(const ConstVectorRef &q, const ConstVectorRef &v, const ConstVectorRef &a,
@@ -64,52 +97,53 @@ void FfrfBody::residual(const ConstVectorRef &q, const ConstVectorRef &v, const 
   const auto &inv = model_.invariants;
   const Mat3 I3 = Mat3::Identity();
   const Vec4 p = q.segment<4>(3), vp = v.segment<4>(3), ap = a.segment<4>(3);
-  const Vector z = q.tail(n), zd = v.tail(n), zdd = a.tail(n);
+  const auto z = q.tail(n), zd = v.tail(n), zdd = a.tail(n);
   const Mat3 A = rotation(p);
   const Mat34 G = gbar_matrix(p);
   const Vec3 w = 2 * G * vp, wd = 2 * G * ap;
   const Vec3 rho = a.head<3>() - gravity, rb = A.transpose() * rho;
-  const Vec3 d = inv.first_moment(z);
-  const Mat3 S = inv.second_moment(z);
-  const Mat3 J = S.trace() * I3 - S;
+  const Vec3 d = inv.d0 + inv.D * z;
   // C_k = S1[k] + sum_l zeta_l S2[l][k] (sum m u_i Psi_jk^T), c_k = axial(C_k),
   // P = sum_k zeta'_k C_k, h_k = sum_l zeta'_l g_lk.
-  std::vector<Mat3> Ck;
-  Mat3X Cm, Hm(3, n);
-  couplings(z, Ck, Cm);
-  Mat3 P = Mat3::Zero();
-  for (int k = 0; k < n; ++k) {
-    Vec3 h = Vec3::Zero();
-    for (int l = 0; l < n; ++l) h += zd(l) * g_[static_cast<std::size_t>(l * n + k)];
-    Hm.col(k) = h;
-    P += zd(k) * Ck[static_cast<std::size_t>(k)];
-  }
+  Mat9N Cv;
+  Mat3N Cm, Hm(3, n);
+  Mat3 S;
+  couplings(z, Cv, Cm, S);
+  const Mat3 J = S.trace() * I3 - S;
+  VecMap(Hm.data(), 3 * n).noalias() = ConstMap(g_by_k_.data(), 3 * n, n) * zd;
+  Vec9 pv;
+  pv.noalias() = Cv * zd;
+  const Mat3 P = ConstMat3Map(pv.data());
   const Vec3 Dzd = inv.D * zd, Dzdd = inv.D * zdd;
   Eigen::Matrix<double, 6, 3> ds;
   const Eigen::Matrix<double, 6, 1> s = reduce::centrifugal_coefficients(w, &ds);
-  // K_r + sum_c s_c G_c and the columns G_c zeta (for the omega derivatives).
-  Matrix Kg = model_.stiffness, Gz;
+  // (K_r + sum_c s_c G_c) zeta and the columns G_c zeta (for the omega derivatives).
+  VecN Kz(n);
+  Kz.noalias() = model_.stiffness * z;
+  MatN6 Gz;
   if (stiffening()) {
     Gz.resize(n, 6);
-    for (int c = 0; c < 6; ++c) {
-      Kg += s(c) * model_.geometric[static_cast<std::size_t>(c)];
-      Gz.col(c) = model_.geometric[static_cast<std::size_t>(c)] * z;
-    }
+    for (int c = 0; c < 6; ++c)
+      Gz.col(c).noalias() = model_.geometric[static_cast<std::size_t>(c)] * z;
+    Kz.noalias() += Gz * s;
   }
 
   const Vec3 yr = wd.cross(d) + Dzdd + w.cross(w.cross(d)) + 2 * w.cross(Dzd);
   const Vec3 Fr = inv.mass * rho + A * yr;
   const Mat3 Pt = P.trace() * I3 - P.transpose();
   const Vec3 Fw = d.cross(rb) + J * wd + Cm * zdd + w.cross(J * w) + 2 * Pt * w;
-  Vector Fz =
-      inv.D.transpose() * rb + Cm.transpose() * wd + mzz_ * zdd + Kg * z + model_.damping * zd;
-  for (int k = 0; k < n; ++k) {
-    const Mat3 &c = Ck[static_cast<std::size_t>(k)];
-    Fz(k) += -(c.trace() * w.squaredNorm() - w.dot(c * w)) + 2 * w.dot(Hm.col(k));
-  }
   res.head<3>() = Fr;
   res.segment<4>(3) = 2 * G.transpose() * Fw;
-  res.tail(n) = Fz;
+  // F_z, with -[tr C_k |w|^2 - w^T C_k w]_k + 2 [w . h_k]_k as products with vec C and Hm.
+  auto Fz = res.tail(n);
+  const Vec9 cw = centrifugal_weights(w);
+  Fz.noalias() = inv.D.transpose() * rb;
+  Fz.noalias() += Cm.transpose() * wd;
+  Fz.noalias() += mzz_ * zdd;
+  Fz += Kz;
+  Fz.noalias() += model_.damping * zd;
+  Fz.noalias() -= Cv.transpose() * cw;
+  Fz.noalias() += 2 * (Hm.transpose() * w);
 
   const int N = 7 + n;
   if (M) {
@@ -130,65 +164,67 @@ void FfrfBody::residual(const ConstVectorRef &q, const ConstVectorRef &v, const 
   // d yr / d omega, d F_w / d omega, d F_z / d omega.
   const Mat3 Yw = w.dot(d) * I3 + w * d.transpose() - 2 * d * w.transpose() - 2 * skew(Dzd);
   const Mat3 Ww = -skew(J * w) + skew(w) * J + 2 * Pt;
-  Eigen::Matrix<double, Eigen::Dynamic, 3> Fzw(n, 3);
+  MatN3 Fzw(n, 3);
   for (int k = 0; k < n; ++k) {
-    const Mat3 &c = Ck[static_cast<std::size_t>(k)];
+    const ConstMat3Map c(Cv.col(k).data());
     Fzw.row(k) = -(2 * c.trace() * w.transpose() - w.transpose() * (c + c.transpose())) +
                  2 * Hm.col(k).transpose();
   }
-  if (stiffening()) Fzw += Gz * ds;
+  if (stiffening()) Fzw.noalias() += Gz * ds;
   if (K) {
     K->setZero(N, N);
     // Row block r.
     K->block<3, 4>(0, 3) = rotate_jacobian(p, yr) + A * (-skew(d) * Ap + Yw * Wp);
     K->block(0, 7, 3, n) = A * (skew(wd) + skew(w) * skew(w)) * inv.D;
-    // Row block p: 2 Gbar^T F_w.
+    // Row block p: 2 Gbar^T F_w. d F_w / d zeta_l with dJ_l = tr(S_l) I - S_l,
+    // S_l = S1[l] + S1[l]^T + Q_l + Q_l^T, Q_l = sum_k zeta_k S2[l][k],
+    // P_l = sum_k zeta'_k S2[l][k], gz_l = sum_k zeta''_k g_lk.
     const Mat34 Fwp = skew(d) * Rp + J * Ap + Ww * Wp;
-    Mat3X Fwz(3, n);
+    Mat9N Q(9, n), Pl(9, n);
+    Mat3N gz(3, n), Fwz(3, n);
+    const ConstMap by_l(s2_by_l_.data(), 9 * n, n);
+    VecMap(Q.data(), 9 * n).noalias() = by_l * z;
+    VecMap(Pl.data(), 9 * n).noalias() = by_l * zd;
+    VecMap(gz.data(), 3 * n).noalias() = ConstMap(g_by_l_.data(), 3 * n, n) * zdd;
+    const Mat3 srb = skew(rb);
     for (int l = 0; l < n; ++l) {
-      Mat3 Sl =
-          inv.S1[static_cast<std::size_t>(l)] + inv.S1[static_cast<std::size_t>(l)].transpose();
-      Mat3 Pl = Mat3::Zero();
-      Vec3 gz = Vec3::Zero();
-      for (int k = 0; k < n; ++k) {
-        const Mat3 &Slk = s2_[static_cast<std::size_t>(l * n + k)];
-        Sl += z(k) * (Slk + Slk.transpose());
-        Pl += zd(k) * Slk;
-        gz += zdd(k) * g_[static_cast<std::size_t>(l * n + k)];
-      }
+      const ConstMat3Map Ql(Q.col(l).data()), Pll(Pl.col(l).data()), S1l(s1_.col(l).data());
+      const Mat3 Sl = S1l + S1l.transpose() + Ql + Ql.transpose();
       const Mat3 dJ = Sl.trace() * I3 - Sl;
-      Fwz.col(l) = -skew(rb) * inv.D.col(l) + dJ * wd + gz + w.cross(dJ * w) +
-                   2 * (Pl.trace() * I3 - Pl.transpose()) * w;
+      Fwz.col(l) = -srb * inv.D.col(l) + dJ * wd + gz.col(l) + w.cross(dJ * w) +
+                   2 * (Pll.trace() * I3 - Pll.transpose()) * w;
     }
     K->block<4, 4>(3, 3) = 2 * gbar_transpose_matrix(Fw) + 2 * G.transpose() * Fwp;
     K->block(3, 7, 4, n) = 2 * G.transpose() * Fwz;
-    // Row block zeta.
+    // Row block zeta: K_zz = K_r + sum_c s_c G_c
+    //   + [g_lk . w' - (tr S2[l][k] |w|^2 - w^T S2[l][k] w)]_kl.
     K->block(7, 3, n, 4) = inv.D.transpose() * Rp + Cm.transpose() * Ap + Fzw * Wp;
-    Matrix Kzz = Kg;
-    for (int k = 0; k < n; ++k)
-      for (int l = 0; l < n; ++l) {
-        const Mat3 &Slk = s2_[static_cast<std::size_t>(l * n + k)];
-        Kzz(k, l) += g_[static_cast<std::size_t>(l * n + k)].dot(wd) -
-                     (Slk.trace() * w.squaredNorm() - w.dot(Slk * w));
-      }
-    K->block(7, 7, n, n) = Kzz;
+    auto Kzz = K->block(7, 7, n, n);
+    Kzz = model_.stiffness;
+    if (stiffening())
+      for (int c = 0; c < 6; ++c) Kzz += s(c) * model_.geometric[static_cast<std::size_t>(c)];
+    for (int l = 0; l < n; ++l) {
+      Kzz.col(l).noalias() += g_by_k_.middleCols(l * n, n).transpose() * wd;
+      Kzz.col(l).noalias() -= s2_by_k_.middleCols(l * n, n).transpose() * cw;
+    }
   }
   if (C) {
     C->setZero(N, N);
     C->block<3, 4>(0, 3) = A * Yw * Wv;
     C->block(0, 7, 3, n) = 2 * A * skew(w) * inv.D;
-    Mat3X Fwzd(3, n);
+    Mat3N Fwzd(3, n);
     for (int k = 0; k < n; ++k) {
-      const Mat3 &c = Ck[static_cast<std::size_t>(k)];
+      const ConstMat3Map c(Cv.col(k).data());
       Fwzd.col(k) = 2 * (c.trace() * I3 - c.transpose()) * w;
     }
     C->block<4, 4>(3, 3) = 2 * G.transpose() * Ww * Wv;
     C->block(3, 7, 4, n) = 2 * G.transpose() * Fwzd;
     C->block(7, 3, n, 4) = Fzw * Wv;
-    Matrix Czz = model_.damping;
-    for (int k = 0; k < n; ++k)
-      for (int l = 0; l < n; ++l) Czz(k, l) += 2 * w.dot(g_[static_cast<std::size_t>(l * n + k)]);
-    C->block(7, 7, n, n) = Czz;
+    // C_zz = C_d + [2 w . g_lk]_kl.
+    auto Czz = C->block(7, 7, n, n);
+    Czz = model_.damping;
+    for (int l = 0; l < n; ++l)
+      Czz.col(l).noalias() += 2 * (g_by_k_.middleCols(l * n, n).transpose() * w);
   }
 }
 
@@ -197,16 +233,16 @@ double FfrfBody::energy(const ConstVectorRef &q, const ConstVectorRef &v,
   const int n = n_;
   const auto &inv = model_.invariants;
   const Vec4 p = q.segment<4>(3);
-  const Vector z = q.tail(n), zd = v.tail(n);
+  const auto z = q.tail(n), zd = v.tail(n);
   const Mat3 A = rotation(p);
   const Vec3 w = 2 * gbar_matrix(p) * v.segment<4>(3);
   const Vec3 rd = v.head<3>();
-  const Vec3 d = inv.first_moment(z);
-  const Mat3 S = inv.second_moment(z);
+  const Vec3 d = inv.d0 + inv.D * z;
+  Mat9N Cv;
+  Mat3N Cm;
+  Mat3 S;
+  couplings(z, Cv, Cm, S);
   const Mat3 J = S.trace() * Mat3::Identity() - S;
-  std::vector<Mat3> Ck;
-  Mat3X Cm;
-  couplings(z, Ck, Cm);
   const double T = 0.5 * (inv.mass * rd.squaredNorm() + 2 * rd.dot(A * (w.cross(d) + inv.D * zd)) +
                           w.dot(J * w) + 2 * w.dot(Cm * zd) + zd.dot(mzz_ * zd));
   const double U = 0.5 * z.dot(model_.stiffness * z);

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <functional>
+#include <limits>
 #include <sstream>
 
 namespace flexopt::dynamics {
@@ -28,8 +29,21 @@ struct SparseIteration {
   std::vector<int> row_index;
 };
 
+/// What the Newton iterations reuse: the work vectors, the dense iteration matrix (factorized
+/// in place) and the step size parameters of the current factorization.
+struct NewtonWork {
+  Vector r, jtl, rhs, x, phi;
+  std::vector<Matrix> K, C, M; ///< body blocks
+  Matrix A;
+  Eigen::PartialPivLU<Eigen::Ref<Matrix>> lu;
+  bool factored = false; ///< lu (or the sparse LU) holds a matrix for (bp, gp)
+  double bp = 0, gp = 0;
+  explicit NewtonWork(int dense_size) : A(Matrix::Zero(dense_size, dense_size)), lu(A) {}
+};
+
 } // namespace detail
 
+using detail::NewtonWork;
 using detail::SparseIteration;
 
 AlphaParameters AlphaParameters::from_rho_inf(double rho) {
@@ -61,7 +75,9 @@ GeneralizedAlpha::GeneralizedAlpha(const Mechanism &mechanism, AlphaParameters p
                                    NewtonSettings settings)
     : mech_(mechanism), par_(parameters), settings_(settings) {
   const int n = mech_.coordinates(), m = mech_.constraints();
-  if (n + m <= settings_.dense_limit) return;
+  const bool dense = n + m <= settings_.dense_limit;
+  work_ = std::make_unique<NewtonWork>(dense ? n + m : 0);
+  if (dense) return;
   // Structural pattern: body blocks coupled through an equation (and each body with itself),
   // the constraint rows' body columns and their transposes.
   const int nb = static_cast<int>(mech_.bodies.size());
@@ -228,6 +244,7 @@ struct IterationAssembly : joints::Sink {
   void add_row(int row, const joints::BodyRef &body, const joints::Row &g) override {
     const int size = static_cast<int>(g.size());
     jt_lambda.segment(body.offset, size) += g.transpose() * lambda(row);
+    if (!A && !sp) return; // Phi_q^T lambda alone
     if (A) {
       A->block(n + row, body.offset, 1, size) += g;
       A->block(body.offset, n + row, size, 1) += g.transpose();
@@ -263,7 +280,9 @@ struct IterationAssembly : joints::Sink {
                    const joints::Jacobian &X, const joints::Jacobian &Y) override {
     const double s = block_scale * scale;
     if (A) {
-      A->block(bi.offset, bj.offset, X.cols(), Y.cols()).noalias() += s * X.transpose() * Y;
+      // Inner dimension 3: a coefficient-wise product (the blocked GEMM only adds packing).
+      A->block(bi.offset, bj.offset, X.cols(), Y.cols()).noalias() +=
+          (s * X.transpose()).lazyProduct(Y);
       return;
     }
     for (Eigen::Index i = 0; i < X.cols(); ++i)
@@ -277,72 +296,141 @@ struct IterationAssembly : joints::Sink {
 
 GeneralizedAlpha::~GeneralizedAlpha() = default;
 
-bool GeneralizedAlpha::newton_direction(const State &next, double bp, double gp, Vector &x,
-                                        Vector &phi) const {
+bool GeneralizedAlpha::factorize(const State &next, double bp, double gp) const {
   const int n = mech_.coordinates(), m = mech_.constraints();
   const int nb = static_cast<int>(mech_.bodies.size());
-  Vector r, jtl = Vector::Zero(n), rhs(n + m);
-  std::vector<Matrix> &K = work_K_, &C = work_C_, &M = work_M_;
-  mech_.dynamics_blocks(next.q, next.v, next.acc, next.t, r, K, C, M);
-  Matrix A;
+  NewtonWork &w = *work_;
+  w.factored = false;
+  w.jtl.setZero(n);
+  mech_.dynamics_blocks(next.q, next.v, next.acc, next.t, w.r, w.K, w.C, w.M);
   if (sparse_)
     std::fill(sparse_->S.valuePtr(), sparse_->S.valuePtr() + sparse_->S.nonZeros(), 0.0);
   else
-    A.setZero(n + m, n + m);
-  IterationAssembly assembly(sparse_ ? nullptr : &A, sparse_.get(), n, next.lambda, jtl);
+    w.A.setZero();
+  IterationAssembly assembly(sparse_ ? nullptr : &w.A, sparse_.get(), n, next.lambda, w.jtl);
   // M + (gamma'/beta') C + K / beta' on the diagonal blocks, then the constraint rows and the
   // constraint Hessian (part of K, so divided by beta').
   for (int b = 0; b < nb; ++b) {
     const auto k = static_cast<std::size_t>(b);
-    M[k] += (gp / bp) * C[k] + (1.0 / bp) * K[k];
+    w.M[k] += (gp / bp) * w.C[k] + (1.0 / bp) * w.K[k];
     const joints::BodyRef ref{b, mech_.offset(b)};
-    assembly.add_block(ref, ref, 0, 0, M[k]);
+    assembly.add_block(ref, ref, 0, 0, w.M[k]);
   }
   assembly.block_scale = 1.0 / bp;
-  mech_.constraint(next.q, next.t, phi, assembly);
+  mech_.constraint(next.q, next.t, w.phi, assembly);
   mech_.add_constraint_hessian(next.q, next.t, next.lambda, assembly);
-  rhs.head(n) = -(r + jtl) / bp;
-  rhs.tail(m) = -phi;
-  if (!sparse_) {
-    x = A.partialPivLu().solve(rhs);
-    return x.allFinite();
+  w.rhs.resize(n + m);
+  w.rhs.head(n) = -(w.r + w.jtl) / bp;
+  w.rhs.tail(m) = -w.phi;
+  if (sparse_) {
+    sparse_->lu.factorize(sparse_->S);
+    if (sparse_->lu.info() != Eigen::Success) return false;
+  } else {
+    w.lu.compute(w.A);
   }
-  sparse_->lu.factorize(sparse_->S);
-  if (sparse_->lu.info() != Eigen::Success) return false;
-  x = sparse_->lu.solve(rhs);
-  return x.allFinite();
+  w.factored = true;
+  w.bp = bp;
+  w.gp = gp;
+  return true;
+}
+
+void GeneralizedAlpha::newton_rhs(const State &next, double bp) const {
+  const int n = mech_.coordinates(), m = mech_.constraints();
+  NewtonWork &w = *work_;
+  mech_.dynamics_residual(next.q, next.v, next.acc, next.t, w.r);
+  w.jtl.setZero(n);
+  IterationAssembly transpose_product(nullptr, nullptr, n, next.lambda, w.jtl);
+  mech_.constraint(next.q, next.t, w.phi, transpose_product);
+  w.rhs.resize(n + m);
+  w.rhs.head(n) = -(w.r + w.jtl) / bp;
+  w.rhs.tail(m) = -w.phi;
+}
+
+bool GeneralizedAlpha::solve() const {
+  NewtonWork &w = *work_;
+  if (sparse_)
+    w.x = sparse_->lu.solve(w.rhs);
+  else
+    w.x = w.lu.solve(w.rhs);
+  return w.x.allFinite();
 }
 
 bool GeneralizedAlpha::step_once(const State &s, double h, State &next, StepInfo &info) const {
   const int n = mech_.coordinates(), m = mech_.constraints();
   const double am = par_.alpha_m, af = par_.alpha_f, g = par_.gamma, b = par_.beta;
   const double bp = (1 - am) / (b * h * h * (1 - af)), gp = g / (b * h);
-  next.t = s.t + h;
+  NewtonWork &w = *work_;
   // Predictor: acc1 = acc0, lambda1 = lambda0.
-  next.acc = s.acc;
-  next.lambda = s.lambda;
-  next.a = (af * s.acc - am * s.a + (1 - af) * next.acc) / (1 - am);
-  next.v = s.v + h * (1 - g) * s.a + h * g * next.a;
-  next.q = s.q + h * s.v + h * h * (0.5 - b) * s.a + h * h * b * next.a;
+  auto predict = [&] {
+    next.t = s.t + h;
+    next.acc = s.acc;
+    next.lambda = s.lambda;
+    next.a = (af * s.acc - am * s.a + (1 - af) * next.acc) / (1 - am);
+    next.v = s.v + h * (1 - g) * s.a + h * g * next.a;
+    next.q = s.q + h * s.v + h * h * (0.5 - b) * s.a + h * h * b * next.a;
+  };
+  predict();
   info.increment.clear();
   info.violation.clear();
-  Vector x, phi;
+  // The factorized matrix is kept across iterations and steps (docs/theory.md section 6.4):
+  // on a kept matrix (assembled at an earlier iterate) the iterations contract linearly, by
+  // theta = inc_k / inc_(k-1), instead of quadratically. It is replaced at the current iterate
+  // when theta exceeds reuse_contraction; one from an earlier step (`stale`) that does not
+  // contract at all is dropped and the step starts over from the predictor.
+  const double reuse = settings_.reuse_contraction;
+  bool refresh = !(reuse > 0 && w.factored && w.bp == bp && w.gp == gp);
+  bool stale = !refresh; // the factorization predates this attempt
+  double inc_prev = 0;   // the last increment (0: none since the predictor)
   for (int it = 0; it < settings_.max_iterations; ++it) {
-    const bool ok = newton_direction(next, bp, gp, x, phi);
+    const bool kept = !refresh; // a matrix from an earlier iterate
+    if (refresh) {
+      ++info.factorizations;
+      if (!factorize(next, bp, gp)) return false;
+      refresh = stale = false;
+    } else {
+      newton_rhs(next, bp);
+    }
+    const bool ok = solve();
     ++info.iterations;
-    if (!ok) return false;
-    const auto dq = x.head(n);
-    next.q += dq;
-    next.v += gp * dq;
-    next.acc += bp * dq;
-    next.a += (1 - af) / (1 - am) * bp * dq;
-    next.lambda += bp * x.tail(m);
-    const double inc = dq.cwiseAbs().maxCoeff() / (1 + next.q.cwiseAbs().maxCoeff());
+    double inc = std::numeric_limits<double>::infinity();
+    if (ok) {
+      const auto dq = w.x.head(n);
+      next.q += dq;
+      next.v += gp * dq;
+      next.acc += bp * dq;
+      next.a += (1 - af) / (1 - am) * bp * dq;
+      next.lambda += bp * w.x.tail(m);
+      inc = dq.cwiseAbs().maxCoeff() / (1 + next.q.cwiseAbs().maxCoeff());
+    }
     info.increment.push_back(inc);
-    info.violation.push_back(m > 0 ? phi.cwiseAbs().maxCoeff() : 0.0);
-    if (!std::isfinite(inc)) return false;
-    if (inc <= settings_.tolerance) return true;
+    info.violation.push_back(m > 0 ? w.phi.cwiseAbs().maxCoeff() : 0.0);
+    const double theta = inc_prev > 0 ? inc / inc_prev : 0.0;
+    if (stale && !(theta < 1 && std::isfinite(inc))) {
+      predict();
+      refresh = true;
+      inc_prev = 0;
+      it = -1; // a full budget of iterations (and a new history) for the new matrix
+      info.increment.clear();
+      info.violation.clear();
+      continue;
+    }
+    if (!std::isfinite(inc)) {
+      w.factored = false;
+      return false;
+    }
+    // Stopping rule: the remaining distance to the solution, predicted from the contraction
+    // (Hairer & Wanner's theta / (1 - theta) inc_k), or the increment itself. After an
+    // iteration on the matrix of its own iterate (Newton proper) what remains is about inc^2,
+    // so `tolerance` suffices; on a kept matrix the iteration converges only linearly and must
+    // get down to `kept_tolerance` to leave the solution as accurate as Newton's.
+    const double rest = inc_prev > 0 && theta < 1 ? theta / (1 - theta) * inc
+                                                  : std::numeric_limits<double>::infinity();
+    const double tol = kept ? settings_.kept_tolerance : settings_.tolerance;
+    if (inc <= tol || rest <= tol) return true;
+    if (reuse <= 0 || (kept && theta > reuse)) refresh = true;
+    inc_prev = inc;
   }
+  w.factored = false;
   return false;
 }
 

@@ -47,6 +47,8 @@ void Mechanism::finalize() {
   all_rows_ = static_cast<int>(row_equation_.size());
   enforced_.assign(static_cast<std::size_t>(all_rows_), 1);
   active_rows_ = all_rows_;
+  enforced_index_.resize(static_cast<std::size_t>(all_rows_));
+  for (int r = 0; r < all_rows_; ++r) enforced_index_[static_cast<std::size_t>(r)] = r;
 }
 
 std::string Mechanism::describe_row(int r) const {
@@ -78,14 +80,25 @@ std::vector<std::string> Mechanism::drop_redundant_rows(const Vector &q, double 
     }
   }
   active_rows_ = static_cast<int>(basis.size());
+  for (int r = 0, k = 0; r < all_rows_; ++r)
+    enforced_index_[static_cast<std::size_t>(r)] =
+        enforced_[static_cast<std::size_t>(r)] ? k++ : -1;
   return dropped;
+}
+
+const bodies::Mat3 *Mechanism::rotations(const Vector &q) const {
+  rotations_.resize(bodies.size());
+  for (std::size_t b = 0; b < bodies.size(); ++b)
+    rotations_[b] = bodies::rotation(q.segment<4>(offsets_[b] + 3));
+  return rotations_.data();
 }
 
 void Mechanism::all_constraint_values(const Vector &q, double t, Vector &phi) const {
   phi.resize(all_rows_);
+  const bodies::Mat3 *A = rotations(q);
   int row = 0;
   for (const auto &e : equations) {
-    e.value(q, t, phi.data() + row);
+    e.evaluate(q, t, phi.data() + row, nullptr, 0, A);
     row += e.rows();
   }
 }
@@ -138,29 +151,22 @@ private:
 } // namespace
 
 void Mechanism::constraint(const Vector &q, double t, Vector &phi, joints::Sink &sink) const {
-  std::vector<int> map(static_cast<std::size_t>(all_rows_), -1);
   phi.resize(active_rows_);
+  EnforcedRows forward(sink, enforced_index_);
+  const bodies::Mat3 *A = rotations(q);
   double values[3];
   int row = 0, k = 0;
   for (const auto &e : equations) {
-    e.value(q, t, values);
+    e.evaluate(q, t, values, &forward, row, A);
     for (int i = 0; i < e.rows(); ++i)
-      if (enforced_[static_cast<std::size_t>(row + i)]) {
-        map[static_cast<std::size_t>(row + i)] = k;
-        phi(k++) = values[i];
-      }
-    row += e.rows();
-  }
-  EnforcedRows forward(sink, map);
-  row = 0;
-  for (const auto &e : equations) {
-    e.gradient(q, t, forward, row);
+      if (enforced_[static_cast<std::size_t>(row + i)]) phi(k++) = values[i];
     row += e.rows();
   }
 }
 
 void Mechanism::add_constraint_hessian(const Vector &q, double t, const Vector &lambda,
                                        joints::Sink &sink) const {
+  const bodies::Mat3 *A = rotations(q);
   int row = 0, k = 0;
   double l[3];
   for (const auto &e : equations) {
@@ -170,7 +176,7 @@ void Mechanism::add_constraint_hessian(const Vector &q, double t, const Vector &
       l[i] = on ? lambda(k++) : 0.0;
       any = any || on;
     }
-    if (any) e.add_hessian(q, t, l, sink);
+    if (any) e.add_hessian(q, t, l, sink, A);
     row += e.rows();
   }
 }
@@ -203,6 +209,21 @@ void Mechanism::dynamics_blocks(const Vector &q, const Vector &v, const Vector &
       Kb.block(3, 7, 4, pz.cols()) -= pz;
       Kb.block(7, 3, pz.cols(), 4) -= pz.transpose();
     }
+  }
+}
+
+void Mechanism::dynamics_residual(const Vector &q, const Vector &v, const Vector &a, double t,
+                                  Vector &r) const {
+  r.setZero(coordinates());
+  for (std::size_t b = 0; b < bodies.size(); ++b) {
+    const int o = offsets_[b], m = bodies[b]->coordinates();
+    bodies[b]->residual(q.segment(o, m), v.segment(o, m), a.segment(o, m), gravity, r.segment(o, m),
+                        nullptr, nullptr, nullptr);
+  }
+  for (const PointForce &pf : forces) {
+    const int o = offset(pf.body), m = size(pf.body);
+    const Vec3 F(pf.value[0](t), pf.value[1](t), pf.value[2](t));
+    r.segment(o, m) -= joints::anchor_jacobian(q.segment(o, m), pf.s, pf.S).transpose() * F;
   }
 }
 

@@ -572,7 +572,7 @@ void read_forces(const Reader &r, const YAML::Node &node, Case &c) {
 void read_time(const Reader &r, const YAML::Node &v, Case &c) {
   const std::string path = "time";
   r.require_map(v, path);
-  r.check_keys(v, path, {"end", "step", "rho_inf"});
+  r.check_keys(v, path, {"end", "step", "rho_inf", "newton_reuse"});
   TimeSpec &t = c.time;
   t.where = r.where(v);
   t.end = r.number(r.require(v, "end", path), path + ".end");
@@ -586,6 +586,12 @@ void read_time(const Reader &r, const YAML::Node &v, Case &c) {
     if (!(t.rho_inf >= 0 && t.rho_inf <= 1))
       r.fail(v["rho_inf"], path + ".rho_inf: must lie in [0, 1] (1: no numerical damping; 0: "
                                   "the strongest)");
+  }
+  if (v["newton_reuse"]) {
+    t.newton_reuse = r.number(v["newton_reuse"], path + ".newton_reuse");
+    if (!(t.newton_reuse >= 0 && t.newton_reuse < 1))
+      r.fail(v["newton_reuse"], path + ".newton_reuse: must lie in [0, 1) (0: a new iteration "
+                                       "matrix every Newton iteration)");
   }
   t.given = true;
 }

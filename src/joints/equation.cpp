@@ -11,40 +11,69 @@ using Mat4X =
 using MatX4 =
     Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::ColMajor, bodies::kMaxBodyCoordinates, 4>;
 
-/// One side of an equation: a body (or the ground) with its coordinate block.
+/// One side of an equation: a body (or the ground) with its coordinate block. The rotation
+/// matrix is computed once per side and evaluation (the primitives use it several times).
 struct Side {
   BodyRef ref;
   int n = 0; ///< elastic coordinates
   const Vector &q;
-  Side(const Vector &q_, int body, int offset, int elastic) : n(elastic), q(q_) {
+  Vec4 p_ = Vec4::Zero();
+  Mat3 A_ = Mat3::Identity();
+  /// `rotations`: A(p) of every body, precomputed by the caller, or null.
+  Side(const Vector &q_, int body, int offset, int elastic, const Mat3 *rotations = nullptr)
+      : n(elastic), q(q_) {
     ref.index = body;
     ref.offset = offset;
+    if (body >= 0) {
+      p_ = q.segment<4>(offset + 3);
+      A_ = rotations ? rotations[body] : bodies::rotation(p_);
+    }
   }
   bool ground() const { return ref.index < 0; }
   int size() const { return 7 + n; }
-  Vec4 p() const { return q.segment<4>(ref.offset + 3); }
+  const Vec4 &p() const { return p_; }
   /// s + S zeta in body axes.
   Vec3 local(const Vec3 &s, const Elastic &S) const {
     if (n == 0) return s;
     return s + S * q.segment(ref.offset + 7, n);
   }
-  Vec3 point(const Vec3 &s, const Elastic &S) const {
-    if (ground()) return s;
-    return q.segment<3>(ref.offset) + bodies::rotation(p()) * local(s, S);
+  /// World point r + A l and vector A l of a body-axes l = s + S zeta (local()); on the ground
+  /// l itself.
+  Vec3 point_at(const Vec3 &l) const {
+    if (ground()) return l;
+    return q.segment<3>(ref.offset) + A_ * l;
   }
-  Vec3 vector(const Vec3 &u, const Elastic &U) const {
-    if (ground()) return u;
-    return bodies::rotation(p()) * local(u, U);
+  Vec3 vector_at(const Vec3 &l) const {
+    if (ground()) return l;
+    return A_ * l;
   }
-  /// [I, D(p, s + S zeta), A S] for points (translation = true), [0, D, A U] for vectors.
-  Jacobian jacobian(const Vec3 &s, const Elastic &S, bool translation) const {
+  Vec3 point(const Vec3 &s, const Elastic &S) const { return point_at(local(s, S)); }
+  Vec3 vector(const Vec3 &u, const Elastic &U) const { return vector_at(local(u, U)); }
+  /// [I, D(p, l), A S] for points (translation = true), [0, D, A S] for vectors, l = local().
+  Jacobian jacobian_at(const Vec3 &l, const Elastic &S, bool translation) const {
     if (ground()) return Jacobian(3, 0);
-    Jacobian j = Jacobian::Zero(3, size());
-    if (translation) j.leftCols<3>().setIdentity();
-    const Vec4 pp = p();
-    j.middleCols<4>(3) = bodies::rotate_jacobian(pp, local(s, S));
-    if (n > 0) j.rightCols(n) = bodies::rotation(pp) * S;
+    Jacobian j(3, size());
+    if (translation)
+      j.leftCols<3>().setIdentity();
+    else
+      j.leftCols<3>().setZero();
+    j.middleCols<4>(3) = bodies::rotate_jacobian(p_, l);
+    if (n > 0) j.rightCols(n).noalias() = A_ * S;
     return j;
+  }
+  Jacobian jacobian(const Vec3 &s, const Elastic &S, bool translation) const {
+    return jacobian_at(local(s, S), S, translation);
+  }
+  /// g += w^T d x / dq_b for x = r + A l (translation) or x = A l, l = s + S zeta:
+  /// [w, w^T D(p, l), (A^T w)^T S] without forming the Jacobian.
+  void add_directional(Row &g, const Vec3 &w, const Vec3 &l, const Elastic &S,
+                       bool translation) const {
+    if (translation) g.head<3>() += w.transpose();
+    g.segment<4>(3).noalias() += w.transpose() * bodies::rotate_jacobian(p_, l);
+    if (n > 0) {
+      const Vec3 wb = A_.transpose() * w;
+      g.tail(n).noalias() += wb.transpose() * S;
+    }
   }
   Vec3 velocity_of_vector(const Vec3 &u, const Elastic &U, const Vector &v) const {
     if (ground()) return Vec3::Zero();
@@ -59,9 +88,10 @@ void add_rotation_hessian(Sink &H, const Side &b, const Vec3 &s, const Elastic &
   const Mat4 pp = bodies::rotate_hessian(b.local(s, S), w);
   H.add_block(b.ref, b.ref, 3, 3, pp);
   if (b.n == 0) return;
-  const Vec4 p = b.p();
+  // D(p, S_l)^T w = R(p, w)^T S_l with R = d(A(p)^T w)/dp, since w . A u = (A^T w) . u: one
+  // product for all columns.
   Mat4X pz(4, b.n);
-  for (int l = 0; l < b.n; ++l) pz.col(l) = bodies::rotate_jacobian(p, S.col(l)).transpose() * w;
+  pz.noalias() = bodies::rotate_transpose_jacobian(b.p(), w).transpose() * S;
   const MatX4 zp = pz.transpose();
   H.add_block(b.ref, b.ref, 3, 7, pz);
   H.add_block(b.ref, b.ref, 7, 3, zp);
@@ -73,11 +103,6 @@ void add_cross(Sink &H, const Side &a, const Side &b, double scale, const Jacobi
   if (a.ground() || b.ground()) return;
   H.add_product(a.ref, b.ref, scale, X, Y);
   H.add_product(b.ref, a.ref, scale, Y, X);
-}
-
-void add_row(Sink &J, int row, const Side &b, const Row &g) {
-  if (b.ground()) return;
-  J.add_row(row, b.ref, g);
 }
 
 /// The driver's rotating vector u(t) = sin f u1 - cos f u2 (and its elastic part) and its
@@ -105,12 +130,19 @@ DriverVectors driver_vectors(const Equation &e, double t) {
   return d;
 }
 
-/// The vector on body a of a Perpendicular row (u_a) or of a RotationDriver row (u(t)), with its
-/// elastic part.
-std::pair<Vec3, Elastic> vector_a(const Equation &e, double t) {
-  if (e.kind != Equation::Kind::RotationDriver) return {e.ua, e.Ua};
-  DriverVectors dv = driver_vectors(e, t);
-  return {dv.u, std::move(dv.U)};
+/// The vector on body a of a Perpendicular row (u_a) or of a RotationDriver row (u(t)) into u,
+/// and its elastic part: the equation's own, or the driver's, stored in `storage`. Only f(t)
+/// is evaluated (its derivatives are finite differences of several evaluations).
+const Elastic &vector_a(const Equation &e, double t, Vec3 &u, Elastic &storage) {
+  if (e.kind != Equation::Kind::RotationDriver) {
+    u = e.ua;
+    return e.Ua;
+  }
+  const double f = (*e.driver)(t);
+  const double s = std::sin(f), c = std::cos(f);
+  u = s * e.ua - c * e.ua2;
+  if (e.na > 0) storage = s * e.Ua - c * e.Ua2;
+  return storage;
 }
 
 int elastic(const Elastic &M) {
@@ -139,72 +171,86 @@ void anchor_hessian(const Eigen::Ref<const Vector> &q_b, const Vec3 &s, const El
   for (int l = 0; l < n; ++l) pz.col(l) = bodies::rotate_jacobian(p, S.col(l)).transpose() * w;
 }
 
-void Equation::value(const Vector &q, double t, double *out) const {
-  const Side A(q, a, oa, na), B(q, b, ob, nb);
+void Equation::evaluate(const Vector &q, double t, double *out, Sink *J, int row,
+                        const Mat3 *rotations) const {
+  const Side A(q, a, oa, na, rotations), B(q, b, ob, nb, rotations);
   switch (kind) {
   case Kind::Coincide: {
-    const Vec3 d = A.point(sa, Sa) - B.point(sb, Sb);
+    const Vec3 la = A.local(sa, Sa), lb = B.local(sb, Sb);
+    const Vec3 d = A.point_at(la) - B.point_at(lb);
     out[0] = d(0), out[1] = d(1), out[2] = d(2);
-    return;
-  }
-  case Kind::Perpendicular:
-  case Kind::RotationDriver: { // c = 0 for drivers
-    const auto [u, U] = vector_a(*this, t);
-    out[0] = A.vector(u, U).dot(B.vector(vb, Vb)) - c;
-    return;
-  }
-  case Kind::PointOnPlane:
-  case Kind::TranslationDriver: {
-    const Vec3 d = B.point(sb, Sb) - A.point(sa, Sa);
-    out[0] = A.vector(ua, Ua).dot(d) - c;
-    if (kind == Kind::TranslationDriver) out[0] -= (*driver)(t);
-    return;
-  }
-  case Kind::Normalize:
-    out[0] = 0.5 * (A.p().squaredNorm() - 1);
-    return;
-  }
-}
-
-void Equation::gradient(const Vector &q, double t, Sink &J, int row) const {
-  const Side A(q, a, oa, na), B(q, b, ob, nb);
-  switch (kind) {
-  case Kind::Coincide: {
-    const Jacobian ja = A.jacobian(sa, Sa, true), jb = B.jacobian(sb, Sb, true);
-    for (int k = 0; k < 3; ++k) {
-      if (!A.ground()) add_row(J, row + k, A, ja.row(k));
-      if (!B.ground()) add_row(J, row + k, B, -jb.row(k));
+    if (!J) return;
+    if (!A.ground()) {
+      const Jacobian ja = A.jacobian_at(la, Sa, true);
+      for (int k = 0; k < 3; ++k) J->add_row(row + k, A.ref, ja.row(k));
+    }
+    if (!B.ground()) {
+      const Jacobian jb = B.jacobian_at(lb, Sb, true);
+      for (int k = 0; k < 3; ++k) J->add_row(row + k, B.ref, -jb.row(k));
     }
     return;
   }
   case Kind::Perpendicular:
-  case Kind::RotationDriver: {
-    const auto [uu, UU] = vector_a(*this, t);
-    const Vec3 u = A.vector(uu, UU), v = B.vector(vb, Vb);
-    if (!A.ground()) add_row(J, row, A, v.transpose() * A.jacobian(uu, UU, false));
-    if (!B.ground()) add_row(J, row, B, u.transpose() * B.jacobian(vb, Vb, false));
+  case Kind::RotationDriver: { // c = 0 for drivers
+    Vec3 uu;
+    Elastic storage;
+    const Elastic &UU = vector_a(*this, t, uu, storage);
+    const Vec3 la = A.local(uu, UU), lb = B.local(vb, Vb);
+    const Vec3 u = A.vector_at(la), v = B.vector_at(lb);
+    out[0] = u.dot(v) - c;
+    if (!J) return;
+    if (!A.ground()) {
+      Row g = Row::Zero(A.size());
+      A.add_directional(g, v, la, UU, false);
+      J->add_row(row, A.ref, g);
+    }
+    if (!B.ground()) {
+      Row g = Row::Zero(B.size());
+      B.add_directional(g, u, lb, Vb, false);
+      J->add_row(row, B.ref, g);
+    }
     return;
   }
   case Kind::PointOnPlane:
   case Kind::TranslationDriver: {
-    const Vec3 u = A.vector(ua, Ua);
-    const Vec3 d = B.point(sb, Sb) - A.point(sa, Sa);
-    if (!A.ground())
-      add_row(J, row, A,
-              d.transpose() * A.jacobian(ua, Ua, false) - u.transpose() * A.jacobian(sa, Sa, true));
-    if (!B.ground()) add_row(J, row, B, u.transpose() * B.jacobian(sb, Sb, true));
+    const Vec3 lu = A.local(ua, Ua), lsa = A.local(sa, Sa), lsb = B.local(sb, Sb);
+    const Vec3 u = A.vector_at(lu);
+    const Vec3 d = B.point_at(lsb) - A.point_at(lsa);
+    out[0] = u.dot(d) - c;
+    if (kind == Kind::TranslationDriver) out[0] -= (*driver)(t);
+    if (!J) return;
+    if (!A.ground()) { // d^T d u / dq_a - u^T d x_a / dq_a
+      Row g = Row::Zero(A.size());
+      A.add_directional(g, d, lu, Ua, false);
+      A.add_directional(g, -u, lsa, Sa, true);
+      J->add_row(row, A.ref, g);
+    }
+    if (!B.ground()) {
+      Row g = Row::Zero(B.size());
+      B.add_directional(g, u, lsb, Sb, true);
+      J->add_row(row, B.ref, g);
+    }
     return;
   }
-  case Kind::Normalize:
+  case Kind::Normalize: {
+    out[0] = 0.5 * (A.p().squaredNorm() - 1);
+    if (!J) return;
     Row g = Row::Zero(A.size());
     g.segment<4>(3) = A.p().transpose();
-    J.add_row(row, A.ref, g);
+    J->add_row(row, A.ref, g);
     return;
+  }
   }
 }
 
-void Equation::add_hessian(const Vector &q, double t, const double *lambda, Sink &H) const {
-  const Side A(q, a, oa, na), B(q, b, ob, nb);
+void Equation::gradient(const Vector &q, double t, Sink &J, int row) const {
+  double values[3];
+  evaluate(q, t, values, &J, row);
+}
+
+void Equation::add_hessian(const Vector &q, double t, const double *lambda, Sink &H,
+                           const Mat3 *rotations) const {
+  const Side A(q, a, oa, na, rotations), B(q, b, ob, nb, rotations);
   switch (kind) {
   case Kind::Coincide: {
     const Vec3 l(lambda[0], lambda[1], lambda[2]);
@@ -214,7 +260,9 @@ void Equation::add_hessian(const Vector &q, double t, const double *lambda, Sink
   }
   case Kind::Perpendicular:
   case Kind::RotationDriver: {
-    const auto [uu, UU] = vector_a(*this, t);
+    Vec3 uu;
+    Elastic storage;
+    const Elastic &UU = vector_a(*this, t, uu, storage);
     const double l = lambda[0];
     const Vec3 u = A.vector(uu, UU), v = B.vector(vb, Vb);
     add_rotation_hessian(H, A, uu, UU, l * v);

@@ -4,6 +4,8 @@
 #include "flexopt/dynamics/generalized_alpha.hpp"
 
 #include <array>
+#include <cstdio>
+#include <gtest/gtest.h>
 #include <stdexcept>
 
 namespace test_support {
@@ -79,36 +81,79 @@ inline std::array<Derivative, 2> step_derivatives(const flexopt::dynamics::Gener
 }
 
 struct NewtonPaths {
-  flexopt::dynamics::State dense, sparse; ///< final states
-  int dense_iterations = 0, sparse_iterations = 0;
+  flexopt::dynamics::State a, b; ///< final states
+  int a_iterations = 0, b_iterations = 0;
+  int a_factorizations = 0, b_factorizations = 0;
 };
 
-/// `steps` steps of size h from (q0, 0) with rho_inf = 0.8, once with every Newton system
-/// dense and once sparse (dense_limit `sparse_limit`). Throws if a step fails.
+/// `steps` steps of size h from (q0, 0) with rho_inf = 0.8, once with Newton settings `sa` and
+/// once with `sb`. Throws if a step fails.
 inline NewtonPaths run_newton_paths(const flexopt::dynamics::Mechanism &m,
                                     const flexopt::dynamics::Vector &q0, double h, int steps,
-                                    int sparse_limit) {
+                                    const flexopt::dynamics::NewtonSettings &sa,
+                                    const flexopt::dynamics::NewtonSettings &sb) {
   using namespace flexopt::dynamics;
-  NewtonSettings dense, sparse;
-  dense.dense_limit = 1000;
-  sparse.dense_limit = sparse_limit;
   const auto par = AlphaParameters::from_rho_inf(0.8);
-  const GeneralizedAlpha gd(m, par, dense), gs(m, par, sparse);
+  const GeneralizedAlpha ga(m, par, sa), gb(m, par, sb);
   const Vector v0 = Vector::Zero(q0.size());
   NewtonPaths out;
-  out.dense = gd.initial_state(q0, v0, 0);
-  out.sparse = gs.initial_state(q0, v0, 0);
+  out.a = ga.initial_state(q0, v0, 0);
+  out.b = gb.initial_state(q0, v0, 0);
   State next;
   for (int k = 0; k < steps; ++k) {
-    StepInfo a, b;
-    if (!gd.advance(out.dense, h, next, a)) throw std::runtime_error("dense step failed");
-    out.dense = next;
-    if (!gs.advance(out.sparse, h, next, b)) throw std::runtime_error("sparse step failed");
-    out.sparse = next;
-    out.dense_iterations += a.iterations;
-    out.sparse_iterations += b.iterations;
+    StepInfo ia, ib;
+    if (!ga.advance(out.a, h, next, ia)) throw std::runtime_error("step failed (settings a)");
+    out.a = next;
+    if (!gb.advance(out.b, h, next, ib)) throw std::runtime_error("step failed (settings b)");
+    out.b = next;
+    out.a_iterations += ia.iterations;
+    out.b_iterations += ib.iterations;
+    out.a_factorizations += ia.factorizations;
+    out.b_factorizations += ib.factorizations;
   }
   return out;
+}
+
+/// Newton proper (a new matrix every iteration), every system dense (a) and sparse above
+/// `sparse_limit` unknowns (b): with exact matrices both converge quadratically in the same
+/// number of iterations.
+inline NewtonPaths run_dense_sparse_paths(const flexopt::dynamics::Mechanism &m,
+                                          const flexopt::dynamics::Vector &q0, double h, int steps,
+                                          int sparse_limit) {
+  flexopt::dynamics::NewtonSettings dense, sparse;
+  dense.reuse_contraction = sparse.reuse_contraction = 0;
+  dense.dense_limit = 1000;
+  sparse.dense_limit = sparse_limit;
+  return run_newton_paths(m, q0, h, steps, dense, sparse);
+}
+
+/// Runs `steps` steps of h with Newton proper (reuse_contraction 0) and with the kept matrix
+/// (the default settings) and expects: the kept path within `bound` of Newton's positions, its
+/// multipliers within 1e-7 relative (round-off of the index-3 multipliers: ~1e-8), the
+/// deviation at kept_tolerance 1e-13 at least 20 times that at the default 1e-15 (the kept path
+/// converges to Newton's solution with the tolerance), Newton factorizing at every iteration
+/// and the kept path at fewer than one step in two.
+inline void expect_kept_matrix_reaches_newton(const flexopt::dynamics::Mechanism &m,
+                                              const flexopt::dynamics::Vector &q0, double h,
+                                              int steps, double bound, const char *scene) {
+  flexopt::dynamics::NewtonSettings newton, kept, loose;
+  newton.reuse_contraction = 0;
+  loose.kept_tolerance = 1e-13;
+  const auto r = run_newton_paths(m, q0, h, steps, newton, kept);
+  const auto l = run_newton_paths(m, q0, h, steps, newton, loose);
+  const double dq = (r.a.q - r.b.q).cwiseAbs().maxCoeff();
+  const double dq_loose = (l.a.q - l.b.q).cwiseAbs().maxCoeff();
+  std::printf("%s, %d steps: Newton %d iterations; kept matrix %d iterations on %d "
+              "factorizations; max |q_kept - q_Newton| %.3e (%.3e at kept_tolerance 1e-13)\n",
+              scene, steps, r.a_iterations, r.b_iterations, r.b_factorizations, dq, dq_loose);
+  EXPECT_GT((r.a.q - q0).cwiseAbs().maxCoeff(), 0.01) << scene << ": it has moved";
+  EXPECT_LT(dq, bound) << scene;
+  EXPECT_GT(dq_loose, 20 * dq) << scene;
+  EXPECT_LT((r.a.lambda - r.b.lambda).cwiseAbs().maxCoeff(),
+            1e-7 * r.a.lambda.cwiseAbs().maxCoeff())
+      << scene;
+  EXPECT_EQ(r.a_factorizations, r.a_iterations) << scene;
+  EXPECT_LT(2 * r.b_factorizations, steps) << scene;
 }
 
 } // namespace test_support

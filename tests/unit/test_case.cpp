@@ -355,6 +355,7 @@ TEST_F(CaseFiles, DynamicCaseParsesFieldByField) {
   EXPECT_DOUBLE_EQ(c.time.end, 2.0);
   EXPECT_DOUBLE_EQ(c.time.step, 1.0e-3);
   EXPECT_DOUBLE_EQ(c.time.rho_inf, 0.7);
+  EXPECT_DOUBLE_EQ(c.time.newton_reuse, 0.1); // the default
   EXPECT_EQ(c.time.where.line, 37);
 
   ASSERT_EQ(c.sensors.size(), 3u);
@@ -664,6 +665,10 @@ TEST_F(CaseFiles, TimeRules) {
                     "case.yaml:37:", "time.rho_inf: must lie in [0, 1]");
   EXPECT_CASE_ERROR(dynamic_with("rho_inf: 0.7", "rho_inf: -0.1"),
                     "time.rho_inf: must lie in [0, 1]");
+  EXPECT_CASE_ERROR(dynamic_with("rho_inf: 0.7", "rho_inf: 0.7, newton_reuse: 1"),
+                    "case.yaml:37:", "time.newton_reuse: must lie in [0, 1)");
+  EXPECT_CASE_ERROR(dynamic_with("rho_inf: 0.7", "rho_inf: 0.7, newton_reuse: -0.5"),
+                    "time.newton_reuse: must lie in [0, 1)");
   EXPECT_CASE_ERROR(dynamic_with("{end: 2.0, step: 1.0e-3, rho_inf: 0.7}", "{end: 2.0}"),
                     "case.yaml:37:", "missing required key 'time.step'");
   EXPECT_CASE_ERROR(dynamic_with("rho_inf: 0.7", "rho: 0.7"),

@@ -394,12 +394,12 @@ TEST(FfrfMechanism, EveryDerivative) {
   EXPECT_LT(rel_error(sd[1].analytic, sd[1].differences), 1e-7) << "dR/ds_n";
 }
 
-// A flexible pendulum of the synthetic body on a spherical joint: the sparse Newton path (block
-// pattern with a 7 + n block) and the dense one take the same iterations and agree to
-// round-off over 40 steps.
-TEST(FfrfMechanism, SparseAndDensePathsAgree) {
+namespace {
+
+/// A flexible pendulum of the synthetic body (n = 4 elastic coordinates) on a spherical joint,
+/// released from rest in the undeformed state q0.
+dynamics::Mechanism flexible_pendulum(int n, Vector &q0) {
   using K = joints::Equation::Kind;
-  const int n = 4;
   dynamics::Mechanism m;
   bodies::FfrfModel model = model_of(random_particles(8, n), false);
   model.stiffness = 200.0 * Matrix::Identity(n, n);
@@ -414,12 +414,35 @@ TEST(FfrfMechanism, SparseAndDensePathsAgree) {
   m.equations.push_back(pin);
   m.gravity = Vec3(0, -9.81, 0);
   m.finalize();
-  Vector q0 = Vector::Zero(m.coordinates());
+  q0 = Vector::Zero(m.coordinates());
   q0(3) = 1;
-  const auto r = test_support::run_newton_paths(m, q0, 0.01, 40, 0);
-  const auto &sd = r.dense, &ss = r.sparse;
-  EXPECT_EQ(r.dense_iterations, r.sparse_iterations);
+  return m;
+}
+
+} // namespace
+
+// A flexible pendulum of the synthetic body on a spherical joint: the sparse Newton path (block
+// pattern with a 7 + n block) and the dense one take the same iterations and agree to
+// round-off over 40 steps.
+TEST(FfrfMechanism, SparseAndDensePathsAgree) {
+  const int n = 4;
+  Vector q0;
+  const auto m = flexible_pendulum(n, q0);
+  const auto r = test_support::run_dense_sparse_paths(m, q0, 0.01, 40, 0);
+  const auto &sd = r.a, &ss = r.b;
+  EXPECT_EQ(r.a_iterations, r.b_iterations);
   EXPECT_LT((sd.q - ss.q).cwiseAbs().maxCoeff(), 1e-10);
   EXPECT_GT((sd.q - q0).cwiseAbs().maxCoeff(), 0.05); // it has moved and deformed
   EXPECT_GT(sd.q.tail(n).cwiseAbs().maxCoeff(), 1e-4);
+}
+
+// The kept iteration matrix (docs/theory.md section 6.4) reaches Newton's solution of every
+// step with the FFRF body's gyroscopic and centrifugal coupling too (the bound as for the rigid
+// chain's GeneralizedAlpha.KeptMatrixReachesNewtonsSolution: 200 * 1.9 * 0.4 / 2e-3 * 1e-15 *
+// (1 + max|q|) = 8e-11).
+TEST(FfrfMechanism, KeptMatrixReachesNewtonsSolution) {
+  const int n = 4;
+  Vector q0;
+  const auto m = flexible_pendulum(n, q0);
+  test_support::expect_kept_matrix_reaches_newton(m, q0, 2e-3, 200, 8e-11, "flexible pendulum");
 }

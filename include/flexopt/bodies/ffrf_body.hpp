@@ -55,14 +55,28 @@ public:
                 const Vec3 &gravity) const override;
 
 private:
-  /// C_k = S1[k] + sum_l zeta_l S2[l][k] and their axial vectors c_k (columns of Cm).
-  void couplings(const Vector &z, std::vector<Mat3> &Ck, Eigen::Matrix3Xd &Cm) const;
+  /// Fixed-capacity work arrays (no heap allocation per evaluation).
+  using Mat9N =
+      Eigen::Matrix<double, 9, Eigen::Dynamic, Eigen::ColMajor, 9, kMaxBodyCoordinates - 7>;
+  using Mat3N =
+      Eigen::Matrix<double, 3, Eigen::Dynamic, Eigen::ColMajor, 3, kMaxBodyCoordinates - 7>;
+  /// vec C_k = vec(S1[k] + sum_l zeta_l S2[l][k]) (columns of Cv), c_k = axial(C_k) (columns of
+  /// Cm) and the second moment S(zeta) = S0 + sum_k zeta_k (S1[k]^T + C_k).
+  void couplings(const ConstVectorRef &z, Mat9N &Cv, Mat3N &Cm, Mat3 &S) const;
 
   FfrfModel model_;
   int n_ = 0;
-  Matrix mzz_;           ///< M_zz(k, l) = tr S2[k][l]
-  std::vector<Vec3> g_;  ///< g_lk = axial(S2[l][k]), index l * n + k
-  std::vector<Mat3> s2_; ///< S2[l][k], index l * n + k
+  Matrix mzz_; ///< M_zz(k, l) = tr S2[k][l]
+  // The invariants packed for matrix-vector products (the contractions with zeta, zeta' and
+  // zeta'' are then single products instead of n^2 loops over 3 x 3 matrices). vec() stacks
+  // the columns of a 3 x 3 matrix; g_lk = axial(S2[l][k]).
+  Matrix s2_by_k_; ///< 9 x n^2, column l n + k = vec S2[l][k]; as 9n x n: (9k + e, l)
+  Matrix s2_by_l_; ///< 9 x n^2, column k n + l = vec S2[l][k]; as 9n x n: (9l + e, k)
+  Matrix g_by_k_;  ///< 3 x n^2, column l n + k = g_lk; as 3n x n: (3k + i, l)
+  Matrix g_by_l_;  ///< 3 x n^2, column k n + l = g_lk; as 3n x n: (3l + i, k)
+  Matrix s1_;      ///< 9 x n, vec S1[k]
+  Matrix s1t_;     ///< 9 x n, vec S1[k]^T
+  Matrix a1_;      ///< 3 x n, axial(S1[k])
 };
 
 /// axial(P) = sum a x b for P = sum a b^T: (P23 - P32, P31 - P13, P12 - P21).

@@ -1,8 +1,9 @@
 #pragma once
 /// \file Generalized-alpha time integration of the index-3 DAE
 ///   M(q) q'' + Q_v(q, q') - Q_ext(q, t) + Phi_q^T lambda = 0,   Phi(q, t) = 0
-/// after Arnold & Brüls (2007), with consistent initial conditions and Newton's method on an
-/// exact Jacobian (docs/theory.md section 6.4).
+/// after Arnold & Brüls (2007), with consistent initial conditions and Newton's method on the
+/// exact iteration matrix, whose factorization is kept across iterations and steps while the
+/// iterations contract fast enough (simplified Newton; docs/theory.md section 6.4).
 #include "flexopt/dynamics/mechanism.hpp"
 
 #include <memory>
@@ -13,7 +14,8 @@ namespace flexopt::dynamics {
 
 namespace detail {
 struct SparseIteration; ///< the sparse iteration matrix and its index maps (generalized_alpha.cpp)
-}
+struct NewtonWork; ///< work vectors, the dense iteration matrix and its LU (generalized_alpha.cpp)
+} // namespace detail
 
 /// Chung & Hulbert (1993) parameters from the spectral radius at infinity rho_inf in [0, 1]:
 /// alpha_m = (2 rho - 1)/(rho + 1), alpha_f = rho/(rho + 1), gamma = 1/2 + alpha_f - alpha_m,
@@ -34,18 +36,31 @@ struct State {
 };
 
 struct NewtonSettings {
-  int max_iterations = 12;  ///< per attempt
-  double tolerance = 1e-12; ///< on max|dq| / (1 + max|q|)
-  int max_halvings = 6;     ///< step halvings before giving up
+  int max_iterations = 12; ///< per attempt (and again after dropping a stale matrix)
+  /// On max|dq| / (1 + max|q|) after an iteration on the matrix of its own iterate (Newton
+  /// proper, which then leaves about tolerance^2): accepted when the increment, or the
+  /// remaining distance predicted from the contraction theta = inc_k / inc_(k-1) < 1,
+  /// theta / (1 - theta) inc_k, is at most this.
+  double tolerance = 1e-12;
+  /// The same test for an iteration on a kept matrix (from an earlier iterate or step), which
+  /// converges only linearly: it must get this close (a few units of round-off in 1 + max|q|)
+  /// to leave the solution as accurate as Newton's.
+  double kept_tolerance = 1e-15;
+  int max_halvings = 6; ///< step halvings before giving up
   /// Newton systems with more unknowns (n + m) than this use the sparse LU on the block
   /// pattern, smaller ones a dense LU.
   int dense_limit = 96;
+  /// The factorized iteration matrix is kept across iterations and steps of the same size
+  /// while the observed contraction theta stays at or below this; a larger theta assembles and
+  /// factorizes it anew at the current iterate. 0: a new matrix every iteration (Newton).
+  double reuse_contraction = 0.1;
 };
 
 /// What one step did, for progress output and failure messages.
 struct StepInfo {
-  int iterations = 0; ///< Newton iterations (all attempts)
-  int halvings = 0;   ///< deepest halving used
+  int iterations = 0;     ///< Newton iterations (all attempts)
+  int factorizations = 0; ///< iteration matrices assembled and factorized (all attempts)
+  int halvings = 0;       ///< deepest halving used
   bool converged = false;
   std::vector<double> increment, violation; ///< per iteration of the last attempt
 };
@@ -83,16 +98,23 @@ public:
 
 private:
   bool step_once(const State &s, double h, State &next, StepInfo &info) const;
-  /// One Newton direction x = [dq; dlambda / beta'] at `next`: assembles the scaled iteration
-  /// matrix (dense up to settings.dense_limit unknowns, otherwise block by block into the
-  /// sparse LU's values, whose ordering is computed once) and solves it. phi = Phi(next.q).
-  bool newton_direction(const State &next, double bp, double gp, Vector &x, Vector &phi) const;
+  /// Assembles the scaled iteration matrix at `next` (dense up to settings.dense_limit
+  /// unknowns, otherwise block by block into the sparse LU's values, whose ordering is
+  /// computed once), factorizes it and fills the right-hand side rhs = -[R_d / beta'; Phi] and
+  /// phi = Phi(next.q). False if the matrix is singular.
+  bool factorize(const State &next, double bp, double gp) const;
+  /// The right-hand side and phi alone (no derivatives), for an iteration on a kept matrix.
+  void newton_rhs(const State &next, double bp) const;
+  /// x = A^-1 rhs with the current factorization; false if not finite.
+  bool solve() const;
 
   const Mechanism &mech_;
   AlphaParameters par_;
   NewtonSettings settings_;
-  std::unique_ptr<detail::SparseIteration> sparse_;      ///< null: dense Newton systems
-  mutable std::vector<Matrix> work_K_, work_C_, work_M_; ///< body blocks, reused across iterations
+  std::unique_ptr<detail::SparseIteration> sparse_; ///< null: dense Newton systems
+  /// Work vectors and the factorized matrix, kept across iterations and steps (step() is
+  /// const: the integrator's state is its argument; this is a cache of the last matrix).
+  std::unique_ptr<detail::NewtonWork> work_;
 };
 
 } // namespace flexopt::dynamics

@@ -68,6 +68,9 @@ public:
   void dynamics_blocks(const Vector &q, const Vector &v, const Vector &a, double t, Vector &r,
                        std::vector<Matrix> &K, std::vector<Matrix> &C,
                        std::vector<Matrix> &M) const;
+  /// The dynamics residual r alone (no derivatives): for Newton iterations on a kept matrix.
+  void dynamics_residual(const Vector &q, const Vector &v, const Vector &a, double t,
+                         Vector &r) const;
   /// Every row (enforced or not): for the violation monitor and messages.
   void all_constraint_values(const Vector &q, double t, Vector &phi) const;
   /// H += d(Phi_q^T lambda)/dq for the enforced rows.
@@ -91,9 +94,14 @@ public:
   std::string describe_row(int r) const;
 
 private:
+  /// A(p_b) of every body at q, into a reused buffer: the equations share them.
+  const bodies::Mat3 *rotations(const Vector &q) const;
+
   std::vector<int> offsets_;
+  mutable std::vector<bodies::Mat3> rotations_;
   int coordinates_ = 0;
   std::vector<char> enforced_;
+  std::vector<int> enforced_index_; ///< per row: its number among the enforced rows, or -1
   std::vector<int> row_equation_, row_index_; ///< per row: equation and row within it
   int active_rows_ = 0, all_rows_ = 0;
 };

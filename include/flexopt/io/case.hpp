@@ -110,6 +110,9 @@ struct TimeSpec {
   double end = 0;       ///< [s], > 0
   double step = 0;      ///< [s], > 0, <= end
   double rho_inf = 0.8; ///< generalized-alpha spectral radius at infinity, in [0, 1]
+  /// Largest contraction of Newton iterations on a kept iteration matrix before a new one is
+  /// assembled (dynamics::NewtonSettings::reuse_contraction), in [0, 1); 0: Newton proper.
+  double newton_reuse = 0.1;
   bool given = false;
   Location where;
 };

@@ -69,7 +69,9 @@ public:
   }
   void add_product(const BodyRef &bi, const BodyRef &bj, double scale, const Jacobian &X,
                    const Jacobian &Y) override {
-    H_->block(bi.offset, bj.offset, X.cols(), Y.cols()).noalias() += scale * X.transpose() * Y;
+    // Inner dimension 3: a coefficient-wise product (the blocked GEMM only adds packing).
+    H_->block(bi.offset, bj.offset, X.cols(), Y.cols()).noalias() +=
+        (scale * X.transpose()).lazyProduct(Y);
   }
 
 private:
@@ -104,8 +106,14 @@ struct Equation {
   int row_in_owner = 0;                     ///< index of the first row within its owner
 
   int rows() const { return kind == Kind::Coincide ? 3 : 1; }
+  /// phi (rows()) into out and, if J is non-null, its gradient rows (numbered from `row`) into
+  /// J: one pass, sharing the rotation matrices and attachment points between the two.
+  /// `rotations`: A(p_b) of every body b (indexed by body), precomputed for all equations by
+  /// the caller, or null (computed here).
+  void evaluate(const Vector &q, double t, double *out, Sink *J, int row,
+                const Mat3 *rotations = nullptr) const;
   /// phi (rows()) into out.
-  void value(const Vector &q, double t, double *out) const;
+  void value(const Vector &q, double t, double *out) const { evaluate(q, t, out, nullptr, 0); }
   /// Rows of Phi_q into J (rows() x n, starting at row `row`; other columns untouched).
   void gradient(const Vector &q, double t, Matrix &J, int row) const {
     DenseSink sink(&J, nullptr);
@@ -117,7 +125,8 @@ struct Equation {
     DenseSink sink(nullptr, &H);
     add_hessian(q, t, lambda, sink);
   }
-  void add_hessian(const Vector &q, double t, const double *lambda, Sink &sink) const;
+  void add_hessian(const Vector &q, double t, const double *lambda, Sink &sink,
+                   const Mat3 *rotations = nullptr) const;
   /// d phi/dt, d^2 phi/dt^2 and (d Phi_q/dt) v (time enters through drivers only).
   void time_derivatives(const Vector &q, const Vector &v, double t, double *phi_t, double *phi_tt,
                         double *phi_qt_v) const;
