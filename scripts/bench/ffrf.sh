@@ -51,7 +51,7 @@ def run_crank(name, modes, size="0.004"):
     """The slider-crank for 0.1 s without output, `modes` fixed-interface modes, the rod
     meshed at `size`; returns the summary and the rod's entry."""
     s = run_variant(flexopt, crank, work, name,
-                    [("modes: 4}", f"modes: {modes}}}"), ("every: 10}", "every: 100000}"),
+                    [("modes: 4, frame: chord}", f"modes: {modes}, frame: chord}}"), ("every: 10}", "every: 100000}"),
                      ("mesh: {size: 0.004, order: 2}", f"mesh: {{size: {size}, order: 2}}")],
                     ranks=1, end=0.1)
     return s, [b for b in s["bodies"] if b["name"] == "rod"][0]

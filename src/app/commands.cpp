@@ -125,14 +125,15 @@ int run_info(const Context &ctx, const Options &o, const io::Case &c, double t0)
       const int statics = 6 * std::max(0, static_cast<int>(b.interfaces.size()) - 1);
       print0(
           ctx.comm(),
-          "  ffrf: %d elastic coordinates (%d static modes + %d fixed-interface modes), frame at "
-          "interface '%s', geometric stiffening %s, Rayleigh damping [%g, %g]\n",
-          statics + b.reduction.modes, statics, b.reduction.modes,
+          "  ffrf: %d elastic coordinates (%d static modes + %d fixed-interface modes), frame %s "
+          "at interface '%s', geometric stiffening %s, Rayleigh damping [%g, %g]\n",
+          statics + b.reduction.modes, statics, b.reduction.modes, b.reduction.frame.c_str(),
           b.interfaces.empty() ? "(none)" : b.interfaces.front().c_str(),
           b.reduction.geometric_stiffening ? "on" : "off", b.rayleigh[0], b.rayleigh[1]);
       jb["elastic_coordinates"] = statics + b.reduction.modes;
       jb["static_modes"] = statics;
       jb["fixed_modes"] = b.reduction.modes;
+      jb["frame"] = b.reduction.frame;
     }
     bodies.push_back(jb);
     total_dofs += 3LL * m.global_nodes;
@@ -254,6 +255,12 @@ int run_reduction(const Context &ctx, const Options &o, const io::Case &c, doubl
                                        body->where.str() + ": interfaces");
   const int nfull = std::min<int>(o.count, static_cast<int>(cb.K.rows()));
   reduce::solve_modes(K, M, frame, nfull, kModalShift, full);
+  if (body->reduction.frame == "chord")
+    print0(ctx.comm(),
+           "note: body %s uses reduction.frame: chord; this command shows the basis and "
+           "frequencies with the frame clamped at '%s' (the chord frame adds a rigid rotation to "
+           "each vector, docs/theory.md section 7.1)\n",
+           body->name.c_str(), body->interfaces.front().c_str());
   print0(ctx.comm(),
          "reduction of body %s: %lld DOFs -> %d coordinates (%d static modes for %zu interface(s) "
          "after the frame '%s', %d fixed-interface modes) in %.2f s\n",

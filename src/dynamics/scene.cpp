@@ -154,7 +154,8 @@ bodies::Vector initial_elastic(MPI_Comm comm, const io::BodySpec &spec,
   if (p.residual > 0.1)
     print0(comm,
            "body %s: warning: the basis represents initial.%s poorly (%.3g %% left out); the "
-           "field should vanish, with its rotation, on interface '%s', where the frame is\n",
+           "field should vanish on interface '%s', where the frame is (with its rotation if the "
+           "frame is clamped)\n",
            spec.name.c_str(), what, 100 * p.residual, spec.interfaces.front().c_str());
   return p.coordinates;
 }
@@ -186,9 +187,11 @@ Scene build_scene(MPI_Comm comm, const io::Case &c) {
       const mesh::DistributedMesh &m = scene.meshes.back();
       auto red = std::make_shared<reduce::FlexibleReduction>();
       const double t0 = wall_time();
-      reduce::reduce_flexible_body(m, fem::IsotropicMaterial{mat.E, mat.nu, mat.density},
-                                   spec.interfaces, spec.reduction.modes,
-                                   spec.reduction.geometric_stiffening, *red);
+      reduce::reduce_flexible_body(
+          m, fem::IsotropicMaterial{mat.E, mat.nu, mat.density}, spec.interfaces,
+          spec.reduction.modes, spec.reduction.geometric_stiffening, *red,
+          spec.reduction.frame == "chord" ? reduce::FrameCondition::Chord
+                                          : reduce::FrameCondition::Clamped);
       bodies::FfrfModel model;
       model.invariants = red->invariants;
       model.stiffness = red->K;
@@ -201,10 +204,14 @@ Scene build_scene(MPI_Comm comm, const io::Case &c) {
       }
       scene.owned_modes.push_back(reduce::owned_basis_values(*red, m.owned_nodes));
       print0(comm,
-             "body %s: ffrf, mass %.6g kg, frame at interface '%s' (%.6g, %.6g, %.6g), %d elastic "
-             "coordinates (%d static + %d fixed-interface modes)%s, reduced in %.2f s\n",
-             spec.name.c_str(), body->mass(), spec.interfaces.front().c_str(), red->origin.x(),
-             red->origin.y(), red->origin.z(), red->size(), red->static_modes, red->fixed_modes,
+             "body %s: ffrf, mass %.6g kg, frame %s at interface '%s' (%.6g, %.6g, %.6g), %d "
+             "elastic coordinates (%d static + %d fixed-interface modes)%s, reduced in %.2f s\n",
+             spec.name.c_str(), body->mass(),
+             spec.reduction.frame == "chord"
+                 ? ("chord (axis to '" + spec.interfaces[1] + "')").c_str()
+                 : "clamped",
+             spec.interfaces.front().c_str(), red->origin.x(), red->origin.y(), red->origin.z(),
+             red->size(), red->static_modes, red->fixed_modes,
              spec.reduction.geometric_stiffening ? ", centrifugal geometric stiffening" : "",
              wall_time() - t0);
       if (red->size() > 0) {
@@ -215,8 +222,8 @@ Scene build_scene(MPI_Comm comm, const io::Case &c) {
                         reduce::frequency_hz(red->eigenvalues(k)));
           freq += buf;
         }
-        print0(comm, "body %s: reduced frequencies (frame clamped) [Hz]: %s%s\n", spec.name.c_str(),
-               freq.c_str(), red->size() > 8 ? ", ..." : "");
+        print0(comm, "body %s: reduced frequencies (frame %s) [Hz]: %s%s\n", spec.name.c_str(),
+               spec.reduction.frame.c_str(), freq.c_str(), red->size() > 8 ? ", ..." : "");
       }
       reductions[b] = red;
       scene.reduction_seconds.push_back(wall_time() - t0);

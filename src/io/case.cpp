@@ -287,7 +287,7 @@ void read_bodies(const Reader &r, const YAML::Node &node, const fs::path &dir, C
       const YAML::Node &m = v["reduction"];
       const std::string mp = path + ".reduction";
       r.require_map(m, mp);
-      r.check_keys(m, mp, {"modes", "geometric_stiffening"});
+      r.check_keys(m, mp, {"modes", "geometric_stiffening", "frame"});
       if (m["modes"]) {
         b.reduction.modes = r.integer(m["modes"], mp + ".modes");
         if (b.reduction.modes < 0 || b.reduction.modes > 100)
@@ -297,6 +297,13 @@ void read_bodies(const Reader &r, const YAML::Node &node, const fs::path &dir, C
       if (m["geometric_stiffening"])
         b.reduction.geometric_stiffening =
             r.boolean(m["geometric_stiffening"], mp + ".geometric_stiffening");
+      if (m["frame"]) {
+        b.reduction.frame = r.choice(m["frame"], mp + ".frame", {"clamped", "chord"});
+        if (b.reduction.frame == "chord" && b.reduction.geometric_stiffening)
+          r.fail(m["frame"], mp + ".frame: chord does not combine with geometric_stiffening (the "
+                                  "centrifugal preload is the stress of the body clamped at its "
+                                  "first interface)");
+      }
     }
     if (v["damping"]) {
       const YAML::Node &m = v["damping"];
@@ -350,6 +357,9 @@ void read_bodies(const Reader &r, const YAML::Node &node, const fs::path &dir, C
           r.fail(v["interfaces"][k],
                  path + ".interfaces: '" + b.interfaces[k] + "' is listed twice");
     }
+    if (b.reduction.frame == "chord" && b.interfaces.size() < 2)
+      r.fail(v["reduction"]["frame"], path + ".reduction.frame: chord needs two interfaces (the "
+                                             "frame axis runs from the first to the second)");
     if (v["initial"]) {
       if (!dynamic)
         r.fail(r.key_node(v, "initial"),

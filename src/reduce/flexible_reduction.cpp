@@ -6,8 +6,42 @@
 #include "flexopt/fem/probe.hpp"
 #include "flexopt/reduce/craig_bampton.hpp"
 #include "flexopt/reduce/geometric_stiffness.hpp"
+#include "flexopt/reduce/modal.hpp"
 
 namespace flexopt::reduce {
+
+namespace {
+
+/// The chord frame (docs/theory.md section 7.1): every Craig-Bampton vector v_k gets the small
+/// rigid rotation w_k x (x - o) about the frame origin o that brings the centroid of interface
+/// 1 back onto the frame axis d = c_1 - o: w_k = -(d x t_k) / |d|^2, t_k the translation of
+/// interface 1 in v_k (unit for the static modes of its translations, zero otherwise). The
+/// rotation does not strain the body, so K_cb is unchanged; M_cb is projected again. T, R: the
+/// translation and rotation of each interface's rigid node per Craig-Bampton vector.
+void to_chord_frame(const mesh::DistributedMesh &mesh, Mat M, const Eigen::Vector3d &origin,
+                    CraigBamptonBasis &cb, std::vector<Eigen::Matrix3Xd> &T,
+                    std::vector<Eigen::Matrix3Xd> &R) {
+  const int n = static_cast<int>(cb.vectors.size());
+  const Eigen::Vector3d d = cb.centroids[1] - origin;
+  for (int k = 0; k < n; ++k) {
+    const Eigen::Vector3d w = -d.cross(T[1].col(k)) / d.squaredNorm();
+    for (std::size_t i = 0; i < T.size(); ++i) {
+      T[i].col(k) += w.cross(cb.centroids[i] - origin);
+      R[i].col(k) += w;
+    }
+    PetscScalar *v;
+    FX_PETSC(VecGetArray(cb.vectors[static_cast<std::size_t>(k)], &v));
+    for (PetscInt a = 0; a < mesh.owned_nodes; ++a) {
+      const Eigen::Vector3d x(&mesh.coordinates[3 * static_cast<std::size_t>(a)]);
+      const Eigen::Vector3d u = w.cross(x - origin);
+      for (int c = 0; c < 3; ++c) v[3 * a + c] += u(c);
+    }
+    FX_PETSC(VecRestoreArray(cb.vectors[static_cast<std::size_t>(k)], &v));
+  }
+  cb.M = project(M, cb.vectors);
+}
+
+} // namespace
 
 FlexibleReduction::~FlexibleReduction() {
   for (Vec &v : basis) VecDestroy(&v);
@@ -15,8 +49,12 @@ FlexibleReduction::~FlexibleReduction() {
 
 void reduce_flexible_body(const mesh::DistributedMesh &mesh, const fem::IsotropicMaterial &material,
                           const std::vector<std::string> &interfaces, int fixed_modes,
-                          bool geometric_stiffening, FlexibleReduction &out) {
+                          bool geometric_stiffening, FlexibleReduction &out, FrameCondition frame) {
   LogScope log("FxFlexReduce");
+  if (frame == FrameCondition::Chord && (interfaces.size() < 2 || geometric_stiffening))
+    throw Error("FFRF reduction: the chord frame needs a second interface and no centrifugal "
+                "geometric stiffening",
+                true);
   Mat K, M;
   fem::assemble_stiffness_and_mass(mesh, material, K, M);
   CraigBamptonBasis cb;
@@ -31,6 +69,18 @@ void reduce_flexible_body(const mesh::DistributedMesh &mesh, const fem::Isotropi
   out.centroids = cb.centroids;
   out.origin = cb.centroids.front();
   const int n = static_cast<int>(cb.vectors.size());
+  // Interface nodes in Craig-Bampton coordinates: static mode 6 (k - 1) + c moves interface k by
+  // unit translation (c < 3) or rotation (c >= 3) and no other interface; fixed-interface modes
+  // move none.
+  std::vector<Eigen::Matrix3Xd> T(interfaces.size(), Eigen::Matrix3Xd::Zero(3, n)),
+      R(interfaces.size(), Eigen::Matrix3Xd::Zero(3, n));
+  for (std::size_t k = 1; k < interfaces.size(); ++k)
+    for (int c = 0; c < 3; ++c) {
+      const int base = 6 * static_cast<int>(k - 1);
+      T[k](c, base + c) = 1;
+      R[k](c, base + 3 + c) = 1;
+    }
+  if (frame == FrameCondition::Chord) to_chord_frame(mesh, M, out.origin, cb, T, R);
   // M-orthonormal eigenbasis of the reduced problem, each column's sign fixed by its largest
   // entry (the same on every rank and rank count).
   Eigen::MatrixXd Y = Eigen::MatrixXd::Identity(n, n);
@@ -61,14 +111,11 @@ void reduce_flexible_body(const mesh::DistributedMesh &mesh, const fem::Isotropi
   out.M = Y.transpose() * cb.M * Y;
   out.eigenvalues = out.K.diagonal();
   out.invariants = ffrf_invariants(mesh, M, out.basis, out.origin);
-  // Interface nodes: static mode 6 (k - 1) + c moves interface k by unit translation (c < 3)
-  // or rotation (c >= 3) and no other interface; fixed-interface modes move none.
-  out.translation.assign(interfaces.size(), Eigen::Matrix3Xd::Zero(3, n));
-  out.rotation.assign(interfaces.size(), Eigen::Matrix3Xd::Zero(3, n));
-  for (std::size_t k = 1; k < interfaces.size(); ++k) {
-    const int base = 6 * static_cast<int>(k - 1);
-    out.translation[k] = Y.block(base, 0, 3, n);
-    out.rotation[k] = Y.block(base + 3, 0, 3, n);
+  out.translation.resize(interfaces.size());
+  out.rotation.resize(interfaces.size());
+  for (std::size_t k = 0; k < interfaces.size(); ++k) {
+    out.translation[k] = T[k] * Y;
+    out.rotation[k] = R[k] * Y;
   }
   out.geometric.clear();
   if (geometric_stiffening) {

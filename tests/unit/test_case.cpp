@@ -458,6 +458,25 @@ TEST_F(CaseFiles, ReductionAndDampingErrors) {
   EXPECT_CASE_ERROR(dynamic_with("    interfaces: [pin_a, pin_b]\n",
                                  ffrf + "    damping: {rayleigh: [0.1, -2]}\n"),
                     "case.yaml:15:", "bodies[1].damping.rayleigh[1]: must not be negative");
+  EXPECT_CASE_ERROR(
+      dynamic_with("    interfaces: [pin_a, pin_b]\n", ffrf + "    reduction: {frame: pinned}\n"),
+      "case.yaml:15:", "bodies[1].reduction.frame: 'pinned' is not one of clamped | chord");
+  EXPECT_CASE_ERROR(
+      dynamic_with("    interfaces: [pin_a, pin_b]\n",
+                   ffrf + "    reduction: {geometric_stiffening: true, frame: chord}\n"),
+      "case.yaml:15:", "bodies[1].reduction.frame: chord does not combine with");
+  EXPECT_CASE_ERROR(dynamic_with("    interfaces: [pin_a, pin_b]\n",
+                                 "    interfaces: [pin_a]\n    model: ffrf\n"
+                                 "    reduction: {frame: chord}\n"),
+                    "case.yaml:15:", "bodies[1].reduction.frame: chord needs two interfaces");
+}
+
+TEST_F(CaseFiles, ReductionFrame) {
+  const std::string ffrf = "    interfaces: [pin_a, pin_b]\n    model: ffrf\n";
+  write(dynamic_with("    interfaces: [pin_a, pin_b]\n", ffrf + "    reduction: {frame: chord}\n"));
+  EXPECT_EQ(load_case(dir_.string()).bodies[1].reduction.frame, "chord");
+  write(dynamic_with("    interfaces: [pin_a, pin_b]\n", ffrf));
+  EXPECT_EQ(load_case(dir_.string()).bodies[1].reduction.frame, "clamped"); // the default
 }
 
 TEST_F(CaseFiles, FfrfInitialElasticFields) {

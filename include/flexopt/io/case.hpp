@@ -52,6 +52,9 @@ struct InitialSpec {
 struct ReductionSpec {
   int modes = 4; ///< fixed-interface eigenmodes (plus 6 static modes per interface after the first)
   bool geometric_stiffening = false; ///< centrifugal geometric stiffness (section 7.5)
+  /// Where the floating frame sits: "clamped" (interface 0 clamped) or "chord" (origin at
+  /// interface 0, axis through interface 1; reduce::FrameCondition).
+  std::string frame = "clamped";
 };
 
 struct BodySpec {

@@ -15,19 +15,27 @@
 
 namespace flexopt::reduce {
 
+/// Where the floating frame sits on the body (docs/theory.md section 7.1). Clamped: the frame is
+/// interface 0, clamped (its rigid node neither moves nor turns in the frame). Chord: the
+/// frame's origin is the centroid of interface 0 and its axis through the centroid of
+/// interface 1 (which moves only along it), with no twist about that axis; interface 0 turns
+/// elastically. The chord frame is the classical pinned-pinned choice for a link between two
+/// joints.
+enum class FrameCondition { Clamped, Chord };
+
 struct FlexibleReduction {
   int static_modes = 0; ///< 6 per interface after the first
   int fixed_modes = 0;
   /// The basis Psi = V Y: V the Craig-Bampton vectors, Y the eigenvectors of the reduced
   /// problem K_cb y = w^2 M_cb y, so Psi^T M Psi = I and Psi^T K Psi = diag(w^2) (full size).
   std::vector<Vec> basis;
-  Eigen::VectorXd eigenvalues; ///< w^2 of the reduced model (frame clamped), ascending
+  Eigen::VectorXd eigenvalues; ///< w^2 of the reduced model (frame held), ascending
   Eigen::MatrixXd K, M;        ///< Psi^T K Psi, Psi^T M Psi (replicated)
   FfrfInvariants invariants;   ///< about `origin`
   Eigen::Vector3d origin = Eigen::Vector3d::Zero(); ///< frame origin: centroid of interface 0
   std::vector<Eigen::Vector3d> centroids;           ///< per interface (mesh coordinates)
   /// Per interface: the translation and (small) rotation of its rigid interface node per unit
-  /// basis coordinate (3 x n each; zero for the frame interface).
+  /// basis coordinate (3 x n each; zero for interface 0 with a clamped frame).
   std::vector<Eigen::Matrix3Xd> translation, rotation;
   /// Centrifugal geometric stiffness per unit s_c(omega) (6 matrices) or empty.
   std::vector<Eigen::MatrixXd> geometric;
@@ -39,12 +47,13 @@ struct FlexibleReduction {
   ~FlexibleReduction();
 };
 
-/// Reduces the body meshed as `mesh` with material `material` (interfaces: physical surfaces,
-/// the first is the frame). Collective; throws collective flexopt::Errors (missing surface,
-/// failed solve).
+/// Reduces the body meshed as `mesh` with material `material` (interfaces: physical surfaces;
+/// the frame sits on the first, `frame`; the chord frame needs two interfaces and no geometric
+/// stiffening). Collective; throws collective flexopt::Errors (missing surface, failed solve).
 void reduce_flexible_body(const mesh::DistributedMesh &mesh, const fem::IsotropicMaterial &material,
                           const std::vector<std::string> &interfaces, int fixed_modes,
-                          bool geometric_stiffening, FlexibleReduction &out);
+                          bool geometric_stiffening, FlexibleReduction &out,
+                          FrameCondition frame = FrameCondition::Clamped);
 
 /// The basis vectors' values at the owned nodes: a (3 owned_nodes) x n matrix, node-major.
 Eigen::MatrixXd owned_basis_values(const FlexibleReduction &r, PetscInt owned_nodes);
