@@ -1,0 +1,207 @@
+// The co-rotated element of ACF bodies (fem/corotated.hpp, docs/theory.md section 8.1), for
+// Tet4, Tet10 and Hex8 of a distorted reference shape (steel, element size 0.1 m), deformed by
+// a random displacement of 2 % of the size and moved by a random large rotation:
+//  - rigid motions: zero energy and force; E(Qx + t) = E(x), f(Qx + t) = Q f(x);
+//  - no net force and no net moment (momentum conservation);
+//  - f is the gradient of E and T the Hessian (central differences; symmetric);
+//  - T = K at the reference configuration, and for Tet4 f = R K u~ (the textbook force).
+#include "flexopt/fem/corotated.hpp"
+
+#include <Eigen/Geometry>
+#include <gtest/gtest.h>
+#include <random>
+
+namespace {
+
+using namespace flexopt::fem;
+using Eigen::Matrix3d;
+using Eigen::Vector3d;
+
+constexpr ElementType kTypes[] = {ElementType::Tet4, ElementType::Tet10, ElementType::Hex8};
+const IsotropicMaterial kSteel{2.1e11, 0.3, 7850};
+
+/// A distorted element of size ~0.1 m away from the origin, in Gmsh ordering (Tet10 mid-edge
+/// nodes moved off the edge midpoints: a curved element).
+ElementCoords reference_shape(ElementType type, std::mt19937 &rng) {
+  std::uniform_real_distribution<double> jitter(-0.01, 0.01);
+  ElementCoords X(nodes_per_element(type), 3);
+  switch (type) {
+  case ElementType::Tet4:
+    X << 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1;
+    break;
+  case ElementType::Tet10:
+    X << 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1, 0.5, 0, 0, 0.5, 0.5, 0, 0, 0.5, 0, 0, 0, 0.5, 0, 0.5,
+        0.5, 0.5, 0, 0.5;
+    break;
+  case ElementType::Hex8:
+    X << -1, -1, -1, 1, -1, -1, 1, 1, -1, -1, 1, -1, -1, -1, 1, 1, -1, 1, 1, 1, 1, -1, 1, 1;
+    X *= 0.5;
+    break;
+  }
+  X *= 0.1;
+  for (int a = 0; a < X.rows(); ++a)
+    for (int i = 0; i < 3; ++i) X(a, i) += jitter(rng) + (i == 0 ? 3.0 : 1.0);
+  return X;
+}
+
+Matrix3d random_rotation(std::mt19937 &rng) {
+  std::uniform_real_distribution<double> u(-1, 1);
+  const Vector3d axis = Vector3d(u(rng), u(rng), u(rng)).normalized();
+  return Eigen::AngleAxisd(3.0 * u(rng), axis).toRotationMatrix();
+}
+
+ElementCoords moved(const ElementCoords &x, const Matrix3d &Q, const Vector3d &t) {
+  ElementCoords y = x;
+  for (int a = 0; a < x.rows(); ++a) y.row(a) = (Q * x.row(a).transpose() + t).transpose();
+  return y;
+}
+
+/// The reference deformed by 2 % of the element size at random, then rotated and moved.
+ElementCoords deformed(const ElementCoords &X, std::mt19937 &rng) {
+  std::uniform_real_distribution<double> u(-1, 1);
+  ElementCoords x = X;
+  for (int a = 0; a < X.rows(); ++a)
+    for (int i = 0; i < 3; ++i) x(a, i) += 0.002 * u(rng);
+  return moved(x, random_rotation(rng), Vector3d(0.3, -0.2, 0.5));
+}
+
+double max_abs(const ElementVector &v) {
+  return v.cwiseAbs().maxCoeff();
+}
+
+} // namespace
+
+TEST(CorotatedElement, RigidMotionsAreFreeOfEnergyAndForce) {
+  std::mt19937 rng(11);
+  for (ElementType type : kTypes) {
+    const ElementCoords X = reference_shape(type, rng);
+    const CorotatedElement e = corotated_element(type, X, kSteel);
+    const ElementCoords x = moved(X, random_rotation(rng), Vector3d(1, 2, -3));
+    ElementVector f;
+    const double E = corotated_state(e, x, &f, nullptr);
+    // Scale: the force of a 1e-3 strain, |K| * 1e-4 m.
+    const double fscale = e.K.cwiseAbs().maxCoeff() * 1e-4;
+    EXPECT_LT(std::abs(E), 1e-20 * fscale) << element_name(type);
+    EXPECT_LT(max_abs(f), 1e-9 * fscale) << element_name(type);
+  }
+}
+
+TEST(CorotatedElement, InvariantUnderRigidMotionsWithoutNetForceOrMoment) {
+  std::mt19937 rng(12);
+  for (ElementType type : kTypes) {
+    const ElementCoords X = reference_shape(type, rng);
+    const CorotatedElement e = corotated_element(type, X, kSteel);
+    const ElementCoords x = deformed(X, rng);
+    ElementVector f, fq;
+    ElementMatrix T, Tq;
+    const double E = corotated_state(e, x, &f, &T);
+    const Matrix3d Q = random_rotation(rng);
+    const double Eq = corotated_state(e, moved(x, Q, Vector3d(-1, 0.5, 2)), &fq, &Tq);
+    EXPECT_GT(E, 0) << element_name(type);
+    EXPECT_NEAR(Eq, E, 1e-12 * E) << element_name(type);
+    const double fs = max_abs(f), ts = T.cwiseAbs().maxCoeff();
+    Vector3d net = Vector3d::Zero(), moment = Vector3d::Zero();
+    for (int a = 0; a < X.rows(); ++a) {
+      const Vector3d fa = f.segment<3>(3 * a);
+      EXPECT_LT((fq.segment<3>(3 * a) - Q * fa).cwiseAbs().maxCoeff(), 1e-10 * fs);
+      for (int b = 0; b < X.rows(); ++b)
+        EXPECT_LT((Tq.block<3, 3>(3 * a, 3 * b) - Q * T.block<3, 3>(3 * a, 3 * b) * Q.transpose())
+                      .cwiseAbs()
+                      .maxCoeff(),
+                  1e-10 * ts);
+      net += fa;
+      moment += x.row(a).transpose().cross(fa);
+    }
+    // Relative to the largest nodal force times the element's distance from the origin (~3 m).
+    EXPECT_LT(net.cwiseAbs().maxCoeff(), 1e-11 * fs) << element_name(type);
+    EXPECT_LT(moment.cwiseAbs().maxCoeff(), 1e-11 * fs * 4) << element_name(type);
+  }
+}
+
+TEST(CorotatedElement, ForceIsTheGradientAndTangentTheHessian) {
+  std::mt19937 rng(13);
+  for (ElementType type : kTypes) {
+    const ElementCoords X = reference_shape(type, rng);
+    const CorotatedElement e = corotated_element(type, X, kSteel);
+    const ElementCoords x = deformed(X, rng);
+    ElementVector f;
+    ElementMatrix T;
+    corotated_state(e, x, &f, &T);
+    const int nd = 3 * static_cast<int>(X.rows());
+    // Central differences with a step of 1e-7 m (strain 1e-6 against the 2e-2 deformation):
+    // truncation ~1e-12 relative, round-off ~1e-16 / 1e-7 * |E| / |f| ~ 1e-9 of f.
+    const double step = 1e-7;
+    ElementMatrix Tfd(nd, nd);
+    ElementVector ffd(nd);
+    for (int j = 0; j < nd; ++j) {
+      ElementCoords xp = x, xm = x;
+      xp(j / 3, j % 3) += step;
+      xm(j / 3, j % 3) -= step;
+      ElementVector fp, fm;
+      const double Ep = corotated_state(e, xp, &fp, nullptr);
+      const double Em = corotated_state(e, xm, &fm, nullptr);
+      ffd(j) = (Ep - Em) / (2 * step);
+      Tfd.col(j) = (fp - fm) / (2 * step);
+    }
+    const double fs = max_abs(f), ts = T.cwiseAbs().maxCoeff();
+    EXPECT_LT(max_abs(f - ffd), 1e-6 * fs) << element_name(type);
+    EXPECT_LT((T - Tfd).cwiseAbs().maxCoeff(), 1e-6 * ts) << element_name(type);
+    // The Hessian is symmetric: the differences of f, which are not symmetrized, show it.
+    EXPECT_LT((Tfd - Tfd.transpose()).cwiseAbs().maxCoeff(), 1e-6 * ts) << element_name(type);
+  }
+}
+
+TEST(CorotatedElement, LinearLimitAndTheTet4Force) {
+  std::mt19937 rng(14);
+  for (ElementType type : kTypes) {
+    const ElementCoords X = reference_shape(type, rng);
+    const CorotatedElement e = corotated_element(type, X, kSteel);
+    ElementVector f;
+    ElementMatrix T;
+    corotated_state(e, X, &f, &T);
+    const double ks = e.K.cwiseAbs().maxCoeff();
+    EXPECT_LT((T - e.K).cwiseAbs().maxCoeff(), 1e-12 * ks) << element_name(type);
+  }
+  // Tet4: F is constant, so for an isotropic material the local stress commutes with U and the
+  // rotation's variation adds nothing: f = R_blk K u~.
+  const ElementCoords X = reference_shape(ElementType::Tet4, rng);
+  const CorotatedElement e = corotated_element(ElementType::Tet4, X, kSteel);
+  const ElementCoords x = deformed(X, rng);
+  ElementVector f;
+  corotated_state(e, x, &f, nullptr);
+  Matrix3d F = Matrix3d::Zero();
+  for (int a = 1; a < 4; ++a) F += (x.row(a) - x.row(0)).transpose() * e.h.row(a); // sum_a h_a = 0
+  const Matrix3d R = polar_rotation(F);
+  Vector3d xc = Vector3d::Zero(), Xc = Vector3d::Zero();
+  for (int a = 0; a < 4; ++a) {
+    xc += 0.25 * x.row(a).transpose();
+    Xc += 0.25 * X.row(a).transpose();
+  }
+  ElementVector u(12), Ru(12);
+  for (int a = 0; a < 4; ++a)
+    u.segment<3>(3 * a) = R.transpose() * (x.row(a).transpose() - xc) - (X.row(a).transpose() - Xc);
+  const ElementVector g = e.K * u;
+  for (int a = 0; a < 4; ++a) Ru.segment<3>(3 * a) = R * g.segment<3>(3 * a);
+  EXPECT_LT(max_abs(f - Ru), 1e-10 * max_abs(f));
+}
+
+TEST(CorotatedElement, PolarRotationAndInvertedElements) {
+  std::mt19937 rng(15);
+  // F = Q S with S symmetric positive definite: the rotation is Q, for stretches from 1e-3 to 2.
+  for (double stretch : {1e-3, 0.1, 1.0}) {
+    const Matrix3d Q = random_rotation(rng);
+    Matrix3d A = Matrix3d::Random();
+    const Matrix3d S = Matrix3d::Identity() + stretch * (A * A.transpose()) / A.squaredNorm();
+    EXPECT_LT((polar_rotation(Q * S) - Q).cwiseAbs().maxCoeff(), 1e-14) << stretch;
+  }
+  const ElementCoords X = reference_shape(ElementType::Tet4, rng);
+  const CorotatedElement e = corotated_element(ElementType::Tet4, X, kSteel);
+  ElementCoords x = X;
+  x.row(3) = X.row(0) - (X.row(3) - X.row(0)); // node 3 mirrored through node 0: inverted
+  try {
+    corotated_state(e, x, nullptr, nullptr);
+    FAIL() << "no error for an inverted element";
+  } catch (const flexopt::Error &err) {
+    EXPECT_NE(std::string(err.what()).find("inverted"), std::string::npos) << err.what();
+  }
+}
