@@ -341,6 +341,81 @@ std::vector<double> element_volumes(const mesh::DistributedMesh &mesh) {
   return v;
 }
 
+std::vector<CorotatedElement> corotated_elements(const mesh::DistributedMesh &mesh,
+                                                 const IsotropicMaterial &material,
+                                                 const std::vector<double> &modulus_factor) {
+  std::vector<CorotatedElement> out;
+  out.reserve(static_cast<std::size_t>(mesh.local_elements()));
+  for (PetscInt e = 0; e < mesh.local_elements(); ++e) {
+    const double f = modulus_factor.empty() ? 1.0 : modulus_factor[static_cast<std::size_t>(e)];
+    try {
+      out.push_back(corotated_element(mesh.type, mesh.element_coordinates(e), material, f));
+    } catch (const std::exception &err) {
+      abort_local(element_context(mesh, e, err)); // only this rank holds the element
+    }
+  }
+  return out;
+}
+
+CorotatedSum assemble_corotated(const mesh::DistributedMesh &mesh,
+                                const std::vector<CorotatedElement> &elements, Vec u_ghosted, Vec F,
+                                Mat T) {
+  LogScope log("FxAssembleCorot");
+  FX_PETSC(VecZeroEntries(F));
+  if (T) FX_PETSC(MatZeroEntries(T));
+  Vec local;
+  FX_PETSC(VecGhostGetLocalForm(u_ghosted, &local));
+  const PetscScalar *u;
+  FX_PETSC(VecGetArrayRead(local, &u));
+  double energy = 0;
+  std::string failure;
+  double fsorted[kMaxDofs], tsorted[kMaxDofs * kMaxDofs];
+  ElementVector fe;
+  ElementMatrix Te;
+  for (PetscInt e = 0; e < mesh.local_elements(); ++e) {
+    const CorotatedElement &ce = elements[static_cast<std::size_t>(e)];
+    const ElementVector ue = gather_element(mesh, e, u);
+    ElementCoords x = ce.X;
+    for (int a = 0; a < x.rows(); ++a) x.row(a) += ue.segment<3>(3 * a).transpose();
+    try {
+      energy += corotated_state(ce, x, &fe, T ? &Te : nullptr);
+    } catch (const Error &err) {
+      if (failure.empty()) failure = element_context(mesh, e, err);
+      continue;
+    }
+    const SortedElementDofs d(mesh, e);
+    for (int r = 0; r < d.n; ++r) fsorted[r] = fe(d.source[r]);
+    FX_PETSC(VecSetValues(F, d.n, d.global, fsorted, ADD_VALUES));
+    if (!T) continue;
+    for (int r = 0; r < d.n; ++r)
+      for (int c = 0; c < d.n; ++c) tsorted[r * d.n + c] = Te(d.source[r], d.source[c]);
+    FX_PETSC(MatSetValues(T, d.n, d.global, d.n, d.global, tsorted, ADD_VALUES));
+  }
+  FX_PETSC(VecRestoreArrayRead(local, &u));
+  FX_PETSC(VecGhostRestoreLocalForm(u_ghosted, &local));
+  FX_PETSC(VecAssemblyBegin(F));
+  FX_PETSC(VecAssemblyEnd(F));
+  if (T) {
+    FX_PETSC(MatAssemblyBegin(T, MAT_FINAL_ASSEMBLY));
+    FX_PETSC(MatAssemblyEnd(T, MAT_FINAL_ASSEMBLY));
+  }
+  CorotatedSum sum;
+  MPI_Allreduce(&energy, &sum.energy, 1, MPI_DOUBLE, MPI_SUM, mesh.comm);
+  // The lowest rank with a failure sends its message to all.
+  const int rank = comm_rank(mesh.comm), size = comm_size(mesh.comm);
+  int mine = failure.empty() ? size : rank, first = size;
+  MPI_Allreduce(&mine, &first, 1, MPI_INT, MPI_MIN, mesh.comm);
+  if (first < size) {
+    sum.ok = false;
+    int length = static_cast<int>(failure.size());
+    MPI_Bcast(&length, 1, MPI_INT, first, mesh.comm);
+    failure.resize(static_cast<std::size_t>(length));
+    MPI_Bcast(failure.data(), length, MPI_CHAR, first, mesh.comm);
+    sum.failure = failure;
+  }
+  return sum;
+}
+
 ElementVector gather_element(const mesh::DistributedMesh &mesh, PetscInt e,
                              const PetscScalar *u_local) {
   const int npe = mesh.nodes_per_element();

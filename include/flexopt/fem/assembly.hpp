@@ -6,12 +6,14 @@
 /// the node graph of the mesh (shared rows completed by their owners), and carry the
 /// local-to-global mapping of the mesh's local nodes (for MatSetValuesLocal). The kernels here
 /// add element matrices with global DOF numbers in ascending order.
+#include "flexopt/fem/corotated.hpp"
 #include "flexopt/fem/element.hpp"
 #include "flexopt/mesh/distributed_mesh.hpp"
 
 #include <array>
 #include <petscmat.h>
 #include <petscvec.h>
+#include <string>
 #include <vector>
 
 namespace flexopt::fem {
@@ -69,6 +71,29 @@ std::vector<double> element_volumes(const mesh::DistributedMesh &mesh);
 std::vector<double> element_von_mises(const mesh::DistributedMesh &mesh,
                                       const IsotropicMaterial &material,
                                       const std::vector<double> &modulus_factor, Vec u_ghosted);
+
+/// The co-rotated elements (fem::corotated_element) of the local elements, in local order, with
+/// E scaled by modulus_factor[e] (empty: 1). Throws like element_stiffness (abort_local with the
+/// element named: only this rank holds it).
+std::vector<CorotatedElement> corotated_elements(const mesh::DistributedMesh &mesh,
+                                                 const IsotropicMaterial &material,
+                                                 const std::vector<double> &modulus_factor);
+
+/// What assemble_corotated found, the same on every rank.
+struct CorotatedSum {
+  double energy = 0;   ///< sum of the elements' co-rotated energies [J]
+  bool ok = true;      ///< false if an element is inverted (det F <= 0) on some rank
+  std::string failure; ///< then: the first such element (lowest rank), with its mesh tag
+};
+
+/// Internal force F = dE/dx (global vector of the mesh layout, zeroed first) and, if T is not
+/// null, the tangent T = d^2E/dx^2 (zeroed first, from create_matrix) of the body's co-rotated
+/// elastic energy at the displacement u (ghosted, ghost values up to date): positions
+/// x = X + u. Collective. An inverted element does not throw: it is left out, and every rank
+/// gets ok = false and the message (a Newton iteration would take a smaller step).
+CorotatedSum assemble_corotated(const mesh::DistributedMesh &mesh,
+                                const std::vector<CorotatedElement> &elements, Vec u_ghosted, Vec F,
+                                Mat T);
 
 /// Displacement of local element e from the local form of a ghosted vector.
 ElementVector gather_element(const mesh::DistributedMesh &mesh, PetscInt e,
