@@ -1,6 +1,7 @@
 #include "flexopt/dynamics/generalized_alpha.hpp"
 
 #include "flexopt/core/error.hpp"
+#include "flexopt/dynamics/newton_loop.hpp"
 
 #include <Eigen/LU>
 #include <Eigen/SparseLU>
@@ -356,99 +357,52 @@ bool GeneralizedAlpha::solve() const {
 }
 
 bool GeneralizedAlpha::step_once(const State &s, double h, State &next, StepInfo &info) const {
-  const int n = mech_.coordinates(), m = mech_.constraints();
   const double am = par_.alpha_m, af = par_.alpha_f, g = par_.gamma, b = par_.beta;
   const double bp = (1 - am) / (b * h * h * (1 - af)), gp = g / (b * h);
-  NewtonWork &w = *work_;
-  // Predictor: acc1 = acc0, lambda1 = lambda0.
-  auto predict = [&] {
-    next.t = s.t + h;
-    next.acc = s.acc;
-    next.lambda = s.lambda;
-    next.a = (af * s.acc - am * s.a + (1 - af) * next.acc) / (1 - am);
-    next.v = s.v + h * (1 - g) * s.a + h * g * next.a;
-    next.q = s.q + h * s.v + h * h * (0.5 - b) * s.a + h * h * b * next.a;
-  };
-  predict();
-  info.increment.clear();
-  info.violation.clear();
-  // The factorized matrix is kept across iterations and steps (docs/theory.md section 6.4):
-  // on a kept matrix (assembled at an earlier iterate) the iterations contract linearly, by
-  // theta = inc_k / inc_(k-1), instead of quadratically. It is replaced at the current iterate
-  // when theta exceeds reuse_contraction; one from an earlier step (`stale`) that does not
-  // contract at all is dropped and the step starts over from the predictor.
-  const double reuse = settings_.reuse_contraction;
-  bool refresh = !(reuse > 0 && w.factored && w.bp == bp && w.gp == gp);
-  bool stale = !refresh; // the factorization predates this attempt
-  double inc_prev = 0;   // the last increment (0: none since the predictor)
-  for (int it = 0; it < settings_.max_iterations; ++it) {
-    const bool kept = !refresh; // a matrix from an earlier iterate
-    if (refresh) {
-      ++info.factorizations;
-      if (!factorize(next, bp, gp)) return false;
-      refresh = stale = false;
-    } else {
-      newton_rhs(next, bp);
+  // The Newton loop (detail::newton_loop) on the replicated dense or sparse system.
+  struct Backend {
+    const GeneralizedAlpha &ga;
+    const State &s;
+    State &next;
+    double h, am, af, g, b;
+    void predict() { // acc1 = acc0, lambda1 = lambda0
+      next.t = s.t + h;
+      next.acc = s.acc;
+      next.lambda = s.lambda;
+      next.a = (af * s.acc - am * s.a + (1 - af) * next.acc) / (1 - am);
+      next.v = s.v + h * (1 - g) * s.a + h * g * next.a;
+      next.q = s.q + h * s.v + h * h * (0.5 - b) * s.a + h * h * b * next.a;
     }
-    const bool ok = solve();
-    ++info.iterations;
-    double inc = std::numeric_limits<double>::infinity();
-    if (ok) {
+    bool has_matrix(double bp_, double gp_) const {
+      const NewtonWork &w = *ga.work_;
+      return w.factored && w.bp == bp_ && w.gp == gp_;
+    }
+    bool factorize(double bp_, double gp_) { return ga.factorize(next, bp_, gp_); }
+    void rhs(double bp_) { ga.newton_rhs(next, bp_); }
+    bool solve_update(double bp_, double gp_, double &increment, double &violation) {
+      const int n = ga.mech_.coordinates(), m = ga.mech_.constraints();
+      NewtonWork &w = *ga.work_;
+      violation = m > 0 ? w.phi.cwiseAbs().maxCoeff() : 0.0;
+      if (!ga.solve()) return false;
       const auto dq = w.x.head(n);
       next.q += dq;
-      next.v += gp * dq;
-      next.acc += bp * dq;
-      next.a += (1 - af) / (1 - am) * bp * dq;
-      next.lambda += bp * w.x.tail(m);
-      inc = dq.cwiseAbs().maxCoeff() / (1 + next.q.cwiseAbs().maxCoeff());
+      next.v += gp_ * dq;
+      next.acc += bp_ * dq;
+      next.a += (1 - af) / (1 - am) * bp_ * dq;
+      next.lambda += bp_ * w.x.tail(m);
+      increment = dq.cwiseAbs().maxCoeff() / (1 + next.q.cwiseAbs().maxCoeff());
+      return true;
     }
-    info.increment.push_back(inc);
-    info.violation.push_back(m > 0 ? w.phi.cwiseAbs().maxCoeff() : 0.0);
-    const double theta = inc_prev > 0 ? inc / inc_prev : 0.0;
-    if (stale && !(theta < 1 && std::isfinite(inc))) {
-      predict();
-      refresh = true;
-      inc_prev = 0;
-      it = -1; // a full budget of iterations (and a new history) for the new matrix
-      info.increment.clear();
-      info.violation.clear();
-      continue;
-    }
-    if (!std::isfinite(inc)) {
-      w.factored = false;
-      return false;
-    }
-    // Stopping rule: the remaining distance to the solution, predicted from the contraction
-    // (Hairer & Wanner's theta / (1 - theta) inc_k), or the increment itself. After an
-    // iteration on the matrix of its own iterate (Newton proper) what remains is about inc^2,
-    // so `tolerance` suffices; on a kept matrix the iteration converges only linearly and must
-    // get down to `kept_tolerance` to leave the solution as accurate as Newton's.
-    const double rest = inc_prev > 0 && theta < 1 ? theta / (1 - theta) * inc
-                                                  : std::numeric_limits<double>::infinity();
-    const double tol = kept ? settings_.kept_tolerance : settings_.tolerance;
-    if (inc <= tol || rest <= tol) return true;
-    if (reuse <= 0 || (kept && theta > reuse)) refresh = true;
-    inc_prev = inc;
-  }
-  w.factored = false;
-  return false;
+    void drop_matrix() { ga.work_->factored = false; }
+  } backend{*this, s, next, h, am, af, g, b};
+  return detail::newton_loop(backend, settings_, bp, gp, info);
 }
 
 bool GeneralizedAlpha::advance(const State &s, double h, State &next, StepInfo &info) const {
-  info.converged = step_once(s, h, next, info);
-  if (info.converged) return true;
-  // Halving: two half steps, each of which may halve again.
-  std::function<bool(const State &, double, State &, int)> split =
-      [&](const State &from, double dt, State &to, int depth) -> bool {
-    if (depth > settings_.max_halvings) return false;
-    info.halvings = std::max(info.halvings, depth);
-    State mid;
-    if (!step_once(from, dt, mid, info) && !split(from, 0.5 * dt, mid, depth + 1)) return false;
-    if (!step_once(mid, dt, to, info) && !split(mid, 0.5 * dt, to, depth + 1)) return false;
-    return true;
-  };
-  info.converged = split(s, 0.5 * h, next, 1);
-  return info.converged;
+  return detail::advance_with_halving(s, h, next, info, settings_.max_halvings,
+                                      [this](const State &from, double dt, State &to, StepInfo &i) {
+                                        return step_once(from, dt, to, i);
+                                      });
 }
 
 void GeneralizedAlpha::residual(const State &next, const State &prev, double h, Vector &R,

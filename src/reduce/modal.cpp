@@ -1,5 +1,6 @@
 #include "flexopt/reduce/modal.hpp"
 
+#include "flexopt/core/direct_solver.hpp"
 #include "flexopt/core/error.hpp"
 
 #include <algorithm>
@@ -15,14 +16,6 @@ ModalResult::~ModalResult() {
 
 double frequency_hz(double eigenvalue) {
   return std::copysign(std::sqrt(std::abs(eigenvalue)), eigenvalue) / (2.0 * M_PI);
-}
-
-void use_mumps_cholesky(KSP ksp) {
-  FX_PETSC(KSPSetType(ksp, KSPPREONLY));
-  PC pc;
-  FX_PETSC(KSPGetPC(ksp, &pc));
-  FX_PETSC(PCSetType(pc, PCCHOLESKY));
-  FX_PETSC(PCFactorSetMatSolverType(pc, MATSOLVERMUMPS));
 }
 
 namespace {
@@ -74,7 +67,7 @@ EPS create_eps(Mat Kf, Mat Mf, int count, double shift) {
   KSP ksp;
   FX_PETSC(STGetKSP(st, &ksp));
   // K - shift M is symmetric: Cholesky (LDL^T), about half the work of LU.
-  use_mumps_cholesky(ksp);
+  use_mumps(ksp, Factorization::Cholesky);
   FX_PETSC(EPSSetFromOptions(eps));
   return eps;
 }
@@ -168,7 +161,7 @@ ClampedProblem::ClampedProblem(Mat K, Mat M, const std::vector<PetscInt> &clampe
     FX_PETSC(KSPCreate(comm, &ksp_));
     FX_PETSC(KSPSetOptionsPrefix(ksp_, prefix));
     FX_PETSC(KSPSetOperators(ksp_, Kf_, Kf_));
-    use_mumps_cholesky(ksp_);
+    use_mumps(ksp_, Factorization::Cholesky);
     FX_PETSC(KSPSetFromOptions(ksp_));
   }
 }

@@ -6,6 +6,7 @@
 //  - f is the gradient of E and T the Hessian (central differences; symmetric);
 //  - T = K at the reference configuration, and for Tet4 f = R K u~ (the textbook force).
 #include "flexopt/fem/corotated.hpp"
+#include "reference_elements.hpp"
 
 #include <Eigen/Geometry>
 #include <gtest/gtest.h>
@@ -21,24 +22,11 @@ constexpr ElementType kTypes[] = {ElementType::Tet4, ElementType::Tet10, Element
 const IsotropicMaterial kSteel{2.1e11, 0.3, 7850};
 
 /// A distorted element of size ~0.1 m away from the origin, in Gmsh ordering (Tet10 mid-edge
-/// nodes moved off the edge midpoints: a curved element).
+/// nodes moved off the edge midpoints: a curved element; Hex8 of side 0.1 m).
 ElementCoords reference_shape(ElementType type, std::mt19937 &rng) {
   std::uniform_real_distribution<double> jitter(-0.01, 0.01);
-  ElementCoords X(nodes_per_element(type), 3);
-  switch (type) {
-  case ElementType::Tet4:
-    X << 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1;
-    break;
-  case ElementType::Tet10:
-    X << 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1, 0.5, 0, 0, 0.5, 0.5, 0, 0, 0.5, 0, 0, 0, 0.5, 0, 0.5,
-        0.5, 0.5, 0, 0.5;
-    break;
-  case ElementType::Hex8:
-    X << -1, -1, -1, 1, -1, -1, 1, 1, -1, -1, 1, -1, -1, -1, 1, 1, -1, 1, 1, 1, 1, -1, 1, 1;
-    X *= 0.5;
-    break;
-  }
-  X *= 0.1;
+  ElementCoords X = test_support::reference_nodes(type);
+  X *= type == ElementType::Hex8 ? 0.05 : 0.1;
   for (int a = 0; a < X.rows(); ++a)
     for (int i = 0; i < 3; ++i) X(a, i) += jitter(rng) + (i == 0 ? 3.0 : 1.0);
   return X;
@@ -65,6 +53,23 @@ ElementCoords deformed(const ElementCoords &X, std::mt19937 &rng) {
   return moved(x, random_rotation(rng), Vector3d(0.3, -0.2, 0.5));
 }
 
+/// A reference element, its co-rotated data and a deformed, moved configuration.
+struct Sample {
+  ElementCoords X, x;
+  CorotatedElement e;
+  Sample(ElementType type, std::mt19937 &rng)
+      : X(reference_shape(type, rng)), e(corotated_element(type, X, kSteel)) {
+    x = deformed(X, rng);
+  }
+};
+
+/// check(type, sample) for every element type, the samples drawn from a generator seeded
+/// with `seed`.
+template <class Check> void for_each_sample(unsigned seed, Check &&check) {
+  std::mt19937 rng(seed);
+  for (ElementType type : kTypes) check(type, Sample(type, rng), rng);
+}
+
 double max_abs(const ElementVector &v) {
   return v.cwiseAbs().maxCoeff();
 }
@@ -87,11 +92,10 @@ TEST(CorotatedElement, RigidMotionsAreFreeOfEnergyAndForce) {
 }
 
 TEST(CorotatedElement, InvariantUnderRigidMotionsWithoutNetForceOrMoment) {
-  std::mt19937 rng(12);
-  for (ElementType type : kTypes) {
-    const ElementCoords X = reference_shape(type, rng);
-    const CorotatedElement e = corotated_element(type, X, kSteel);
-    const ElementCoords x = deformed(X, rng);
+  for_each_sample(12, [](ElementType type, const Sample &sm, std::mt19937 &rng) {
+    (void)rng;
+    const ElementCoords &X = sm.X, &x = sm.x;
+    const CorotatedElement &e = sm.e;
     ElementVector f, fq;
     ElementMatrix T, Tq;
     const double E = corotated_state(e, x, &f, &T);
@@ -115,15 +119,14 @@ TEST(CorotatedElement, InvariantUnderRigidMotionsWithoutNetForceOrMoment) {
     // Relative to the largest nodal force times the element's distance from the origin (~3 m).
     EXPECT_LT(net.cwiseAbs().maxCoeff(), 1e-11 * fs) << element_name(type);
     EXPECT_LT(moment.cwiseAbs().maxCoeff(), 1e-11 * fs * 4) << element_name(type);
-  }
+  });
 }
 
 TEST(CorotatedElement, ForceIsTheGradientAndTangentTheHessian) {
-  std::mt19937 rng(13);
-  for (ElementType type : kTypes) {
-    const ElementCoords X = reference_shape(type, rng);
-    const CorotatedElement e = corotated_element(type, X, kSteel);
-    const ElementCoords x = deformed(X, rng);
+  for_each_sample(13, [](ElementType type, const Sample &sm, std::mt19937 &rng) {
+    (void)rng;
+    const ElementCoords &X = sm.X, &x = sm.x;
+    const CorotatedElement &e = sm.e;
     ElementVector f;
     ElementMatrix T;
     corotated_state(e, x, &f, &T);
@@ -148,7 +151,7 @@ TEST(CorotatedElement, ForceIsTheGradientAndTangentTheHessian) {
     EXPECT_LT((T - Tfd).cwiseAbs().maxCoeff(), 1e-6 * ts) << element_name(type);
     // The Hessian is symmetric: the differences of f, which are not symmetrized, show it.
     EXPECT_LT((Tfd - Tfd.transpose()).cwiseAbs().maxCoeff(), 1e-6 * ts) << element_name(type);
-  }
+  });
 }
 
 TEST(CorotatedElement, LinearLimitAndTheTet4Force) {

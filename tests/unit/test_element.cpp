@@ -3,6 +3,7 @@
 // m terms of size s is bounded by about m * eps * s (eps = 2.2e-16), which is where the "1e-14" and
 // "1e-13" relative tolerances of exact identities come from.
 #include "flexopt/fem/element.hpp"
+#include "reference_elements.hpp"
 
 #include <Eigen/Eigenvalues>
 #include <Eigen/Sparse>
@@ -21,6 +22,7 @@ namespace {
 
 using namespace flexopt::fem;
 using Eigen::Vector3d;
+using test_support::reference_nodes;
 
 constexpr ElementType kAllTypes[] = {ElementType::Tet4, ElementType::Tet10, ElementType::Hex8};
 constexpr FaceType kAllFaces[] = {FaceType::Tri3, FaceType::Tri6, FaceType::Quad4};
@@ -35,25 +37,6 @@ double factorial(int n) {
 /// Integral over [-1, 1] of x^a.
 double cube_moment_1d(int a) {
   return a % 2 == 1 ? 0.0 : 2.0 / (a + 1);
-}
-
-/// Reference node coordinates in Gmsh ordering, typed from the Gmsh documentation.
-ElementCoords reference_nodes(ElementType type) {
-  ElementCoords X(nodes_per_element(type), 3);
-  switch (type) {
-  case ElementType::Tet4:
-    X << 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1;
-    break;
-  case ElementType::Tet10:
-    X << 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1, // corners
-        0.5, 0, 0, 0.5, 0.5, 0, 0, 0.5, 0,   // edges (0,1), (1,2), (2,0)
-        0, 0, 0.5, 0, 0.5, 0.5, 0.5, 0, 0.5; // edges (3,0), (3,2), (3,1)
-    break;
-  case ElementType::Hex8:
-    X << -1, -1, -1, 1, -1, -1, 1, 1, -1, -1, 1, -1, -1, -1, 1, 1, -1, 1, 1, 1, 1, -1, 1, 1;
-    break;
-  }
-  return X;
 }
 
 Eigen::MatrixXd reference_face_nodes(FaceType type) {

@@ -15,6 +15,7 @@
 #include "flexopt/dynamics/generalized_alpha.hpp"
 #include "flexopt/dynamics/mechanism.hpp"
 
+#include <cstdlib>
 #include <gtest/gtest.h>
 #include <random>
 
@@ -399,6 +400,8 @@ namespace {
 /// A flexible pendulum of the synthetic body (n = 4 elastic coordinates) on a spherical joint,
 /// released from rest in the undeformed state q0.
 dynamics::Mechanism flexible_pendulum(int n, Vector &q0) {
+  rng().seed(7311); // the same body whichever tests ran before (Eigen's Random: std::rand)
+  std::srand(7311);
   using K = joints::Equation::Kind;
   dynamics::Mechanism m;
   bodies::FfrfModel model = model_of(random_particles(8, n), false);
@@ -438,11 +441,10 @@ TEST(FfrfMechanism, SparseAndDensePathsAgree) {
 
 // The kept iteration matrix (docs/theory.md section 6.4) reaches Newton's solution of every
 // step with the FFRF body's gyroscopic and centrifugal coupling too (the bound as for the rigid
-// chain's GeneralizedAlpha.KeptMatrixReachesNewtonsSolution: 200 * 1.9 * 0.4 / 2e-3 * 1e-15 *
-// (1 + max|q|) = 8e-11).
+// chain's GeneralizedAlpha.KeptMatrixReachesNewtonsSolution).
 TEST(FfrfMechanism, KeptMatrixReachesNewtonsSolution) {
   const int n = 4;
   Vector q0;
   const auto m = flexible_pendulum(n, q0);
-  test_support::expect_kept_matrix_reaches_newton(m, q0, 2e-3, 200, 8e-11, "flexible pendulum");
+  test_support::expect_kept_matrix_reaches_newton(m, q0, 2e-3, 200, "flexible pendulum");
 }

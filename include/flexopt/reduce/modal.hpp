@@ -29,12 +29,6 @@ struct ModalResult {
 void solve_modes(Mat K, Mat M, const std::vector<PetscInt> &fixed_dofs, int count, double shift,
                  ModalResult &result);
 
-/// Makes `ksp` a direct solve of a symmetric matrix: preonly + MUMPS Cholesky (LDL^T; options
-/// still override). About half the flops, memory and solve time of LU for the same solution (to
-/// round-off). MUMPS takes the positive definite variant (no pivoting) if the operator carries
-/// MAT_SPD. Not collective.
-void use_mumps_cholesky(KSP ksp);
-
 /// The fixed-interface problem of a body: its stiffness K and mass M restricted to the free DOFs
 /// (the complement of `clamped`, owned global DOF numbers), K_ff symmetric positive definite.
 /// ONE MUMPS Cholesky factorization of K_ff serves both the static solves (solve) and the SLEPc

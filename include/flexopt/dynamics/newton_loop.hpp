@@ -1,0 +1,103 @@
+#pragma once
+/// \file The Newton iteration of one generalized-alpha step with a kept iteration matrix
+/// (docs/theory.md section 6.4), shared by the dense/replicated integrator (GeneralizedAlpha) and
+/// the distributed one (DistributedAlpha). What differs between them is behind `Backend`:
+///
+///   void predict();                    // next state := the predictor from the step's start
+///   bool has_matrix(double bp, double gp) const;  // a factorization for (bp, gp) is kept
+///   bool factorize(double bp, double gp); // assemble + factorize at `next`, rhs too; false if
+///                                         // singular
+///   void rhs(double bp);               // the right-hand side alone at `next`
+///   bool solve_update(double bp, double gp, double &increment, double &violation);
+///       // solve with the current factorization, update `next`, report
+///       // max|dq| / (1 + max|q|) (infinite if the solve failed) and max|Phi| before it
+///   void drop_matrix();                // forget the factorization
+#include "flexopt/dynamics/generalized_alpha.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <functional>
+#include <limits>
+
+namespace flexopt::dynamics::detail {
+
+template <class Backend>
+bool newton_loop(Backend &b, const NewtonSettings &settings, double bp, double gp, StepInfo &info) {
+  b.predict();
+  info.increment.clear();
+  info.violation.clear();
+  // The factorized matrix is kept across iterations and steps: on a kept matrix (assembled at
+  // an earlier iterate) the iterations contract linearly, by theta = inc_k / inc_(k-1), instead
+  // of quadratically. It is replaced at the current iterate when theta exceeds
+  // reuse_contraction; one from an earlier step (`stale`) that does not contract at all is
+  // dropped and the step starts over from the predictor.
+  const double reuse = settings.reuse_contraction;
+  bool refresh = !(reuse > 0 && b.has_matrix(bp, gp));
+  bool stale = !refresh; // the factorization predates this attempt
+  double inc_prev = 0;   // the last increment (0: none since the predictor)
+  for (int it = 0; it < settings.max_iterations; ++it) {
+    const bool kept = !refresh; // a matrix from an earlier iterate
+    if (refresh) {
+      ++info.factorizations;
+      if (!b.factorize(bp, gp)) return false;
+      refresh = stale = false;
+    } else {
+      b.rhs(bp);
+    }
+    double inc = std::numeric_limits<double>::infinity(), violation = 0;
+    b.solve_update(bp, gp, inc, violation);
+    ++info.iterations;
+    info.increment.push_back(inc);
+    info.violation.push_back(violation);
+    const double theta = inc_prev > 0 ? inc / inc_prev : 0.0;
+    if (stale && !(theta < 1 && std::isfinite(inc))) {
+      b.predict();
+      refresh = true;
+      inc_prev = 0;
+      it = -1; // a full budget of iterations (and a new history) for the new matrix
+      info.increment.clear();
+      info.violation.clear();
+      continue;
+    }
+    if (!std::isfinite(inc)) {
+      b.drop_matrix();
+      return false;
+    }
+    // Stopping rule: the remaining distance to the solution, predicted from the contraction
+    // (Hairer & Wanner's theta / (1 - theta) inc_k), or the increment itself. After an
+    // iteration on the matrix of its own iterate (Newton proper) what remains is about inc^2,
+    // so `tolerance` suffices; on a kept matrix the iteration converges only linearly and must
+    // get down to `kept_tolerance` to leave the solution as accurate as Newton's.
+    const double rest = inc_prev > 0 && theta < 1 ? theta / (1 - theta) * inc
+                                                  : std::numeric_limits<double>::infinity();
+    const double tol = kept ? settings.kept_tolerance : settings.tolerance;
+    if (inc <= tol || rest <= tol) return true;
+    if (reuse <= 0 || (kept && theta > reuse)) refresh = true;
+    inc_prev = inc;
+  }
+  b.drop_matrix();
+  return false;
+}
+
+/// One step of h from s to `next` by step_once(from, dt, to, info); if it fails, two half
+/// steps, each of which may halve again, down to h / 2^max_halvings. Returns (and records in
+/// info.converged) whether the step was made.
+template <class State, class StepOnce>
+bool advance_with_halving(const State &s, double h, State &next, StepInfo &info, int max_halvings,
+                          StepOnce &&step_once) {
+  info.converged = step_once(s, h, next, info);
+  if (info.converged) return true;
+  std::function<bool(const State &, double, State &, int)> split =
+      [&](const State &from, double dt, State &to, int depth) -> bool {
+    if (depth > max_halvings) return false;
+    info.halvings = std::max(info.halvings, depth);
+    State mid;
+    if (!step_once(from, dt, mid, info) && !split(from, 0.5 * dt, mid, depth + 1)) return false;
+    if (!step_once(mid, dt, to, info) && !split(mid, 0.5 * dt, to, depth + 1)) return false;
+    return true;
+  };
+  info.converged = split(s, 0.5 * h, next, 1);
+  return info.converged;
+}
+
+} // namespace flexopt::dynamics::detail
