@@ -170,13 +170,16 @@ struct SortedElementDofs {
   PetscInt global[kMaxDofs]; ///< ascending global DOF numbers
   int source[kMaxDofs];      ///< element-matrix row (node-major) of global[k]
 
-  SortedElementDofs(const mesh::DistributedMesh &mesh, PetscInt e) {
+  /// `node_dof` (per local node: the DOF number of its x component in the target's layout) or
+  /// null: the mesh's own numbering 3 g.
+  SortedElementDofs(const mesh::DistributedMesh &mesh, PetscInt e,
+                    const PetscInt *node_dof = nullptr) {
     const int npe = mesh.nodes_per_element();
     const PetscInt *idx = &mesh.connectivity[static_cast<std::size_t>(e * npe)];
     PetscInt g[kMaxNodes];
     int order[kMaxNodes];
     for (int a = 0; a < npe; ++a) {
-      g[a] = mesh.local_to_global(idx[a]);
+      g[a] = node_dof ? node_dof[idx[a]] : 3 * mesh.local_to_global(idx[a]);
       order[a] = a;
     }
     for (int a = 1; a < npe; ++a) // insertion sort: at most 10 nodes
@@ -185,7 +188,7 @@ struct SortedElementDofs {
     n = 3 * npe;
     for (int a = 0; a < npe; ++a)
       for (int i = 0; i < 3; ++i) {
-        global[3 * a + i] = 3 * g[order[a]] + i;
+        global[3 * a + i] = g[order[a]] + i;
         source[3 * a + i] = 3 * order[a] + i;
       }
   }
@@ -222,15 +225,14 @@ void assemble_stiffness(const mesh::DistributedMesh &mesh, const IsotropicMateri
   });
 }
 
-void assemble_mass(const mesh::DistributedMesh &mesh, double density,
-                   const std::vector<double> &density_factor, Mat A) {
-  LogScope log("FxAssembleMatrix");
+void add_mass(const mesh::DistributedMesh &mesh, double density,
+              const std::vector<double> &density_factor, const std::vector<PetscInt> &node_dof,
+              Mat A) {
   // The consistent mass is m_ab I_3 per node pair (element_mass): two thirds of every element
   // matrix are exact zeros. Only the nonzeros are added, one component at a time, which makes
   // the assembly about 3x cheaper and leaves those zeros out of A's stored pattern (assembly
   // drops preallocated entries that were never set), so every product with M is cheaper too.
   // The values are the same to the last bit (the skipped terms were exact zeros).
-  FX_PETSC(MatZeroEntries(A));
   PetscInt rows[kMaxNodes];
   double m[kMaxNodes * kMaxNodes];
   for (PetscInt e = 0; e < mesh.local_elements(); ++e) {
@@ -241,7 +243,7 @@ void assemble_mass(const mesh::DistributedMesh &mesh, double density,
     } catch (const std::exception &err) {
       abort_local(element_context(mesh, e, err)); // only this rank holds the element
     }
-    const SortedElementDofs d(mesh, e);
+    const SortedElementDofs d(mesh, e, node_dof.empty() ? nullptr : node_dof.data());
     const int npe = d.n / 3;
     for (int r = 0; r < npe; ++r)
       for (int c = 0; c < npe; ++c)
@@ -251,8 +253,24 @@ void assemble_mass(const mesh::DistributedMesh &mesh, double density,
       FX_PETSC(MatSetValues(A, npe, rows, npe, rows, m, ADD_VALUES));
     }
   }
+}
+
+void assemble_mass(const mesh::DistributedMesh &mesh, double density,
+                   const std::vector<double> &density_factor, Mat A) {
+  LogScope log("FxAssembleMatrix");
+  FX_PETSC(MatZeroEntries(A));
+  add_mass(mesh, density, density_factor, {}, A);
   FX_PETSC(MatAssemblyBegin(A, MAT_FINAL_ASSEMBLY));
   FX_PETSC(MatAssemblyEnd(A, MAT_FINAL_ASSEMBLY));
+}
+
+void add_element_pattern(const mesh::DistributedMesh &mesh, const std::vector<PetscInt> &node_dof,
+                         Mat A) {
+  const double zeros[kMaxDofs * kMaxDofs] = {};
+  for (PetscInt e = 0; e < mesh.local_elements(); ++e) {
+    const SortedElementDofs d(mesh, e, node_dof.empty() ? nullptr : node_dof.data());
+    FX_PETSC(MatSetValues(A, d.n, d.global, d.n, d.global, zeros, ADD_VALUES));
+  }
 }
 
 void assemble_geometric_stiffness(const mesh::DistributedMesh &mesh,
@@ -357,18 +375,10 @@ std::vector<CorotatedElement> corotated_elements(const mesh::DistributedMesh &me
   return out;
 }
 
-CorotatedSum assemble_corotated(const mesh::DistributedMesh &mesh,
-                                const std::vector<CorotatedElement> &elements, Vec u_ghosted, Vec F,
-                                Mat T) {
-  LogScope log("FxAssembleCorot");
-  FX_PETSC(VecZeroEntries(F));
-  if (T) FX_PETSC(MatZeroEntries(T));
-  Vec local;
-  FX_PETSC(VecGhostGetLocalForm(u_ghosted, &local));
-  const PetscScalar *u;
-  FX_PETSC(VecGetArrayRead(local, &u));
+double add_corotated(const mesh::DistributedMesh &mesh,
+                     const std::vector<CorotatedElement> &elements, const PetscScalar *u,
+                     const std::vector<PetscInt> &node_dof, Vec F, Mat T, std::string &failure) {
   double energy = 0;
-  std::string failure;
   double fsorted[kMaxDofs], tsorted[kMaxDofs * kMaxDofs];
   ElementVector fe;
   ElementMatrix Te;
@@ -383,7 +393,7 @@ CorotatedSum assemble_corotated(const mesh::DistributedMesh &mesh,
       if (failure.empty()) failure = element_context(mesh, e, err);
       continue;
     }
-    const SortedElementDofs d(mesh, e);
+    const SortedElementDofs d(mesh, e, node_dof.empty() ? nullptr : node_dof.data());
     for (int r = 0; r < d.n; ++r) fsorted[r] = fe(d.source[r]);
     FX_PETSC(VecSetValues(F, d.n, d.global, fsorted, ADD_VALUES));
     if (!T) continue;
@@ -391,6 +401,39 @@ CorotatedSum assemble_corotated(const mesh::DistributedMesh &mesh,
       for (int c = 0; c < d.n; ++c) tsorted[r * d.n + c] = Te(d.source[r], d.source[c]);
     FX_PETSC(MatSetValues(T, d.n, d.global, d.n, d.global, tsorted, ADD_VALUES));
   }
+  return energy;
+}
+
+CorotatedSum reduce_corotated(MPI_Comm comm, double energy, std::string failure) {
+  CorotatedSum sum;
+  MPI_Allreduce(&energy, &sum.energy, 1, MPI_DOUBLE, MPI_SUM, comm);
+  // The lowest rank with a failure sends its message to all.
+  const int rank = comm_rank(comm), size = comm_size(comm);
+  int mine = failure.empty() ? size : rank, first = size;
+  MPI_Allreduce(&mine, &first, 1, MPI_INT, MPI_MIN, comm);
+  if (first < size) {
+    sum.ok = false;
+    int length = static_cast<int>(failure.size());
+    MPI_Bcast(&length, 1, MPI_INT, first, comm);
+    failure.resize(static_cast<std::size_t>(length));
+    MPI_Bcast(failure.data(), length, MPI_CHAR, first, comm);
+    sum.failure = failure;
+  }
+  return sum;
+}
+
+CorotatedSum assemble_corotated(const mesh::DistributedMesh &mesh,
+                                const std::vector<CorotatedElement> &elements, Vec u_ghosted, Vec F,
+                                Mat T) {
+  LogScope log("FxAssembleCorot");
+  FX_PETSC(VecZeroEntries(F));
+  if (T) FX_PETSC(MatZeroEntries(T));
+  Vec local;
+  FX_PETSC(VecGhostGetLocalForm(u_ghosted, &local));
+  const PetscScalar *u;
+  FX_PETSC(VecGetArrayRead(local, &u));
+  std::string failure;
+  const double energy = add_corotated(mesh, elements, u, {}, F, T, failure);
   FX_PETSC(VecRestoreArrayRead(local, &u));
   FX_PETSC(VecGhostRestoreLocalForm(u_ghosted, &local));
   FX_PETSC(VecAssemblyBegin(F));
@@ -399,21 +442,7 @@ CorotatedSum assemble_corotated(const mesh::DistributedMesh &mesh,
     FX_PETSC(MatAssemblyBegin(T, MAT_FINAL_ASSEMBLY));
     FX_PETSC(MatAssemblyEnd(T, MAT_FINAL_ASSEMBLY));
   }
-  CorotatedSum sum;
-  MPI_Allreduce(&energy, &sum.energy, 1, MPI_DOUBLE, MPI_SUM, mesh.comm);
-  // The lowest rank with a failure sends its message to all.
-  const int rank = comm_rank(mesh.comm), size = comm_size(mesh.comm);
-  int mine = failure.empty() ? size : rank, first = size;
-  MPI_Allreduce(&mine, &first, 1, MPI_INT, MPI_MIN, mesh.comm);
-  if (first < size) {
-    sum.ok = false;
-    int length = static_cast<int>(failure.size());
-    MPI_Bcast(&length, 1, MPI_INT, first, mesh.comm);
-    failure.resize(static_cast<std::size_t>(length));
-    MPI_Bcast(failure.data(), length, MPI_CHAR, first, mesh.comm);
-    sum.failure = failure;
-  }
-  return sum;
+  return reduce_corotated(mesh.comm, energy, failure);
 }
 
 ElementVector gather_element(const mesh::DistributedMesh &mesh, PetscInt e,

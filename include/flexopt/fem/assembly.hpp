@@ -36,6 +36,18 @@ void assemble_stiffness(const mesh::DistributedMesh &mesh, const IsotropicMateri
 void assemble_mass(const mesh::DistributedMesh &mesh, double density,
                    const std::vector<double> &density_factor, Mat A);
 
+/// Adds the consistent mass (as assemble_mass, without zeroing A or assembling it) at the DOFs
+/// node_dof[local node] + component of another layout (empty: the mesh's own numbering).
+/// Not collective (MatSetValues).
+void add_mass(const mesh::DistributedMesh &mesh, double density,
+              const std::vector<double> &density_factor, const std::vector<PetscInt> &node_dof,
+              Mat A);
+
+/// Adds explicit zeros on every element's full 3n x 3n block at the DOFs of node_dof (empty:
+/// the mesh's own numbering): the pattern of the tangent, for preallocation (MATPREALLOCATOR).
+void add_element_pattern(const mesh::DistributedMesh &mesh, const std::vector<PetscInt> &node_dof,
+                         Mat A);
+
 /// Geometric (initial-stress) stiffness K_sigma = sum_e element_geometric_stiffness(u_e) of the
 /// stress of the displacement u into A (zeroed first; A from create_matrix). `u_ghosted` is a
 /// vector from create_ghosted_vector whose ghost values are up to date. Collective.
@@ -85,6 +97,18 @@ struct CorotatedSum {
   bool ok = true;      ///< false if an element is inverted (det F <= 0) on some rank
   std::string failure; ///< then: the first such element (lowest rank), with its mesh tag
 };
+
+/// The element loop of assemble_corotated without its zeroing, final assembly and reductions:
+/// adds the force (and the tangent if T is not null) of the local elements at the displacement
+/// u (3 per local node: owned, then ghosts) at the DOFs node_dof[local node] + component
+/// (empty: the mesh's own numbering). Returns this rank's energy; the first inverted element's
+/// message goes to `failure` (if empty). Not collective.
+double add_corotated(const mesh::DistributedMesh &mesh,
+                     const std::vector<CorotatedElement> &elements, const PetscScalar *u,
+                     const std::vector<PetscInt> &node_dof, Vec F, Mat T, std::string &failure);
+
+/// Sums the energies over the ranks and spreads the first failure (lowest rank). Collective.
+CorotatedSum reduce_corotated(MPI_Comm comm, double energy, std::string failure);
 
 /// Internal force F = dE/dx (global vector of the mesh layout, zeroed first) and, if T is not
 /// null, the tangent T = d^2E/dx^2 (zeroed first, from create_matrix) of the body's co-rotated
