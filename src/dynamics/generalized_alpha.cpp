@@ -239,12 +239,30 @@ struct IterationAssembly : joints::Sink {
   double block_scale = 1;
   const Vector &lambda;
   Vector &jt_lambda;
+  /// PETSc target (distributed backend), or null: coordinate k at coord0 + k, row k at row0 + k.
+  Mat petsc = nullptr;
+  PetscInt coord0 = 0, row0 = 0;
   IterationAssembly(Matrix *A_, SparseIteration *sp_, int n_, const Vector &l, Vector &jtl)
       : A(A_), sp(sp_), values(sp_ ? sp_->S.valuePtr() : nullptr), n(n_), lambda(l),
         jt_lambda(jtl) {}
+  /// B (scaled by `scale`) at global rows i0.., columns j0.. of the PETSc target.
+  void add_petsc(PetscInt i0, PetscInt j0, const Matrix &B) const {
+    std::vector<PetscInt> rows(static_cast<std::size_t>(B.rows())),
+        cols(static_cast<std::size_t>(B.cols()));
+    for (std::size_t i = 0; i < rows.size(); ++i) rows[i] = i0 + static_cast<PetscInt>(i);
+    for (std::size_t j = 0; j < cols.size(); ++j) cols[j] = j0 + static_cast<PetscInt>(j);
+    const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> R = B;
+    FX_PETSC(MatSetValues(petsc, static_cast<PetscInt>(rows.size()), rows.data(),
+                          static_cast<PetscInt>(cols.size()), cols.data(), R.data(), ADD_VALUES));
+  }
   void add_row(int row, const joints::BodyRef &body, const joints::Row &g) override {
     const int size = static_cast<int>(g.size());
     jt_lambda.segment(body.offset, size) += g.transpose() * lambda(row);
+    if (petsc) {
+      add_petsc(row0 + row, coord0 + body.offset, g);
+      add_petsc(coord0 + body.offset, row0 + row, g.transpose());
+      return;
+    }
     if (!A && !sp) return; // Phi_q^T lambda alone
     if (A) {
       A->block(n + row, body.offset, 1, size) += g;
@@ -268,6 +286,10 @@ struct IterationAssembly : joints::Sink {
   }
   void add_block(const joints::BodyRef &bi, const joints::BodyRef &bj, int i0, int j0,
                  const Eigen::Ref<const Matrix> &B) override {
+    if (petsc) {
+      add_petsc(coord0 + bi.offset + i0, coord0 + bj.offset + j0, block_scale * B);
+      return;
+    }
     if (A) {
       A->block(bi.offset + i0, bj.offset + j0, B.rows(), B.cols()) += block_scale * B;
       return;
@@ -280,6 +302,10 @@ struct IterationAssembly : joints::Sink {
   void add_product(const joints::BodyRef &bi, const joints::BodyRef &bj, double scale,
                    const joints::Jacobian &X, const joints::Jacobian &Y) override {
     const double s = block_scale * scale;
+    if (petsc) {
+      add_petsc(coord0 + bi.offset, coord0 + bj.offset, s * X.transpose() * Y);
+      return;
+    }
     if (A) {
       // Inner dimension 3: a coefficient-wise product (the blocked GEMM only adds packing).
       A->block(bi.offset, bj.offset, X.cols(), Y.cols()).noalias() +=
@@ -297,32 +323,56 @@ struct IterationAssembly : joints::Sink {
 
 GeneralizedAlpha::~GeneralizedAlpha() = default;
 
+namespace {
+
+/// The scaled iteration matrix of section 6.4 at `next` into the target of `assembly` (body
+/// blocks M + (gamma'/beta') C + K / beta', constraint rows and their transposes, the
+/// constraint Hessian / beta'), and rhs = -[(R_d + Phi_q^T lambda) / beta'; Phi], phi = Phi.
+/// K, C, M: the body blocks (work space).
+void assemble_system(const Mechanism &mech, const State &next, double bp, double gp,
+                     IterationAssembly &assembly, Vector &r, Vector &phi, Vector &rhs,
+                     std::vector<Matrix> &K, std::vector<Matrix> &C, std::vector<Matrix> &M) {
+  const int n = mech.coordinates(), m = mech.constraints();
+  const int nb = static_cast<int>(mech.bodies.size());
+  assembly.jt_lambda.setZero(n);
+  mech.dynamics_blocks(next.q, next.v, next.acc, next.t, r, K, C, M);
+  for (int b = 0; b < nb; ++b) {
+    const auto k = static_cast<std::size_t>(b);
+    M[k] += (gp / bp) * C[k] + (1.0 / bp) * K[k];
+    const joints::BodyRef ref{b, mech.offset(b)};
+    assembly.add_block(ref, ref, 0, 0, M[k]);
+  }
+  assembly.block_scale = 1.0 / bp;
+  mech.constraint(next.q, next.t, phi, assembly);
+  mech.add_constraint_hessian(next.q, next.t, next.lambda, assembly);
+  rhs.resize(n + m);
+  rhs.head(n) = -(r + assembly.jt_lambda) / bp;
+  rhs.tail(m) = -phi;
+}
+
+} // namespace
+
+void add_newton_system(const Mechanism &mech, const State &next, double bp, double gp, Mat A,
+                       PetscInt coord0, PetscInt row0, Vector &rhs) {
+  Vector r, phi, jtl;
+  std::vector<Matrix> K, C, M;
+  IterationAssembly assembly(nullptr, nullptr, mech.coordinates(), next.lambda, jtl);
+  assembly.petsc = A;
+  assembly.coord0 = coord0;
+  assembly.row0 = row0;
+  assemble_system(mech, next, bp, gp, assembly, r, phi, rhs, K, C, M);
+}
+
 bool GeneralizedAlpha::factorize(const State &next, double bp, double gp) const {
-  const int n = mech_.coordinates(), m = mech_.constraints();
-  const int nb = static_cast<int>(mech_.bodies.size());
   NewtonWork &w = *work_;
   w.factored = false;
-  w.jtl.setZero(n);
-  mech_.dynamics_blocks(next.q, next.v, next.acc, next.t, w.r, w.K, w.C, w.M);
   if (sparse_)
     std::fill(sparse_->S.valuePtr(), sparse_->S.valuePtr() + sparse_->S.nonZeros(), 0.0);
   else
     w.A.setZero();
-  IterationAssembly assembly(sparse_ ? nullptr : &w.A, sparse_.get(), n, next.lambda, w.jtl);
-  // M + (gamma'/beta') C + K / beta' on the diagonal blocks, then the constraint rows and the
-  // constraint Hessian (part of K, so divided by beta').
-  for (int b = 0; b < nb; ++b) {
-    const auto k = static_cast<std::size_t>(b);
-    w.M[k] += (gp / bp) * w.C[k] + (1.0 / bp) * w.K[k];
-    const joints::BodyRef ref{b, mech_.offset(b)};
-    assembly.add_block(ref, ref, 0, 0, w.M[k]);
-  }
-  assembly.block_scale = 1.0 / bp;
-  mech_.constraint(next.q, next.t, w.phi, assembly);
-  mech_.add_constraint_hessian(next.q, next.t, next.lambda, assembly);
-  w.rhs.resize(n + m);
-  w.rhs.head(n) = -(w.r + w.jtl) / bp;
-  w.rhs.tail(m) = -w.phi;
+  IterationAssembly assembly(sparse_ ? nullptr : &w.A, sparse_.get(), mech_.coordinates(),
+                             next.lambda, w.jtl);
+  assemble_system(mech_, next, bp, gp, assembly, w.r, w.phi, w.rhs, w.K, w.C, w.M);
   if (sparse_) {
     sparse_->lu.factorize(sparse_->S);
     if (sparse_->lu.info() != Eigen::Success) return false;

@@ -1,12 +1,15 @@
 #pragma once
 // Checks shared by the rigid and the FFRF dynamics tests: the mechanism's and the step
 // residual's Jacobians next to their central differences, and the dense and sparse Newton paths.
+#include "flexopt/bodies/rigid_body.hpp"
 #include "flexopt/dynamics/generalized_alpha.hpp"
 
 #include <array>
 #include <cstdio>
 #include <gtest/gtest.h>
+#include <memory>
 #include <stdexcept>
+#include <string>
 
 namespace test_support {
 
@@ -160,6 +163,45 @@ inline void expect_kept_matrix_reaches_newton(const flexopt::dynamics::Mechanism
       << scene;
   EXPECT_EQ(r.a_factorizations, r.a_iterations) << scene;
   EXPECT_LT(2 * r.b_factorizations, steps) << scene;
+}
+
+/// A chain of `links` rigid links of 1 m (2 kg) hinged end to end about z, the first to the
+/// ground at the origin, lying along x (q0), under gravity -9.81 y.
+inline flexopt::dynamics::Mechanism chain(int links, flexopt::dynamics::Vector &q0) {
+  using namespace flexopt;
+  using bodies::Vec3;
+  dynamics::Mechanism m;
+  bodies::MassProperties p;
+  p.mass = 2.0;
+  p.center = Vec3(0.5, 0, 0);
+  p.inertia = Vec3(0.001, 0.17, 0.17).asDiagonal();
+  q0.resize(7 * links);
+  for (int b = 0; b < links; ++b) {
+    m.bodies.push_back(std::make_shared<bodies::RigidBody>("l" + std::to_string(b), p));
+    q0.segment<3>(7 * b) = Vec3(b + 0.5, 0, 0);
+    q0.segment<4>(7 * b + 3) = bodies::Vec4(1, 0, 0, 0);
+    joints::Equation n;
+    n.kind = joints::Equation::Kind::Normalize;
+    n.a = b;
+    m.equations.push_back(n);
+  }
+  for (int b = 0; b < links; ++b) {
+    joints::Equation e;
+    e.a = b - 1, e.b = b;
+    e.sa = b == 0 ? Vec3(0, 0, 0) : Vec3(0.5, 0, 0);
+    e.sb = Vec3(-0.5, 0, 0);
+    e.kind = joints::Equation::Kind::Coincide;
+    m.equations.push_back(e);
+    e.kind = joints::Equation::Kind::Perpendicular;
+    e.vb = Vec3::UnitZ();
+    for (const Vec3 &u : {Vec3::UnitX(), Vec3::UnitY()}) {
+      e.ua = u;
+      m.equations.push_back(e);
+    }
+  }
+  m.gravity = Vec3(0, -9.81, 0);
+  m.finalize();
+  return m;
 }
 
 } // namespace test_support

@@ -336,40 +336,6 @@ namespace {
 
 /// A chain of `links` rigid links hinged about z (revolute = point coincidence + two
 /// perpendicularities), the first to the ground, released horizontally under gravity.
-dynamics::Mechanism chain(int links, Vector &q0) {
-  dynamics::Mechanism m;
-  bodies::MassProperties p;
-  p.mass = 2.0;
-  p.center = Vec3(0.5, 0, 0);
-  p.inertia = Vec3(0.001, 0.17, 0.17).asDiagonal();
-  q0.resize(7 * links);
-  for (int b = 0; b < links; ++b) {
-    m.bodies.push_back(std::make_shared<bodies::RigidBody>("l" + std::to_string(b), p));
-    q0.segment<3>(7 * b) = Vec3(b + 0.5, 0, 0);
-    q0.segment<4>(7 * b + 3) = Vec4(1, 0, 0, 0);
-    joints::Equation n;
-    n.kind = joints::Equation::Kind::Normalize;
-    n.a = b;
-    m.equations.push_back(n);
-  }
-  for (int b = 0; b < links; ++b) {
-    joints::Equation e;
-    e.a = b - 1, e.b = b;
-    e.sa = b == 0 ? Vec3(0, 0, 0) : Vec3(0.5, 0, 0);
-    e.sb = Vec3(-0.5, 0, 0);
-    e.kind = joints::Equation::Kind::Coincide;
-    m.equations.push_back(e);
-    e.kind = joints::Equation::Kind::Perpendicular;
-    e.vb = Vec3::UnitZ();
-    for (const Vec3 &u : {Vec3::UnitX(), Vec3::UnitY()}) {
-      e.ua = u;
-      m.equations.push_back(e);
-    }
-  }
-  m.gravity = Vec3(0, -9.81, 0);
-  m.finalize();
-  return m;
-}
 
 } // namespace
 
@@ -379,7 +345,7 @@ dynamics::Mechanism chain(int links, Vector &q0) {
 // iteration counts.
 TEST(GeneralizedAlpha, SparseAndDensePathsAgree) {
   Vector q0;
-  const auto m = chain(8, q0);
+  const auto m = test_support::chain(8, q0);
   // A large step (20 ms), where the stiffness and constraint-Hessian terms of the iteration
   // matrix matter for Newton's convergence rate.
   const auto r = test_support::run_dense_sparse_paths(m, q0, 0.02, 50, 10);
@@ -403,7 +369,7 @@ TEST(GeneralizedAlpha, SparseAndDensePathsAgree) {
 // to Newton's solution, and is not merely close to it.
 TEST(GeneralizedAlpha, KeptMatrixReachesNewtonsSolution) {
   Vector q0;
-  const auto m = chain(8, q0);
+  const auto m = test_support::chain(8, q0);
   test_support::expect_kept_matrix_reaches_newton(m, q0, 1e-3, 300, "chain of 8 links");
 }
 

@@ -7,6 +7,7 @@
 #include "flexopt/dynamics/mechanism.hpp"
 
 #include <memory>
+#include <petscmat.h>
 #include <string>
 #include <vector>
 
@@ -116,5 +117,13 @@ private:
   /// const: the integrator's state is its argument; this is a cache of the last matrix).
   std::unique_ptr<detail::NewtonWork> work_;
 };
+
+/// The scaled Newton matrix of docs/theory.md section 6.4 of `mech` at the iterate `next`,
+/// added into the PETSc matrix A (coordinate k at row and column coord0 + k, enforced constraint
+/// row k at row0 + k; ADD_VALUES, no assembly), and rhs = -[(R_d + Phi_q^T lambda) / beta';
+/// Phi]: the small part of the distributed backend (section 8.2). Not collective: one rank
+/// adds.
+void add_newton_system(const Mechanism &mech, const State &next, double bp, double gp, Mat A,
+                       PetscInt coord0, PetscInt row0, Vector &rhs);
 
 } // namespace flexopt::dynamics
