@@ -1,4 +1,5 @@
-// The small part of the distributed backend (dynamics::add_newton_system, docs/theory.md
+// The small part of the distributed backend and the ties (dynamics::add_newton_system,
+// dynamics::add_ties; docs/theory.md
 // sections 6.4 and 8.2): the scaled Newton matrix of a rigid chain of 4 links added by rank 0
 // into a PETSc matrix over all ranks, at offsets, is the derivative of -rhs along a Newton update
 // x = [dq; dlambda^] (q += dq, v += gamma' dq, acc += beta' dq, lambda += beta' dlambda^):
@@ -7,12 +8,35 @@
 #include "../unit/dynamics_checks.hpp"
 #include "flexopt/core/context.hpp"
 #include "flexopt/dynamics/generalized_alpha.hpp"
+#include "flexopt/dynamics/ties.hpp"
 
 #include <gtest/gtest.h>
 #include <petscmat.h>
 
 using namespace flexopt;
 using dynamics::Vector;
+
+namespace {
+
+/// All entries of a distributed vector, on every rank. Collective.
+Vector gather_all(Vec v) {
+  Vec all;
+  VecScatter sc;
+  VecScatterCreateToAll(v, &sc, &all);
+  VecScatterBegin(sc, v, all, INSERT_VALUES, SCATTER_FORWARD);
+  VecScatterEnd(sc, v, all, INSERT_VALUES, SCATTER_FORWARD);
+  PetscInt size;
+  VecGetSize(all, &size);
+  const PetscScalar *a;
+  VecGetArrayRead(all, &a);
+  Vector out = Eigen::Map<const Vector>(a, size);
+  VecRestoreArrayRead(all, &a);
+  VecScatterDestroy(&sc);
+  VecDestroy(&all);
+  return out;
+}
+
+} // namespace
 
 TEST(SmallSystem, PetscNewtonMatrixIsTheDerivativeOfTheResidual) {
   Vector q0;
@@ -50,19 +74,12 @@ TEST(SmallSystem, PetscNewtonMatrixIsTheDerivativeOfTheResidual) {
   VecAssemblyBegin(X);
   VecAssemblyEnd(X);
   MatMult(A, X, AX);
-  Vec all;
-  VecScatter toall;
-  VecScatterCreateToAll(AX, &toall, &all);
-  VecScatterBegin(toall, AX, all, INSERT_VALUES, SCATTER_FORWARD);
-  VecScatterEnd(toall, AX, all, INSERT_VALUES, SCATTER_FORWARD);
-  const PetscScalar *ax;
-  VecGetArrayRead(all, &ax);
+  const Vector ax = gather_all(AX);
   Vector Ax(n + m);
-  for (int k = 0; k < n + m; ++k) Ax(k) = ax[k < n ? c0 + k : r0 + (k - n)];
+  for (int k = 0; k < n + m; ++k) Ax(k) = ax(k < n ? c0 + k : r0 + (k - n));
   double outside = 0; // nothing outside the two ranges
   for (PetscInt k = 0; k < N; ++k)
-    if (!((k >= c0 && k < c0 + n) || (k >= r0 && k < r0 + m))) outside += std::abs(ax[k]);
-  VecRestoreArrayRead(all, &ax);
+    if (!((k >= c0 && k < c0 + n) || (k >= r0 && k < r0 + m))) outside += std::abs(ax(k));
 
   if (root) {
     const double eps = 1e-6;
@@ -86,9 +103,89 @@ TEST(SmallSystem, PetscNewtonMatrixIsTheDerivativeOfTheResidual) {
     EXPECT_GT(scale, 1.0);
   }
   EXPECT_EQ(outside, 0.0);
-  VecScatterDestroy(&toall);
-  VecDestroy(&all);
   VecDestroy(&X);
   VecDestroy(&AX);
+  MatDestroy(&A);
+}
+
+// The RBE2 ties of surface nodes to an interface node (dynamics::add_ties, docs/theory.md
+// section 8.2), added by rank 0 into a matrix over all ranks: again A d = the central difference
+// of -rhs along d = [dx; dr; dp; dlambda^] (lambda += beta' dlambda^), and -rhs on the tie rows
+// is Phi_j = x_j - r - A(p) s_j.
+TEST(SmallSystem, TieRowsAreTheDerivativeOfTheResidual) {
+  const int nt = 5;
+  const double bp = 2.5e5;
+  dynamics::TieSet ties;
+  for (int j = 0; j < nt; ++j) {
+    ties.x_dof.push_back(3 * j);
+    ties.s.push_back(bodies::Vec3::Random());
+  }
+  ties.coord0 = 3 * nt;
+  ties.row0 = 3 * nt + 7;
+  const PetscInt N = 6 * nt + 7;
+  Vector z = Vector::Random(N); // [x; r; p; lambda]
+  z.segment<4>(3 * nt + 3).normalize();
+  const bool root = comm_rank(PETSC_COMM_WORLD) == 0;
+  Mat A;
+  MatCreateAIJ(PETSC_COMM_WORLD, PETSC_DECIDE, PETSC_DECIDE, N, N, N, nullptr, N, nullptr, &A);
+  Vec rhs, D, AD;
+  MatCreateVecs(A, &D, &rhs);
+  VecDuplicate(rhs, &AD);
+  VecSet(rhs, 0.0);
+  const double *lam = z.data() + 3 * nt + 7;
+  double violation = 0;
+  if (root)
+    violation = dynamics::add_ties(ties, z.data(), z.segment<3>(3 * nt),
+                                   bodies::Vec4(z.segment<4>(3 * nt + 3)), lam, bp, A, rhs);
+  MatAssemblyBegin(A, MAT_FINAL_ASSEMBLY);
+  MatAssemblyEnd(A, MAT_FINAL_ASSEMBLY);
+  VecAssemblyBegin(rhs);
+  VecAssemblyEnd(rhs);
+  const Vector d = Vector::Random(N);
+  VecSet(D, 0.0);
+  if (root)
+    for (PetscInt k = 0; k < N; ++k) VecSetValue(D, k, d(k), INSERT_VALUES);
+  VecAssemblyBegin(D);
+  VecAssemblyEnd(D);
+  MatMult(A, D, AD);
+  const Vector Ad = gather_all(AD), r0 = gather_all(rhs);
+  if (root) {
+    // The tie rows of -rhs are Phi_j.
+    for (int j = 0; j < nt; ++j) {
+      const bodies::Vec3 phi = z.segment<3>(3 * j) - z.segment<3>(3 * nt) -
+                               bodies::rotation(bodies::Vec4(z.segment<4>(3 * nt + 3))) *
+                                   ties.s[static_cast<std::size_t>(j)];
+      EXPECT_LT((-r0.segment<3>(ties.row0 + 3 * j) - phi).cwiseAbs().maxCoeff(), 1e-15);
+    }
+    EXPECT_GT(violation, 0.1);
+    const double eps = 1e-6;
+    auto rhs_at = [&](double sign) {
+      Vector zz = z;
+      zz.head(3 * nt + 7) += sign * eps * d.head(3 * nt + 7);
+      zz.tail(3 * nt) += sign * eps * bp * d.tail(3 * nt);
+      Mat dummy;
+      Vec rv;
+      MatCreateSeqAIJ(PETSC_COMM_SELF, N, N, N, nullptr, &dummy);
+      VecCreateSeq(PETSC_COMM_SELF, N, &rv);
+      VecSet(rv, 0.0);
+      dynamics::add_ties(ties, zz.data(), zz.segment<3>(3 * nt),
+                         bodies::Vec4(zz.segment<4>(3 * nt + 3)), zz.data() + 3 * nt + 7, bp, dummy,
+                         rv);
+      VecAssemblyBegin(rv);
+      VecAssemblyEnd(rv);
+      const PetscScalar *a;
+      VecGetArrayRead(rv, &a);
+      Vector out = Eigen::Map<const Vector>(a, N);
+      VecRestoreArrayRead(rv, &a);
+      VecDestroy(&rv);
+      MatDestroy(&dummy);
+      return out;
+    };
+    const Vector fd = -(rhs_at(1) - rhs_at(-1)) / (2 * eps);
+    EXPECT_LT((Ad - fd).cwiseAbs().maxCoeff(), 1e-6 * Ad.cwiseAbs().maxCoeff());
+  }
+  VecDestroy(&D);
+  VecDestroy(&AD);
+  VecDestroy(&rhs);
   MatDestroy(&A);
 }
