@@ -33,8 +33,9 @@ int main(int argc, char **argv) {
     mesh::MeshData data;
     const std::string geo = std::string(FLEXOPT_SOURCE_DIR) + "/meshes/beam.geo";
     const bool root = comm_rank(PETSC_COMM_WORLD) == 0;
-    run_on_root(PETSC_COMM_WORLD, 0,
-                [&] { data = mesh::read_gmsh(geo, mesh::MeshOptions{size, 2}); });
+    run_on_root(PETSC_COMM_WORLD, 0, [&] {
+      data = mesh::read_gmsh(geo, mesh::MeshOptions{size, 2});
+    });
     const mesh::DistributedMesh m = mesh::distribute_mesh(PETSC_COMM_WORLD, root ? &data : nullptr);
     data = mesh::MeshData{};
     const bodies::AcfBody body("beam", m, fem::IsotropicMaterial{2.1e11, 0.3, 7850});
@@ -49,7 +50,8 @@ int main(int argc, char **argv) {
     const double t0 = MPI_Wtime();
     for (int n = 0; n < steps; ++n) {
       dynamics::StepInfo info;
-      if (!da.advance(s, 1e-3, next, info)) throw Error("step " + std::to_string(n + 1) + " failed");
+      if (!da.advance(s, 1e-3, next, info))
+        throw Error("step " + std::to_string(n + 1) + " failed");
       iterations += info.iterations;
       factorizations += info.factorizations;
       s = next;
