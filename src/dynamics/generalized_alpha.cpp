@@ -385,16 +385,32 @@ bool GeneralizedAlpha::factorize(const State &next, double bp, double gp) const 
   return true;
 }
 
+namespace {
+
+/// rhs = -[(R_d + Phi_q^T lambda) / beta'; Phi] and phi = Phi at `next`, without derivatives
+/// (an iteration on a kept matrix). r, jtl: work vectors.
+void system_rhs(const Mechanism &mech, const State &next, double bp, Vector &r, Vector &jtl,
+                Vector &phi, Vector &rhs) {
+  const int n = mech.coordinates(), m = mech.constraints();
+  mech.dynamics_residual(next.q, next.v, next.acc, next.t, r);
+  jtl.setZero(n);
+  IterationAssembly transpose_product(nullptr, nullptr, n, next.lambda, jtl);
+  mech.constraint(next.q, next.t, phi, transpose_product);
+  rhs.resize(n + m);
+  rhs.head(n) = -(r + jtl) / bp;
+  rhs.tail(m) = -phi;
+}
+
+} // namespace
+
+void newton_system_rhs(const Mechanism &mech, const State &next, double bp, Vector &rhs) {
+  Vector r, jtl, phi;
+  system_rhs(mech, next, bp, r, jtl, phi, rhs);
+}
+
 void GeneralizedAlpha::newton_rhs(const State &next, double bp) const {
-  const int n = mech_.coordinates(), m = mech_.constraints();
   NewtonWork &w = *work_;
-  mech_.dynamics_residual(next.q, next.v, next.acc, next.t, w.r);
-  w.jtl.setZero(n);
-  IterationAssembly transpose_product(nullptr, nullptr, n, next.lambda, w.jtl);
-  mech_.constraint(next.q, next.t, w.phi, transpose_product);
-  w.rhs.resize(n + m);
-  w.rhs.head(n) = -(w.r + w.jtl) / bp;
-  w.rhs.tail(m) = -w.phi;
+  system_rhs(mech_, next, bp, w.r, w.jtl, w.phi, w.rhs);
 }
 
 bool GeneralizedAlpha::solve() const {

@@ -28,14 +28,16 @@ double add_ties(const TieSet &ties, const double *x, const bodies::Vec3 &r, cons
     // Rows and their transposes.
     const Eigen::Matrix<double, 3, 4, Eigen::RowMajor> Dp = -bodies::rotate_jacobian(p, s);
     const Eigen::Matrix<double, 4, 3, Eigen::RowMajor> DpT = Dp.transpose();
-    FX_PETSC(MatSetValues(A, 3, rows, 3, xc, I3, ADD_VALUES));
-    FX_PETSC(MatSetValues(A, 3, xc, 3, rows, I3, ADD_VALUES));
-    FX_PETSC(MatSetValues(A, 3, rows, 3, rc, mI3, ADD_VALUES));
-    FX_PETSC(MatSetValues(A, 3, rc, 3, rows, mI3, ADD_VALUES));
-    FX_PETSC(MatSetValues(A, 3, rows, 4, pc, Dp.data(), ADD_VALUES));
-    FX_PETSC(MatSetValues(A, 4, pc, 3, rows, DpT.data(), ADD_VALUES));
-    // d/dp (Phi_p^T lambda) = -K(s, lambda).
-    hessian -= bodies::rotate_hessian(s, lj);
+    if (A) {
+      FX_PETSC(MatSetValues(A, 3, rows, 3, xc, I3, ADD_VALUES));
+      FX_PETSC(MatSetValues(A, 3, xc, 3, rows, I3, ADD_VALUES));
+      FX_PETSC(MatSetValues(A, 3, rows, 3, rc, mI3, ADD_VALUES));
+      FX_PETSC(MatSetValues(A, 3, rc, 3, rows, mI3, ADD_VALUES));
+      FX_PETSC(MatSetValues(A, 3, rows, 4, pc, Dp.data(), ADD_VALUES));
+      FX_PETSC(MatSetValues(A, 4, pc, 3, rows, DpT.data(), ADD_VALUES));
+      // d/dp (Phi_p^T lambda) = -K(s, lambda).
+      hessian -= bodies::rotate_hessian(s, lj);
+    }
     // Right-hand side.
     const Vec3 phi = xj - r - R * s;
     violation = std::max(violation, phi.cwiseAbs().maxCoeff());
@@ -46,8 +48,10 @@ double add_ties(const TieSet &ties, const double *x, const bodies::Vec3 &r, cons
     force_p -= Dp.transpose() * lj / bp;
   }
   if (!ties.s.empty()) {
-    const Eigen::Matrix<double, 4, 4, Eigen::RowMajor> H = hessian / bp;
-    FX_PETSC(MatSetValues(A, 4, pc, 4, pc, H.data(), ADD_VALUES));
+    if (A) {
+      const Eigen::Matrix<double, 4, 4, Eigen::RowMajor> H = hessian / bp;
+      FX_PETSC(MatSetValues(A, 4, pc, 4, pc, H.data(), ADD_VALUES));
+    }
     FX_PETSC(VecSetValues(rhs, 3, rc, force_r.data(), ADD_VALUES));
     FX_PETSC(VecSetValues(rhs, 4, pc, force_p.data(), ADD_VALUES));
   }

@@ -125,5 +125,8 @@ private:
 /// adds.
 void add_newton_system(const Mechanism &mech, const State &next, double bp, double gp, Mat A,
                        PetscInt coord0, PetscInt row0, Vector &rhs);
+/// The right-hand side of add_newton_system alone (no derivatives): for iterations on a kept
+/// matrix. Not collective.
+void newton_system_rhs(const Mechanism &mech, const State &next, double bp, Vector &rhs);
 
 } // namespace flexopt::dynamics

@@ -24,7 +24,8 @@ struct TieSet {
 /// Hessian contraction of lambda_j^T Phi_j, -K(s_j, lambda_j) / beta' in the (p, p) block; into
 /// rhs = -[(R_d + Phi_q^T lambda) / beta'; Phi] the parts -lambda_j / beta' (x_j rows),
 /// +lambda_j / beta' (r rows), +D(p, s_j)^T lambda_j / beta' (p rows) and -Phi_j (tie rows).
-/// x and lambda: 3 values per tie. Returns max |Phi_j|. Not collective.
+/// A null: the right-hand side alone (an iteration on a kept matrix). x and lambda: 3 values
+/// per tie. Returns max |Phi_j|. Not collective.
 double add_ties(const TieSet &ties, const double *x, const bodies::Vec3 &r, const bodies::Vec4 &p,
                 const double *lambda, double bp, Mat A, Vec rhs);
 
