@@ -58,4 +58,11 @@ double add_ties(const TieSet &ties, const double *x, const bodies::Vec3 &r, cons
   return violation;
 }
 
+void tie_accelerations(const TieSet &ties, const bodies::Vec4 &p_dot, double *gamma) {
+  for (std::size_t j = 0; j < ties.s.size(); ++j) {
+    const bodies::Vec3 g = bodies::rotate_jacobian(p_dot, ties.s[j]) * p_dot;
+    for (int k = 0; k < 3; ++k) gamma[3 * j + k] = g(k);
+  }
+}
+
 } // namespace flexopt::dynamics

@@ -203,3 +203,27 @@ TEST(SmallSystem, TieRowsAreTheDerivativeOfTheResidual) {
   VecDestroy(&rhs);
   MatDestroy(&A);
 }
+
+// The ties' velocity term: along q(t) = q0 + v t + a t^2 / 2 (x, r, p), the second central
+// difference of Phi_j(q(t)) at t = 0 equals Phi_j,q a - gamma_j (step 1e-4: truncation ~1e-8 of
+// the terms, round-off 1e-16 / 1e-8).
+TEST(SmallSystem, TieAccelerationTerm) {
+  dynamics::TieSet ties;
+  ties.x_dof = {0};
+  ties.s = {bodies::Vec3(0.3, -0.2, 0.5)};
+  const Vector q0 = Vector::Random(10), v = Vector::Random(10), a = Vector::Random(10);
+  auto phi = [&](double t) {
+    const Vector q = q0 + v * t + 0.5 * a * t * t;
+    return bodies::Vec3(q.head<3>() - q.segment<3>(3) -
+                        bodies::rotation(bodies::Vec4(q.segment<4>(6))) * ties.s[0]);
+  };
+  const double h = 1e-4;
+  const bodies::Vec3 second = (phi(h) - 2 * phi(0) + phi(-h)) / (h * h);
+  bodies::Vec3 gamma;
+  dynamics::tie_accelerations(ties, bodies::Vec4(v.segment<4>(6)), gamma.data());
+  const bodies::Vec3 phiq_a = a.head<3>() - a.segment<3>(3) -
+                              bodies::rotate_jacobian(bodies::Vec4(q0.segment<4>(6)), ties.s[0]) *
+                                  bodies::Vec4(a.segment<4>(6));
+  EXPECT_LT((second - (phiq_a - gamma)).cwiseAbs().maxCoeff(), 1e-6);
+  EXPECT_GT(gamma.norm(), 0.1); // the term matters
+}

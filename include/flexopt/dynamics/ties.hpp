@@ -29,4 +29,9 @@ struct TieSet {
 double add_ties(const TieSet &ties, const double *x, const bodies::Vec3 &r, const bodies::Vec4 &p,
                 const double *lambda, double bp, Mat A, Vec rhs);
 
+/// The velocity part of the ties' second time derivative: Phi_j'' = Phi_j,q q'' - gamma_j with
+/// gamma_j = D(p', s_j) p' (D is linear in p), into gamma (3 per tie): the right-hand side of the
+/// consistent initial accelerations, Phi_q q'' = gamma. Not collective.
+void tie_accelerations(const TieSet &ties, const bodies::Vec4 &p_dot, double *gamma);
+
 } // namespace flexopt::dynamics
