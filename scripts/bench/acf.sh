@@ -9,15 +9,10 @@
 #
 #   scripts/bench/acf.sh            # results in build/bench/acf/results.md
 set -euo pipefail
-root="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
-source "$root/scripts/env.sh"
+source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
 driver="${FLEXOPT_BENCH_ACF_BIN:-$root/build/bench_acf_free_body}"
-[ -x "$driver" ] || { echo "build first (scripts/build.sh)" >&2; exit 1; }
-work="$root/build/bench/acf"
-mkdir -p "$work"
-results="$work/results.md"
-echo "| mesh size [m] | DOFs | ranks | steps | Newton iterations / step | factorizations / step | ms / step | ms / iteration | max memory per rank [MiB] |" > "$results"
-echo "|---|---|---|---|---|---|---|---|---|" >> "$results"
+bench_init acf "$driver"
+bench_table "mesh size [m] | DOFs | ranks | steps | Newton iterations / step | factorizations / step | ms / step | ms / iteration | max memory per rank [MiB]"
 for size in ${FLEXOPT_BENCH_ACF_SIZES:-0.05 0.025 0.015 0.0113}; do
   # Fewer steps for the larger meshes (one factorization per step dominates).
   steps=$(awk -v h="$size" 'BEGIN { print (h >= 0.05 ? 20 : (h >= 0.015 ? 5 : 3)) }')

@@ -5,15 +5,10 @@
 #
 #   scripts/bench/dynamics.sh            # results in build/bench/dynamics/results.md
 set -euo pipefail
-root="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
-source "$root/scripts/env.sh"
+source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
 flexopt="${FLEXOPT_BIN:-$root/build/flexopt}"
-[ -x "$flexopt" ] || { echo "build flexopt first (scripts/build.sh)" >&2; exit 1; }
-work="$root/build/bench/dynamics"
-mkdir -p "$work"
-results="$work/results.md"
-echo "| scene | bodies | coordinates + multipliers | steps | Newton iterations / step | factorizations / step | steps/s | µs/step |" > "$results"
-echo "|---|---|---|---|---|---|---|---|" >> "$results"
+bench_init dynamics "$flexopt"
+bench_table "scene | bodies | coordinates + multipliers | steps | Newton iterations / step | factorizations / step | steps/s | µs/step"
 
 report() { # name dir
   /usr/bin/python3 - "$1" "$2" >> "$results" <<'PY'

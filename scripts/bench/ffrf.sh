@@ -15,12 +15,9 @@
 #   FLEXOPT_BIN=... FLEXOPT_BENCH_WORK=DIR FLEXOPT_BENCH_SIZES= scripts/bench/ffrf.sh
 #                                    # another binary and directory, the slider-crank only
 set -euo pipefail
-root="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
-source "$root/scripts/env.sh"
+source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
 flexopt="${FLEXOPT_BIN:-$root/build/flexopt}"
-[ -x "$flexopt" ] || { echo "build flexopt first (scripts/build.sh)" >&2; exit 1; }
-work="${FLEXOPT_BENCH_WORK:-$root/build/bench/ffrf}"
-mkdir -p "$work"
+bench_init ffrf "$flexopt"
 FLEXOPT_BENCH_SIZES="${FLEXOPT_BENCH_SIZES-0.1 0.05 0.025 0.0143}" \
 FLEXOPT_BENCH_ROD_SIZES="${FLEXOPT_BENCH_ROD_SIZES:-0.004 0.003 0.002}" /usr/bin/python3 - "$flexopt" "$root" "$work" <<'PY' | tee "$work/results.md"
 import json, os, sys

@@ -10,12 +10,9 @@
 #   scripts/bench/static.sh --quick    # the ~100k runs only
 # Extra PETSc options can be given in FLEXOPT_BENCH_OPTS. Results: build/bench/static/results.md
 set -euo pipefail
-root="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
-source "$root/scripts/env.sh"
+source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
 flexopt="$root/build/flexopt"
-[ -x "$flexopt" ] || { echo "build flexopt first (scripts/build.sh)" >&2; exit 1; }
-work="$root/build/bench/static"
-mkdir -p "$work"
+bench_init static "$flexopt"
 quick=0; [ "${1:-}" = "--quick" ] && quick=1
 
 write_case() { # dir geometry size order
@@ -51,9 +48,7 @@ Physical Surface("tip") = {out[3]};
 GEO
 }
 
-results="$work/results.md"
-echo "| mesh | ranks | DOFs | mesh s | assembly s | PC set-up s | KSP its | KSP s | solve s | peak memory GiB | compliance J |" > "$results"
-echo "|---|---|---|---|---|---|---|---|---|---|---|" >> "$results"
+bench_table "mesh | ranks | DOFs | mesh s | assembly s | PC set-up s | KSP its | KSP s | solve s | peak memory GiB | compliance J"
 
 run() { # label dir ranks [repeats]: the repeat with the fastest solve is reported
   local best="" r

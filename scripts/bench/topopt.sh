@@ -12,12 +12,9 @@
 # FLEXOPT_BENCH_OPTIONS="-ksp_rtol 1e-5" (appended PETSc options).
 # Results: build/bench/topopt/results.md
 set -euo pipefail
-root="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
-source "$root/scripts/env.sh"
+source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
 flexopt="$root/build/flexopt"
-[ -x "$flexopt" ] || { echo "build flexopt first (scripts/build.sh)" >&2; exit 1; }
-work="$root/build/bench/topopt"
-mkdir -p "$work"
+bench_init topopt "$flexopt"
 grids="${FLEXOPT_BENCH_GRIDS:-48x24x24 64x32x32 104x52x52}"; [ "${1:-}" = "--quick" ] && grids="48x24x24"
 iterations="${FLEXOPT_BENCH_ITERATIONS:-4}"
 results="$work/results.md"
