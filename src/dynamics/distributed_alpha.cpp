@@ -6,7 +6,6 @@
 #include "flexopt/dynamics/newton_loop.hpp"
 
 #include <algorithm>
-#include <limits>
 #include <utility>
 
 namespace flexopt::dynamics {
@@ -303,15 +302,14 @@ Eigen::Vector3d DistributedAlpha::centre_of_mass(Vec x) const {
 
 bool DistributedAlpha::step_once(const DistState &s, double h, DistState &next,
                                  StepInfo &info) const {
-  const double am = par_.alpha_m, af = par_.alpha_f, g = par_.gamma, b = par_.beta;
-  const double bp = (1 - am) / (b * h * h * (1 - af)), gp = g / (b * h);
   if (!next.q) next = s; // vectors of the right layout
   struct Backend {
     const DistributedAlpha &da;
     const DistState &s;
     DistState &next;
-    double h, am, af, g, b;
+    double h;
     void predict() { // acc1 = acc0
+      const double am = da.par_.alpha_m, g = da.par_.gamma, b = da.par_.beta;
       next.t = s.t + h;
       FX_PETSC(VecCopy(s.acc, next.acc));
       // a1 = (af acc0 - am a0 + (1 - af) acc1) / (1 - am) = (acc0 - am a0) / (1 - am)
@@ -325,8 +323,8 @@ bool DistributedAlpha::step_once(const DistState &s, double h, DistState &next,
       Vec vecs[3] = {s.v, s.a, next.a};
       FX_PETSC(VecMAXPY(next.q, 3, coef, vecs));
     }
-    bool has_matrix(double bp_, double gp_) const {
-      return da.factored_ && da.bp_ == bp_ && da.gp_ == gp_;
+    bool has_matrix(const NewtonScaling &k) const {
+      return da.factored_ && da.bp_ == k.bp && da.gp_ == k.gp;
     }
     /// r = -(M acc + f(q) - f_g) / beta' (F_ holds f(q)).
     void residual(double bp_) {
@@ -335,13 +333,13 @@ bool DistributedAlpha::step_once(const DistState &s, double h, DistState &next,
       FX_PETSC(VecAXPY(da.r_, -1.0, da.fg_));
       FX_PETSC(VecScale(da.r_, -1.0 / bp_));
     }
-    bool factorize(double bp_, double gp_) {
+    bool factorize(const NewtonScaling &k) {
       da.factored_ = false;
       const fem::CorotatedSum sum = da.internal(next.q, da.A_);
       da.bad_ = !sum.ok;
       if (!sum.ok) return false;
       // A = M + T / beta' (no damping yet: C = 0).
-      FX_PETSC(MatScale(da.A_, 1.0 / bp_));
+      FX_PETSC(MatScale(da.A_, 1.0 / k.bp));
       // M_ was duplicated from A_: the same stored pattern (explicit zeros off the mass).
       FX_PETSC(MatAXPY(da.A_, 1.0, da.M_, SAME_NONZERO_PATTERN));
       FX_PETSC(KSPSetOperators(da.ksp_, da.A_, da.A_));
@@ -351,18 +349,18 @@ bool DistributedAlpha::step_once(const DistState &s, double h, DistState &next,
       PCFailedReason failed;
       FX_PETSC(PCGetFailedReason(pc, &failed));
       if (failed != PC_NOERROR) return false;
-      residual(bp_);
+      residual(k.bp);
       da.factored_ = true;
-      da.bp_ = bp_;
-      da.gp_ = gp_;
+      da.bp_ = k.bp;
+      da.gp_ = k.gp;
       return true;
     }
-    void rhs(double bp_) {
+    void rhs(const NewtonScaling &k) {
       const fem::CorotatedSum sum = da.internal(next.q, nullptr);
       da.bad_ = !sum.ok;
-      if (sum.ok) residual(bp_);
+      if (sum.ok) residual(k.bp);
     }
-    bool solve_update(double bp_, double gp_, double &increment, double &violation) {
+    bool solve_update(const NewtonScaling &k, double &increment, double &violation) {
       violation = 0; // no constraints
       if (da.bad_) return false;
       FX_PETSC(KSPSolve(da.ksp_, da.r_, da.dq_));
@@ -370,17 +368,17 @@ bool DistributedAlpha::step_once(const DistState &s, double h, DistState &next,
       FX_PETSC(KSPGetConvergedReason(da.ksp_, &reason));
       if (reason < 0) return false;
       FX_PETSC(VecAXPY(next.q, 1.0, da.dq_));
-      FX_PETSC(VecAXPY(next.v, gp_, da.dq_));
-      FX_PETSC(VecAXPY(next.acc, bp_, da.dq_));
-      FX_PETSC(VecAXPY(next.a, (1 - af) / (1 - am) * bp_, da.dq_));
+      FX_PETSC(VecAXPY(next.v, k.gp, da.dq_));
+      FX_PETSC(VecAXPY(next.acc, k.bp, da.dq_));
+      FX_PETSC(VecAXPY(next.a, k.ap, da.dq_));
       const double d = max_abs(da.dq_);
       if (!std::isfinite(d)) return false;
       increment = d / (1 + max_abs(next.q));
       return true;
     }
     void drop_matrix() { da.factored_ = false; }
-  } backend{*this, s, next, h, am, af, g, b};
-  return detail::newton_loop(backend, settings_, bp, gp, info);
+  } backend{*this, s, next, h};
+  return detail::newton_loop(backend, settings_, par_.newton_scaling(h), info);
 }
 
 bool DistributedAlpha::advance(const DistState &s, double h, DistState &next,

@@ -7,8 +7,6 @@
 #include <Eigen/SparseLU>
 #include <algorithm>
 #include <cmath>
-#include <functional>
-#include <limits>
 #include <sstream>
 
 namespace flexopt::dynamics {
@@ -55,6 +53,14 @@ AlphaParameters AlphaParameters::from_rho_inf(double rho) {
   p.gamma = 0.5 + p.alpha_f - p.alpha_m;
   p.beta = 0.25 * (p.gamma + 0.5) * (p.gamma + 0.5);
   return p;
+}
+
+NewtonScaling AlphaParameters::newton_scaling(double h) const {
+  NewtonScaling k;
+  k.bp = (1 - alpha_m) / (beta * h * h * (1 - alpha_f));
+  k.gp = gamma / (beta * h);
+  k.ap = (1 - alpha_f) / (1 - alpha_m) * k.bp;
+  return k;
 }
 
 Vector State::pack() const {
@@ -423,15 +429,14 @@ bool GeneralizedAlpha::solve() const {
 }
 
 bool GeneralizedAlpha::step_once(const State &s, double h, State &next, StepInfo &info) const {
-  const double am = par_.alpha_m, af = par_.alpha_f, g = par_.gamma, b = par_.beta;
-  const double bp = (1 - am) / (b * h * h * (1 - af)), gp = g / (b * h);
   // The Newton loop (detail::newton_loop) on the replicated dense or sparse system.
   struct Backend {
     const GeneralizedAlpha &ga;
     const State &s;
     State &next;
-    double h, am, af, g, b;
+    double h;
     void predict() { // acc1 = acc0, lambda1 = lambda0
+      const double am = ga.par_.alpha_m, af = ga.par_.alpha_f, g = ga.par_.gamma, b = ga.par_.beta;
       next.t = s.t + h;
       next.acc = s.acc;
       next.lambda = s.lambda;
@@ -439,29 +444,29 @@ bool GeneralizedAlpha::step_once(const State &s, double h, State &next, StepInfo
       next.v = s.v + h * (1 - g) * s.a + h * g * next.a;
       next.q = s.q + h * s.v + h * h * (0.5 - b) * s.a + h * h * b * next.a;
     }
-    bool has_matrix(double bp_, double gp_) const {
+    bool has_matrix(const NewtonScaling &k) const {
       const NewtonWork &w = *ga.work_;
-      return w.factored && w.bp == bp_ && w.gp == gp_;
+      return w.factored && w.bp == k.bp && w.gp == k.gp;
     }
-    bool factorize(double bp_, double gp_) { return ga.factorize(next, bp_, gp_); }
-    void rhs(double bp_) { ga.newton_rhs(next, bp_); }
-    bool solve_update(double bp_, double gp_, double &increment, double &violation) {
+    bool factorize(const NewtonScaling &k) { return ga.factorize(next, k.bp, k.gp); }
+    void rhs(const NewtonScaling &k) { ga.newton_rhs(next, k.bp); }
+    bool solve_update(const NewtonScaling &k, double &increment, double &violation) {
       const int n = ga.mech_.coordinates(), m = ga.mech_.constraints();
       NewtonWork &w = *ga.work_;
       violation = m > 0 ? w.phi.cwiseAbs().maxCoeff() : 0.0;
       if (!ga.solve()) return false;
       const auto dq = w.x.head(n);
       next.q += dq;
-      next.v += gp_ * dq;
-      next.acc += bp_ * dq;
-      next.a += (1 - af) / (1 - am) * bp_ * dq;
-      next.lambda += bp_ * w.x.tail(m);
+      next.v += k.gp * dq;
+      next.acc += k.bp * dq;
+      next.a += k.ap * dq;
+      next.lambda += k.bp * w.x.tail(m);
       increment = dq.cwiseAbs().maxCoeff() / (1 + next.q.cwiseAbs().maxCoeff());
       return true;
     }
     void drop_matrix() { ga.work_->factored = false; }
-  } backend{*this, s, next, h, am, af, g, b};
-  return detail::newton_loop(backend, settings_, bp, gp, info);
+  } backend{*this, s, next, h};
+  return detail::newton_loop(backend, settings_, par_.newton_scaling(h), info);
 }
 
 bool GeneralizedAlpha::advance(const State &s, double h, State &next, StepInfo &info) const {

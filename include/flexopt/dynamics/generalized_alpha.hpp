@@ -21,9 +21,17 @@ struct NewtonWork; ///< work vectors, the dense iteration matrix and its LU (gen
 /// Chung & Hulbert (1993) parameters from the spectral radius at infinity rho_inf in [0, 1]:
 /// alpha_m = (2 rho - 1)/(rho + 1), alpha_f = rho/(rho + 1), gamma = 1/2 + alpha_f - alpha_m,
 /// beta = (gamma + 1/2)^2 / 4. Second order; rho_inf = 1 conserves energy for linear systems.
+/// How the step's unknowns move along a Newton update dq at a fixed step start (section 6.4):
+/// acc += bp dq, v += gp dq, a += ap dq with bp = beta' = (1 - alpha_m) / (beta h^2 (1 -
+/// alpha_f)), gp = gamma' = gamma / (beta h), ap = (1 - alpha_f) / (1 - alpha_m) beta'.
+struct NewtonScaling {
+  double bp = 0, gp = 0, ap = 0;
+};
+
 struct AlphaParameters {
   double rho_inf = 0.8, alpha_m = 0, alpha_f = 0, gamma = 0.5, beta = 0.25;
   static AlphaParameters from_rho_inf(double rho_inf);
+  NewtonScaling newton_scaling(double h) const;
 };
 
 /// The state of one step, s_n = (q, v, a, acc, lambda): coordinates, velocities, the

@@ -3,15 +3,15 @@
 /// (docs/theory.md section 6.4), shared by the dense/replicated integrator (GeneralizedAlpha) and
 /// the distributed one (DistributedAlpha). What differs between them is behind `Backend`:
 ///
-///   void predict();                    // next state := the predictor from the step's start
-///   bool has_matrix(double bp, double gp) const;  // a factorization for (bp, gp) is kept
-///   bool factorize(double bp, double gp); // assemble + factorize at `next`, rhs too; false if
-///                                         // singular
-///   void rhs(double bp);               // the right-hand side alone at `next`
-///   bool solve_update(double bp, double gp, double &increment, double &violation);
-///       // solve with the current factorization, update `next`, report
-///       // max|dq| / (1 + max|q|) (infinite if the solve failed) and max|Phi| before it
-///   void drop_matrix();                // forget the factorization
+///   void predict();                         // next state := the predictor from the step's start
+///   bool has_matrix(const NewtonScaling &) const; // a factorization for this step size is kept
+///   bool factorize(const NewtonScaling &);  // assemble + factorize at `next`, rhs too; false if
+///                                           // singular
+///   void rhs(const NewtonScaling &);        // the right-hand side alone at `next`
+///   bool solve_update(const NewtonScaling &, double &increment, double &violation);
+///       // max|Phi| before the update into violation; solve with the current factorization,
+///       // update `next` and report max|dq| / (1 + max|q|); false if the solve failed
+///   void drop_matrix();                     // forget the factorization
 #include "flexopt/dynamics/generalized_alpha.hpp"
 
 #include <algorithm>
@@ -22,7 +22,8 @@
 namespace flexopt::dynamics::detail {
 
 template <class Backend>
-bool newton_loop(Backend &b, const NewtonSettings &settings, double bp, double gp, StepInfo &info) {
+bool newton_loop(Backend &b, const NewtonSettings &settings, const NewtonScaling &k,
+                 StepInfo &info) {
   b.predict();
   info.increment.clear();
   info.violation.clear();
@@ -32,20 +33,20 @@ bool newton_loop(Backend &b, const NewtonSettings &settings, double bp, double g
   // reuse_contraction; one from an earlier step (`stale`) that does not contract at all is
   // dropped and the step starts over from the predictor.
   const double reuse = settings.reuse_contraction;
-  bool refresh = !(reuse > 0 && b.has_matrix(bp, gp));
+  bool refresh = !(reuse > 0 && b.has_matrix(k));
   bool stale = !refresh; // the factorization predates this attempt
   double inc_prev = 0;   // the last increment (0: none since the predictor)
   for (int it = 0; it < settings.max_iterations; ++it) {
     const bool kept = !refresh; // a matrix from an earlier iterate
     if (refresh) {
       ++info.factorizations;
-      if (!b.factorize(bp, gp)) return false;
+      if (!b.factorize(k)) return false;
       refresh = stale = false;
     } else {
-      b.rhs(bp);
+      b.rhs(k);
     }
-    double inc = std::numeric_limits<double>::infinity(), violation = 0;
-    b.solve_update(bp, gp, inc, violation);
+    double inc = 0, violation = 0;
+    if (!b.solve_update(k, inc, violation)) inc = std::numeric_limits<double>::infinity();
     ++info.iterations;
     info.increment.push_back(inc);
     info.violation.push_back(violation);
