@@ -6,6 +6,7 @@
 #include "flexopt/dynamics/newton_loop.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <utility>
 
 namespace flexopt::dynamics {

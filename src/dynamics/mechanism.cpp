@@ -184,16 +184,21 @@ void Mechanism::add_constraint_hessian(const Vector &q, double t, const Vector &
 void Mechanism::dynamics_blocks(const Vector &q, const Vector &v, const Vector &a, double t,
                                 Vector &r, std::vector<Matrix> &K, std::vector<Matrix> &C,
                                 std::vector<Matrix> &M) const {
-  const int n = coordinates();
   const std::size_t nb = bodies.size();
-  r.setZero(n);
   K.resize(nb);
   C.resize(nb);
   M.resize(nb);
-  for (std::size_t b = 0; b < nb; ++b) {
+  evaluate_dynamics(q, v, a, t, r, &K, &C, &M);
+}
+
+void Mechanism::evaluate_dynamics(const Vector &q, const Vector &v, const Vector &a, double t,
+                                  Vector &r, std::vector<Matrix> *K, std::vector<Matrix> *C,
+                                  std::vector<Matrix> *M) const {
+  r.setZero(coordinates());
+  for (std::size_t b = 0; b < bodies.size(); ++b) {
     const int o = offsets_[b], m = bodies[b]->coordinates();
     bodies[b]->residual(q.segment(o, m), v.segment(o, m), a.segment(o, m), gravity, r.segment(o, m),
-                        &K[b], &C[b], &M[b]);
+                        K ? &(*K)[b] : nullptr, C ? &(*C)[b] : nullptr, M ? &(*M)[b] : nullptr);
   }
   bodies::Mat4 pp;
   Eigen::Matrix<double, 4, Eigen::Dynamic> pz;
@@ -202,8 +207,9 @@ void Mechanism::dynamics_blocks(const Vector &q, const Vector &v, const Vector &
     const Vec3 F(pf.value[0](t), pf.value[1](t), pf.value[2](t));
     const auto qb = q.segment(o, m);
     r.segment(o, m) -= joints::anchor_jacobian(qb, pf.s, pf.S).transpose() * F;
+    if (!K) continue;
     joints::anchor_hessian(qb, pf.s, pf.S, F, pp, pz);
-    Matrix &Kb = K[static_cast<std::size_t>(pf.body)];
+    Matrix &Kb = (*K)[static_cast<std::size_t>(pf.body)];
     Kb.block<4, 4>(3, 3) -= pp;
     if (pz.cols() > 0) {
       Kb.block(3, 7, 4, pz.cols()) -= pz;
@@ -214,17 +220,7 @@ void Mechanism::dynamics_blocks(const Vector &q, const Vector &v, const Vector &
 
 void Mechanism::dynamics_residual(const Vector &q, const Vector &v, const Vector &a, double t,
                                   Vector &r) const {
-  r.setZero(coordinates());
-  for (std::size_t b = 0; b < bodies.size(); ++b) {
-    const int o = offsets_[b], m = bodies[b]->coordinates();
-    bodies[b]->residual(q.segment(o, m), v.segment(o, m), a.segment(o, m), gravity, r.segment(o, m),
-                        nullptr, nullptr, nullptr);
-  }
-  for (const PointForce &pf : forces) {
-    const int o = offset(pf.body), m = size(pf.body);
-    const Vec3 F(pf.value[0](t), pf.value[1](t), pf.value[2](t));
-    r.segment(o, m) -= joints::anchor_jacobian(q.segment(o, m), pf.s, pf.S).transpose() * F;
-  }
+  evaluate_dynamics(q, v, a, t, r, nullptr, nullptr, nullptr);
 }
 
 void Mechanism::constraint_time_terms(const Vector &q, const Vector &v, double t, Vector &phi_t,

@@ -94,6 +94,10 @@ public:
   std::string describe_row(int r) const;
 
 private:
+  /// The residual r and, for non-null K, C, M (sized by the caller), the body blocks.
+  void evaluate_dynamics(const Vector &q, const Vector &v, const Vector &a, double t, Vector &r,
+                         std::vector<Matrix> *K, std::vector<Matrix> *C,
+                         std::vector<Matrix> *M) const;
   /// A(p_b) of every body at q, into a reused buffer: the equations share them.
   const bodies::Mat3 *rotations(const Vector &q) const;
 
