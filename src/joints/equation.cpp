@@ -81,6 +81,15 @@ struct Side {
   }
 };
 
+/// The (p, zeta) block of d^2 (w . A(p) (s + S zeta)): columns D(p, S_l)^T w. As
+/// w . A u = (A^T w) . u, D(p, S_l)^T w = R(p, w)^T S_l with R = d(A(p)^T w)/dp: one product
+/// for all columns.
+template <class Out>
+void rotation_elastic_hessian(const Vec4 &p, const Elastic &S, const Vec3 &w, Out &pz) {
+  pz.resize(4, S.cols());
+  pz.noalias() = bodies::rotate_transpose_jacobian(p, w).transpose() * S;
+}
+
 /// H_bb += d^2 (w . A(p_b) (s + S zeta_b)) / dq_b^2 (points and vectors alike: r enters
 /// linearly).
 void add_rotation_hessian(Sink &H, const Side &b, const Vec3 &s, const Elastic &S, const Vec3 &w) {
@@ -88,10 +97,8 @@ void add_rotation_hessian(Sink &H, const Side &b, const Vec3 &s, const Elastic &
   const Mat4 pp = bodies::rotate_hessian(b.local(s, S), w);
   H.add_block(b.ref, b.ref, 3, 3, pp);
   if (b.n == 0) return;
-  // D(p, S_l)^T w = R(p, w)^T S_l with R = d(A(p)^T w)/dp, since w . A u = (A^T w) . u: one
-  // product for all columns.
-  Mat4X pz(4, b.n);
-  pz.noalias() = bodies::rotate_transpose_jacobian(b.p(), w).transpose() * S;
+  Mat4X pz;
+  rotation_elastic_hessian(b.p(), S, w, pz);
   const MatX4 zp = pz.transpose();
   H.add_block(b.ref, b.ref, 3, 7, pz);
   H.add_block(b.ref, b.ref, 7, 3, zp);
@@ -105,6 +112,14 @@ void add_cross(Sink &H, const Side &a, const Side &b, double scale, const Jacobi
   H.add_product(b.ref, a.ref, scale, Y, X);
 }
 
+/// The driver's rotating vector at the angle f, u = sin f u1 - cos f u2, and its elastic part U
+/// (left empty for a rigid body a).
+void driver_vector(const Equation &e, double f, Vec3 &u, Elastic &U) {
+  const double s = std::sin(f), c = std::cos(f);
+  u = s * e.ua - c * e.ua2;
+  if (e.na > 0) U = s * e.Ua - c * e.Ua2;
+}
+
 /// The driver's rotating vector u(t) = sin f u1 - cos f u2 (and its elastic part) and its
 /// first two time derivatives.
 struct DriverVectors {
@@ -116,13 +131,12 @@ DriverVectors driver_vectors(const Equation &e, double t) {
                fdd = e.driver->second_derivative(t);
   const double s = std::sin(f), c = std::cos(f);
   DriverVectors d;
-  d.u = s * e.ua - c * e.ua2;
+  driver_vector(e, f, d.u, d.U);
   const Vec3 du = c * e.ua + s * e.ua2; // d u / d f
   const Vec3 ddu = -s * e.ua + c * e.ua2;
   d.ut = fd * du;
   d.utt = fdd * du + fd * fd * ddu;
   if (e.na > 0) {
-    d.U = s * e.Ua - c * e.Ua2;
     const Elastic dU = c * e.Ua + s * e.Ua2, ddU = -s * e.Ua + c * e.Ua2;
     d.Ut = fd * dU;
     d.Utt = fdd * dU + fd * fd * ddU;
@@ -138,10 +152,7 @@ const Elastic &vector_a(const Equation &e, double t, Vec3 &u, Elastic &storage) 
     u = e.ua;
     return e.Ua;
   }
-  const double f = (*e.driver)(t);
-  const double s = std::sin(f), c = std::cos(f);
-  u = s * e.ua - c * e.ua2;
-  if (e.na > 0) storage = s * e.Ua - c * e.Ua2;
+  driver_vector(e, (*e.driver)(t), u, storage);
   return storage;
 }
 
@@ -167,8 +178,7 @@ void anchor_hessian(const Eigen::Ref<const Vector> &q_b, const Vec3 &s, const El
   const Vec4 p = q_b.segment<4>(3);
   const Vec3 local = n > 0 ? Vec3(s + S * q_b.tail(n)) : s;
   pp = bodies::rotate_hessian(local, w);
-  pz.resize(4, n);
-  for (int l = 0; l < n; ++l) pz.col(l) = bodies::rotate_jacobian(p, S.col(l)).transpose() * w;
+  rotation_elastic_hessian(p, S, w, pz);
 }
 
 void Equation::evaluate(const Vector &q, double t, double *out, Sink *J, int row,
