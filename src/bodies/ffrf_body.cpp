@@ -102,7 +102,7 @@ void FfrfBody::residual(const ConstVectorRef &q, const ConstVectorRef &v, const 
   const Mat34 G = gbar_matrix(p);
   const Vec3 w = 2 * G * vp, wd = 2 * G * ap;
   const Vec3 rho = a.head<3>() - gravity, rb = A.transpose() * rho;
-  const Vec3 d = inv.d0 + inv.D * z;
+  const Vec3 d = inv.first_moment(z);
   // C_k = S1[k] + sum_l zeta_l S2[l][k] (sum m u_i Psi_jk^T), c_k = axial(C_k),
   // P = sum_k zeta'_k C_k, h_k = sum_l zeta'_l g_lk.
   Mat9N Cv;
@@ -237,7 +237,7 @@ double FfrfBody::energy(const ConstVectorRef &q, const ConstVectorRef &v,
   const Mat3 A = rotation(p);
   const Vec3 w = 2 * gbar_matrix(p) * v.segment<4>(3);
   const Vec3 rd = v.head<3>();
-  const Vec3 d = inv.d0 + inv.D * z;
+  const Vec3 d = inv.first_moment(z);
   Mat9N Cv;
   Mat3N Cm;
   Mat3 S;

@@ -4,7 +4,7 @@
 
 namespace flexopt::reduce {
 
-Eigen::Vector3d FfrfInvariants::first_moment(const Eigen::VectorXd &zeta) const {
+Eigen::Vector3d FfrfInvariants::first_moment(const Eigen::Ref<const Eigen::VectorXd> &zeta) const {
   return d0 + D * zeta;
 }
 

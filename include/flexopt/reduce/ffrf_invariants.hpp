@@ -28,7 +28,7 @@ struct FfrfInvariants {
   std::vector<std::vector<Eigen::Matrix3d>> S2;
 
   int modes() const { return static_cast<int>(S1.size()); }
-  Eigen::Vector3d first_moment(const Eigen::VectorXd &zeta) const;
+  Eigen::Vector3d first_moment(const Eigen::Ref<const Eigen::VectorXd> &zeta) const;
   Eigen::Matrix3d second_moment(const Eigen::VectorXd &zeta) const;
   /// Inertia tensor about the frame origin: tr(S) I - S.
   Eigen::Matrix3d inertia(const Eigen::VectorXd &zeta) const;
