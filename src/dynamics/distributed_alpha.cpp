@@ -172,10 +172,8 @@ DistributedAlpha::DistributedAlpha(std::vector<const bodies::AcfBody *> bodies,
   FX_PETSC(VecDestroy(&G));
   r_ = create_vector();
   dq_ = create_vector();
-  FX_PETSC(KSPCreate(comm_, &ksp_));
-  FX_PETSC(KSPSetOptionsPrefix(ksp_, "mech_"));
-  use_mumps(ksp_, Factorization::LU);
-  FX_PETSC(KSPSetFromOptions(ksp_));
+  // The operator is A_ itself: refilled in place, refactorized at the next solve after that.
+  ksp_ = create_direct_solver(A_, Factorization::LU, "mech_");
 }
 
 DistributedAlpha::~DistributedAlpha() {
@@ -245,10 +243,7 @@ DistState DistributedAlpha::initial_state(Vec x0, Vec v0, double t0) const {
   if (!sum.ok) throw Error("initial state: " + sum.failure, true);
   // M acc = f_g - f(x0), with a direct solve of the constant mass.
   FX_PETSC(VecWAXPY(r_, -1.0, F_, fg_));
-  KSP k;
-  FX_PETSC(KSPCreate(comm_, &k));
-  FX_PETSC(KSPSetOperators(k, M_, M_));
-  use_mumps(k, Factorization::Cholesky);
+  KSP k = create_direct_solver(M_, Factorization::Cholesky, nullptr);
   FX_PETSC(KSPSolve(k, r_, s.acc));
   KSPConvergedReason reason;
   FX_PETSC(KSPGetConvergedReason(k, &reason));
@@ -343,7 +338,6 @@ bool DistributedAlpha::step_once(const DistState &s, double h, DistState &next,
       FX_PETSC(MatScale(da.A_, 1.0 / k.bp));
       // M_ was duplicated from A_: the same stored pattern (explicit zeros off the mass).
       FX_PETSC(MatAXPY(da.A_, 1.0, da.M_, SAME_NONZERO_PATTERN));
-      FX_PETSC(KSPSetOperators(da.ksp_, da.A_, da.A_));
       FX_PETSC(KSPSetUp(da.ksp_));
       PC pc;
       FX_PETSC(KSPGetPC(da.ksp_, &pc));

@@ -131,8 +131,6 @@ void solve_modes(Mat K, Mat M, const std::vector<PetscInt> &fixed_dofs, int coun
 ClampedProblem::ClampedProblem(Mat K, Mat M, const std::vector<PetscInt> &clamped, int modes,
                                const char *prefix)
     : K_(K), modes_(modes) {
-  MPI_Comm comm;
-  FX_PETSC(PetscObjectGetComm(reinterpret_cast<PetscObject>(K), &comm));
   free_ = free_dofs(K, clamped);
   FX_PETSC(MatCreateSubMatrix(K, free_, free_, MAT_INITIAL_MATRIX, &Kf_));
   // The clamped surfaces hold the body: K_ff is positive definite, so MUMPS can factor without
@@ -157,13 +155,7 @@ ClampedProblem::ClampedProblem(Mat K, Mat M, const std::vector<PetscInt> &clampe
       ksp_ = ksp;
     }
   }
-  if (!ksp_) {
-    FX_PETSC(KSPCreate(comm, &ksp_));
-    FX_PETSC(KSPSetOptionsPrefix(ksp_, prefix));
-    FX_PETSC(KSPSetOperators(ksp_, Kf_, Kf_));
-    use_mumps(ksp_, Factorization::Cholesky);
-    FX_PETSC(KSPSetFromOptions(ksp_));
-  }
+  if (!ksp_) ksp_ = create_direct_solver(Kf_, Factorization::Cholesky, prefix);
 }
 
 ClampedProblem::~ClampedProblem() {

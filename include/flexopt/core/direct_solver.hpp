@@ -12,4 +12,8 @@ enum class Factorization { LU, Cholesky };
 /// Not collective.
 void use_mumps(KSP ksp, Factorization factorization);
 
+/// A new direct solver of A on A's communicator: use_mumps, then the options with `prefix`
+/// (null: none). The caller destroys it. Collective.
+KSP create_direct_solver(Mat A, Factorization factorization, const char *prefix);
+
 } // namespace flexopt
