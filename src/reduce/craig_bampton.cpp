@@ -5,7 +5,6 @@
 #include "flexopt/fem/assembly.hpp"
 #include "flexopt/reduce/modal.hpp"
 
-#include <algorithm>
 #include <petscksp.h>
 
 namespace flexopt::reduce {
@@ -53,7 +52,7 @@ void craig_bampton(const mesh::DistributedMesh &mesh, Mat K, Mat M,
   out.centroids.clear();
   for (const auto &name : interfaces) out.centroids.push_back(centroid(mesh, name));
 
-  // Owned DOFs of every interface surface, and the union (sorted) of all of them.
+  // Owned DOFs of every interface surface, and the union of all of them.
   std::vector<std::vector<PetscInt>> nodes(ni);
   std::vector<PetscInt> constrained;
   for (std::size_t k = 0; k < ni; ++k) {
@@ -62,8 +61,6 @@ void craig_bampton(const mesh::DistributedMesh &mesh, Mat K, Mat M,
     constrained.insert(constrained.end(), d.begin(), d.end());
     for (std::size_t i = 0; i < d.size(); i += 3) nodes[k].push_back(d[i] / 3);
   }
-  std::sort(constrained.begin(), constrained.end());
-  constrained.erase(std::unique(constrained.begin(), constrained.end()), constrained.end());
 
   // Every interface clamped: K_ii (the interior) factorized ONCE by MUMPS Cholesky, which
   // serves the static modes and the shift-and-invert of the fixed-interface modes alike.

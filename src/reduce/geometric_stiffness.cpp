@@ -5,7 +5,6 @@
 #include "flexopt/fem/assembly.hpp"
 #include "flexopt/reduce/modal.hpp"
 
-#include <algorithm>
 #include <memory>
 #include <petscksp.h>
 #include <string>
@@ -70,10 +69,7 @@ centrifugal_geometric_stiffness(const mesh::DistributedMesh &mesh,
   // it has one).
   std::unique_ptr<ClampedProblem> own;
   if (!frame_clamped) {
-    std::vector<PetscInt> sorted(frame);
-    std::sort(sorted.begin(), sorted.end());
-    sorted.erase(std::unique(sorted.begin(), sorted.end()), sorted.end());
-    own = std::make_unique<ClampedProblem>(K, M, sorted, 0, "gs_");
+    own = std::make_unique<ClampedProblem>(K, M, frame, 0, "gs_");
     frame_clamped = own.get();
   }
 

@@ -20,8 +20,9 @@ double frequency_hz(double eigenvalue) {
 
 namespace {
 
-/// The owned DOFs of K's row range that are not in `fixed` (sorted owned global numbers).
-IS free_dofs(Mat K, const std::vector<PetscInt> &fixed) {
+/// The owned DOFs of K's row range that are not in `fixed` (owned global numbers).
+IS free_dofs(Mat K, std::vector<PetscInt> fixed) {
+  std::sort(fixed.begin(), fixed.end()); // any order, repeats allowed
   MPI_Comm comm;
   FX_PETSC(PetscObjectGetComm(reinterpret_cast<PetscObject>(K), &comm));
   PetscInt lo, hi;
