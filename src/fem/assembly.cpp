@@ -194,11 +194,18 @@ struct SortedElementDofs {
   }
 };
 
+/// Adds the element matrix Ke to A in the sorted order of d.
+void add_sorted(Mat A, const SortedElementDofs &d, const ElementMatrix &Ke) {
+  double sorted[kMaxDofs * kMaxDofs];
+  for (int r = 0; r < d.n; ++r)
+    for (int c = 0; c < d.n; ++c) sorted[r * d.n + c] = Ke(d.source[r], d.source[c]);
+  FX_PETSC(MatSetValues(A, d.n, d.global, d.n, d.global, sorted, ADD_VALUES));
+}
+
 template <class Kernel>
 void assemble_matrix(const mesh::DistributedMesh &mesh, Mat A, Kernel &&kernel) {
   LogScope log("FxAssembleMatrix");
   FX_PETSC(MatZeroEntries(A));
-  double sorted[kMaxDofs * kMaxDofs];
   for (PetscInt e = 0; e < mesh.local_elements(); ++e) {
     ElementMatrix Ke;
     try {
@@ -206,10 +213,7 @@ void assemble_matrix(const mesh::DistributedMesh &mesh, Mat A, Kernel &&kernel) 
     } catch (const std::exception &err) {
       abort_local(element_context(mesh, e, err)); // only this rank holds the element
     }
-    const SortedElementDofs d(mesh, e);
-    for (int r = 0; r < d.n; ++r)
-      for (int c = 0; c < d.n; ++c) sorted[r * d.n + c] = Ke(d.source[r], d.source[c]);
-    FX_PETSC(MatSetValues(A, d.n, d.global, d.n, d.global, sorted, ADD_VALUES));
+    add_sorted(A, SortedElementDofs(mesh, e), Ke);
   }
   FX_PETSC(MatAssemblyBegin(A, MAT_FINAL_ASSEMBLY));
   FX_PETSC(MatAssemblyEnd(A, MAT_FINAL_ASSEMBLY));
@@ -379,7 +383,8 @@ double add_corotated(const mesh::DistributedMesh &mesh,
                      const std::vector<CorotatedElement> &elements, const PetscScalar *u,
                      const std::vector<PetscInt> &node_dof, Vec F, Mat T, std::string &failure) {
   double energy = 0;
-  double fsorted[kMaxDofs], tsorted[kMaxDofs * kMaxDofs];
+  LogScope log("FxAssembleCorot");
+  double fsorted[kMaxDofs];
   ElementVector fe;
   ElementMatrix Te;
   for (PetscInt e = 0; e < mesh.local_elements(); ++e) {
@@ -396,10 +401,7 @@ double add_corotated(const mesh::DistributedMesh &mesh,
     const SortedElementDofs d(mesh, e, node_dof.empty() ? nullptr : node_dof.data());
     for (int r = 0; r < d.n; ++r) fsorted[r] = fe(d.source[r]);
     FX_PETSC(VecSetValues(F, d.n, d.global, fsorted, ADD_VALUES));
-    if (!T) continue;
-    for (int r = 0; r < d.n; ++r)
-      for (int c = 0; c < d.n; ++c) tsorted[r * d.n + c] = Te(d.source[r], d.source[c]);
-    FX_PETSC(MatSetValues(T, d.n, d.global, d.n, d.global, tsorted, ADD_VALUES));
+    if (T) add_sorted(T, d, Te);
   }
   return energy;
 }
@@ -425,7 +427,6 @@ CorotatedSum reduce_corotated(MPI_Comm comm, double energy, std::string failure)
 CorotatedSum assemble_corotated(const mesh::DistributedMesh &mesh,
                                 const std::vector<CorotatedElement> &elements, Vec u_ghosted, Vec F,
                                 Mat T) {
-  LogScope log("FxAssembleCorot");
   FX_PETSC(VecZeroEntries(F));
   if (T) FX_PETSC(MatZeroEntries(T));
   Vec local;
