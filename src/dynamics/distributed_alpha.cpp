@@ -331,9 +331,7 @@ bool DistributedAlpha::step_once(const DistState &s, double h, DistState &next,
     }
     bool factorize(const NewtonScaling &k) {
       da.factored_ = false;
-      const fem::CorotatedSum sum = da.internal(next.q, da.A_);
-      da.bad_ = !sum.ok;
-      if (!sum.ok) return false;
+      if (!da.internal(next.q, da.A_).ok) return false;
       // A = M + T / beta' (no damping yet: C = 0).
       FX_PETSC(MatScale(da.A_, 1.0 / k.bp));
       // M_ was duplicated from A_: the same stored pattern (explicit zeros off the mass).
@@ -350,14 +348,13 @@ bool DistributedAlpha::step_once(const DistState &s, double h, DistState &next,
       da.gp_ = k.gp;
       return true;
     }
-    void rhs(const NewtonScaling &k) {
-      const fem::CorotatedSum sum = da.internal(next.q, nullptr);
-      da.bad_ = !sum.ok;
-      if (sum.ok) residual(k.bp);
+    bool rhs(const NewtonScaling &k) {
+      if (!da.internal(next.q, nullptr).ok) return false; // an inverted element
+      residual(k.bp);
+      return true;
     }
     bool solve_update(const NewtonScaling &k, double &increment, double &violation) {
       violation = 0; // no constraints
-      if (da.bad_) return false;
       FX_PETSC(KSPSolve(da.ksp_, da.r_, da.dq_));
       KSPConvergedReason reason;
       FX_PETSC(KSPGetConvergedReason(da.ksp_, &reason));

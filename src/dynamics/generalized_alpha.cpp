@@ -449,7 +449,10 @@ bool GeneralizedAlpha::step_once(const State &s, double h, State &next, StepInfo
       return w.factored && w.bp == k.bp && w.gp == k.gp;
     }
     bool factorize(const NewtonScaling &k) { return ga.factorize(next, k.bp, k.gp); }
-    void rhs(const NewtonScaling &k) { ga.newton_rhs(next, k.bp); }
+    bool rhs(const NewtonScaling &k) {
+      ga.newton_rhs(next, k.bp);
+      return true;
+    }
     bool solve_update(const NewtonScaling &k, double &increment, double &violation) {
       const int n = ga.mech_.coordinates(), m = ga.mech_.constraints();
       NewtonWork &w = *ga.work_;

@@ -80,7 +80,7 @@ private:
   mutable Vec F_ = nullptr, r_ = nullptr, dq_ = nullptr; ///< work vectors
   mutable Mat A_ = nullptr;                              ///< the iteration matrix M + T / beta'
   mutable KSP ksp_ = nullptr;
-  mutable bool factored_ = false, bad_ = false;
+  mutable bool factored_ = false;
   mutable double bp_ = 0, gp_ = 0;
 };
 

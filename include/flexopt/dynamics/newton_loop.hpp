@@ -7,7 +7,8 @@
 ///   bool has_matrix(const NewtonScaling &) const; // a factorization for this step size is kept
 ///   bool factorize(const NewtonScaling &);  // assemble + factorize at `next`, rhs too; false if
 ///                                           // singular
-///   void rhs(const NewtonScaling &);        // the right-hand side alone at `next`
+///   bool rhs(const NewtonScaling &);        // the right-hand side alone at `next`; false if
+///                                           // it cannot be evaluated (an inverted element)
 ///   bool solve_update(const NewtonScaling &, double &increment, double &violation);
 ///       // max|Phi| before the update into violation; solve with the current factorization,
 ///       // update `next` and report max|dq| / (1 + max|q|); false if the solve failed
@@ -38,15 +39,17 @@ bool newton_loop(Backend &b, const NewtonSettings &settings, const NewtonScaling
   double inc_prev = 0;   // the last increment (0: none since the predictor)
   for (int it = 0; it < settings.max_iterations; ++it) {
     const bool kept = !refresh; // a matrix from an earlier iterate
+    bool evaluated = true;
     if (refresh) {
       ++info.factorizations;
       if (!b.factorize(k)) return false;
       refresh = stale = false;
     } else {
-      b.rhs(k);
+      evaluated = b.rhs(k);
     }
     double inc = 0, violation = 0;
-    if (!b.solve_update(k, inc, violation)) inc = std::numeric_limits<double>::infinity();
+    if (!evaluated || !b.solve_update(k, inc, violation))
+      inc = std::numeric_limits<double>::infinity();
     ++info.iterations;
     info.increment.push_back(inc);
     info.violation.push_back(violation);
