@@ -40,7 +40,8 @@ double max_abs(Vec v) {
 } // namespace
 
 DistState::DistState(const DistState &o)
-    : t(o.t), q(copy_of(o.q)), v(copy_of(o.v)), a(copy_of(o.a)), acc(copy_of(o.acc)) {}
+    : t(o.t), q(copy_of(o.q)), v(copy_of(o.v)), a(copy_of(o.a)), acc(copy_of(o.acc)),
+      lambda(copy_of(o.lambda)) {}
 
 DistState &DistState::operator=(const DistState &o) {
   if (this == &o) return *this;
@@ -49,6 +50,7 @@ DistState &DistState::operator=(const DistState &o) {
   assign(v, o.v);
   assign(a, o.a);
   assign(acc, o.acc);
+  assign(lambda, o.lambda);
   return *this;
 }
 
@@ -57,20 +59,28 @@ DistState::~DistState() {
   VecDestroy(&v);
   VecDestroy(&a);
   VecDestroy(&acc);
+  VecDestroy(&lambda);
 }
 
 namespace detail {
 
-/// Rank r owns the coordinates of its owned nodes of body 0, then body 1, ...: body b's owned
-/// node i has the DOFs offset[b] + 3 i + (0, 1, 2). node_dof[b][l] is that first DOF for every
-/// local node l (owned, then ghosts: from the owner's offset), and `gather[b]` scatters the
-/// positions of all local nodes into `local[b]` (3 per local node).
+/// The layout of the unknowns (see the header). Rank r's local block: [ACF coordinates
+/// (acf_local) | small coordinates (rank 0: small_n) | tie multipliers | small multipliers (rank
+/// 0: small_m)]; the coordinates are the first `coords_local` entries. Body b's owned node i has
+/// the DOFs offset[b] + 3 i + (0, 1, 2); node_dof[b][l] is that first DOF for every local node l
+/// (owned, then ghosts: from the owner's offset), and `gather[b]` scatters the positions of all
+/// local nodes into `local_x[b]` (3 per local node). ties[i]: interface i's ties of the owned
+/// nodes of its surface.
 struct AcfLayout {
   PetscInt local = 0, start = 0, global = 0;
+  PetscInt acf_local = 0, coords_local = 0;
+  int small_n = 0, small_m = 0;        ///< the small part's coordinates and enforced rows
+  PetscInt small_coord0 = 0, small_row0 = 0; ///< their first global numbers (every rank)
   std::vector<PetscInt> offset;
   std::vector<std::vector<PetscInt>> node_dof;
   std::vector<Vec> local_x;
   std::vector<VecScatter> gather;
+  std::vector<TieSet> ties;
   ~AcfLayout() {
     for (Vec &v : local_x) VecDestroy(&v);
     for (VecScatter &g : gather) VecScatterDestroy(&g);
@@ -79,20 +89,89 @@ struct AcfLayout {
 
 } // namespace detail
 
+namespace {
+
+/// The PETSc indices first .. first + n - 1.
+std::vector<PetscInt> range(PetscInt first, int n) {
+  std::vector<PetscInt> idx(static_cast<std::size_t>(n));
+  for (int k = 0; k < n; ++k) idx[static_cast<std::size_t>(k)] = first + k;
+  return idx;
+}
+
+/// Records the entries (rows x cols) in a MATPREALLOCATOR matrix.
+void touch(Mat P, const std::vector<PetscInt> &rows, const std::vector<PetscInt> &cols) {
+  std::vector<PetscScalar> zeros(rows.size() * cols.size(), 0.0);
+  FX_PETSC(MatSetValues(P, static_cast<PetscInt>(rows.size()), rows.data(),
+                        static_cast<PetscInt>(cols.size()), cols.data(), zeros.data(),
+                        ADD_VALUES));
+}
+
+} // namespace
+
 DistributedAlpha::DistributedAlpha(std::vector<const bodies::AcfBody *> bodies,
                                    const Eigen::Vector3d &gravity, AlphaParameters parameters,
                                    NewtonSettings settings)
-    : bodies_(std::move(bodies)), layout_(std::make_unique<detail::AcfLayout>()), par_(parameters),
-      settings_(settings) {
+    : DistributedAlpha(std::move(bodies), nullptr, {}, gravity, parameters, settings) {}
+
+DistributedAlpha::DistributedAlpha(std::vector<const bodies::AcfBody *> bodies,
+                                   const Mechanism *small, std::vector<AcfInterface> interfaces,
+                                   const Eigen::Vector3d &gravity, AlphaParameters parameters,
+                                   NewtonSettings settings)
+    : bodies_(std::move(bodies)), small_(small), interfaces_(std::move(interfaces)),
+      layout_(std::make_unique<detail::AcfLayout>()), par_(parameters), settings_(settings) {
   if (bodies_.empty()) throw Error("DistributedAlpha: no ACF body");
+  if (small_ && small_->bodies.empty()) small_ = nullptr;
   comm_ = bodies_.front()->mesh().comm;
-  const int size = comm_size(comm_);
+  const int size = comm_size(comm_), rank = comm_rank(comm_);
   detail::AcfLayout &L = *layout_;
   const std::size_t nb = bodies_.size();
-  for (const auto *b : bodies_) L.local += 3 * b->mesh().owned_nodes;
+  for (const auto *b : bodies_) L.acf_local += 3 * b->mesh().owned_nodes;
+  if (small_ && rank == 0) {
+    L.small_n = small_->coordinates();
+    L.small_m = small_->constraints();
+  }
+  L.coords_local = L.acf_local + L.small_n;
+  // The tied nodes: every owned node of each interface's surface; two interfaces of one body
+  // must not share a node (its rows would repeat and the matrix would be singular).
+  std::vector<std::vector<char>> used(nb);
+  for (std::size_t b = 0; b < nb; ++b)
+    used[b].assign(static_cast<std::size_t>(bodies_[b]->mesh().owned_nodes), 0);
+  std::vector<std::vector<PetscInt>> tied(interfaces_.size());
+  int shared = static_cast<int>(interfaces_.size()); // the first interface with a shared node
+  PetscInt ntie = 0;
+  for (std::size_t i = 0; i < interfaces_.size(); ++i) {
+    const AcfInterface &f = interfaces_[i];
+    if (f.body >= nb) throw Error("DistributedAlpha: interface of a missing body");
+    const mesh::DistributedMesh &m = bodies_[f.body]->mesh();
+    (void)m.surface(f.surface, f.where); // a collective error if the surface does not exist
+    const auto it = m.surface_nodes.find(f.surface);
+    if (it != m.surface_nodes.end())
+      for (PetscInt g : it->second) {
+        const PetscInt l = g - m.node_start;
+        char &u = used[f.body][static_cast<std::size_t>(l)];
+        if (u) shared = std::min(shared, static_cast<int>(i));
+        u = 1;
+        tied[i].push_back(l);
+      }
+    ntie += 3 * static_cast<PetscInt>(tied[i].size());
+  }
+  int first_shared;
+  MPI_Allreduce(&shared, &first_shared, 1, MPI_INT, MPI_MIN, comm_);
+  if (first_shared < static_cast<int>(interfaces_.size())) {
+    const AcfInterface &f = interfaces_[static_cast<std::size_t>(first_shared)];
+    throw Error(f.where + ": interface surface '" + f.surface +
+                    "' shares nodes with another interface of the same ACF body; their rigid "
+                    "ties would repeat. Give every interface its own surface.",
+                true);
+  }
+  L.local = L.coords_local + ntie + L.small_m;
   MPI_Exscan(&L.local, &L.start, 1, MPIU_INT, MPI_SUM, comm_);
-  if (comm_rank(comm_) == 0) L.start = 0;
+  if (rank == 0) L.start = 0;
   MPI_Allreduce(&L.local, &L.global, 1, MPIU_INT, MPI_SUM, comm_);
+  PetscInt small0[2] = {L.acf_local, L.coords_local + ntie};
+  MPI_Bcast(small0, 2, MPIU_INT, 0, comm_);
+  L.small_coord0 = small0[0];
+  L.small_row0 = small0[1];
   // Every rank's offset and first owned node of every body, for the ghosts' owners.
   std::vector<PetscInt> mine(2 * nb), all(2 * nb * static_cast<std::size_t>(size));
   PetscInt o = L.start;
@@ -125,8 +204,25 @@ DistributedAlpha::DistributedAlpha(std::vector<const bodies::AcfBody *> bodies,
     L.node_dof.push_back(std::move(dof));
     L.local_x.push_back(lx);
   }
-  // The mass (its pattern preallocated from every element's full block, which the tangent
-  // needs too) and the iteration matrix.
+  // The ties in this numbering.
+  PetscInt row = L.start + L.coords_local;
+  for (std::size_t i = 0; i < interfaces_.size(); ++i) {
+    const AcfInterface &f = interfaces_[i];
+    const mesh::DistributedMesh &m = bodies_[f.body]->mesh();
+    TieSet t;
+    t.row0 = row;
+    t.coord0 = L.small_coord0 + (small_ ? small_->offset(f.node_body) : 0);
+    for (PetscInt l : tied[i]) {
+      t.x_dof.push_back(L.offset[f.body] + 3 * l);
+      t.s.emplace_back(Vec3(&m.coordinates[3 * static_cast<std::size_t>(l)]) - f.centroid);
+    }
+    row += 3 * static_cast<PetscInt>(t.s.size());
+    L.ties.push_back(std::move(t));
+  }
+  if (!interfaces_.empty() && !small_)
+    throw Error("DistributedAlpha: ACF interfaces need the small mechanism of their nodes");
+  // The pattern: every element's full block (the mass and the tangent), the ties' rows, their
+  // transposes and (p, p) blocks, and the small part's coupled body blocks and rows.
   Mat P;
   FX_PETSC(MatCreate(comm_, &P));
   FX_PETSC(MatSetSizes(P, L.local, L.local, L.global, L.global));
@@ -134,6 +230,46 @@ DistributedAlpha::DistributedAlpha(std::vector<const bodies::AcfBody *> bodies,
   FX_PETSC(MatSetUp(P));
   for (std::size_t b = 0; b < nb; ++b)
     fem::add_element_pattern(bodies_[b]->mesh(), L.node_dof[b], P);
+  for (const TieSet &t : L.ties) {
+    const auto node = range(t.coord0, 7), p = range(t.coord0 + 3, 4);
+    for (std::size_t j = 0; j < t.s.size(); ++j) {
+      const auto rows = range(t.row0 + 3 * static_cast<PetscInt>(j), 3),
+                 x = range(t.x_dof[j], 3);
+      touch(P, rows, x);
+      touch(P, x, rows);
+      touch(P, rows, node);
+      touch(P, node, rows);
+    }
+    if (!t.s.empty()) touch(P, p, p);
+  }
+  if (small_ && rank == 0) {
+    const Mechanism &mech = *small_;
+    const int nbs = static_cast<int>(mech.bodies.size());
+    std::vector<char> coupled(static_cast<std::size_t>(nbs * nbs), 0);
+    for (int b = 0; b < nbs; ++b) coupled[static_cast<std::size_t>(b * nbs + b)] = 1;
+    int r = 0, k = 0;
+    for (const auto &e : mech.equations) {
+      if (e.a >= 0 && e.b >= 0)
+        coupled[static_cast<std::size_t>(e.a * nbs + e.b)] =
+            coupled[static_cast<std::size_t>(e.b * nbs + e.a)] = 1;
+      for (int i = 0; i < e.rows(); ++i, ++r) {
+        if (!mech.enforced(r)) continue;
+        const std::vector<PetscInt> one{L.small_row0 + k};
+        for (int b : {e.a, e.b})
+          if (b >= 0) {
+            const auto cols = range(L.small_coord0 + mech.offset(b), mech.size(b));
+            touch(P, one, cols);
+            touch(P, cols, one);
+          }
+        ++k;
+      }
+    }
+    for (int a = 0; a < nbs; ++a)
+      for (int b = 0; b < nbs; ++b)
+        if (coupled[static_cast<std::size_t>(a * nbs + b)])
+          touch(P, range(L.small_coord0 + mech.offset(a), mech.size(a)),
+                range(L.small_coord0 + mech.offset(b), mech.size(b)));
+  }
   FX_PETSC(MatAssemblyBegin(P, MAT_FINAL_ASSEMBLY));
   FX_PETSC(MatAssemblyEnd(P, MAT_FINAL_ASSEMBLY));
   FX_PETSC(MatCreate(comm_, &A_));
@@ -170,8 +306,22 @@ DistributedAlpha::DistributedAlpha(std::vector<const bodies::AcfBody *> bodies,
   FX_PETSC(MatMult(M_, G, fg_));
   for (std::size_t b = 0; b < nb; ++b) mass_ += bodies_[b]->total_mass();
   FX_PETSC(VecDestroy(&G));
+  cmask_ = create_vector();
+  lmask_ = create_vector();
+  {
+    PetscScalar *c, *l;
+    FX_PETSC(VecGetArray(cmask_, &c));
+    FX_PETSC(VecGetArray(lmask_, &l));
+    for (PetscInt i = 0; i < L.local; ++i) {
+      c[i] = i < L.coords_local ? 1.0 : 0.0;
+      l[i] = 1.0 - c[i];
+    }
+    FX_PETSC(VecRestoreArray(cmask_, &c));
+    FX_PETSC(VecRestoreArray(lmask_, &l));
+  }
   r_ = create_vector();
-  dq_ = create_vector();
+  dz_ = create_vector();
+  w_ = create_vector();
   // The operator is A_ itself: refilled in place, refactorized at the next solve after that.
   ksp_ = create_direct_solver(A_, Factorization::LU, "mech_");
 }
@@ -181,14 +331,26 @@ DistributedAlpha::~DistributedAlpha() {
   MatDestroy(&A_);
   MatDestroy(&M_);
   VecDestroy(&fg_);
+  VecDestroy(&cmask_);
+  VecDestroy(&lmask_);
   VecDestroy(&F_);
   VecDestroy(&r_);
-  VecDestroy(&dq_);
+  VecDestroy(&dz_);
+  VecDestroy(&w_);
+}
+
+void DistributedAlpha::coordinate_mask(Vec out) const {
+  FX_PETSC(VecCopy(cmask_, out));
+}
+
+PetscInt DistributedAlpha::global_size() const {
+  return layout_->global;
 }
 
 Vec DistributedAlpha::create_vector() const {
   Vec v;
   FX_PETSC(VecCreateMPI(comm_, layout_->local, layout_->global, &v));
+  FX_PETSC(VecZeroEntries(v));
   return v;
 }
 
@@ -207,6 +369,78 @@ void DistributedAlpha::set_nodal(
   FX_PETSC(VecRestoreArray(v, &a));
 }
 
+void DistributedAlpha::set_small(Vec v, const Vector &values) const {
+  const detail::AcfLayout &L = *layout_;
+  if (L.small_n == 0) return;
+  if (values.size() != L.small_n) throw Error("DistributedAlpha::set_small: wrong size");
+  PetscScalar *a;
+  FX_PETSC(VecGetArray(v, &a));
+  for (int k = 0; k < L.small_n; ++k) a[L.small_coord0 - L.start + k] = values(k);
+  FX_PETSC(VecRestoreArray(v, &a));
+}
+
+State DistributedAlpha::small_state(const DistState &s) const {
+  const detail::AcfLayout &L = *layout_;
+  State out;
+  out.t = s.t;
+  if (!small_) return out;
+  const int n = small_->coordinates(), m = small_->constraints();
+  Vector buf(4 * n + m);
+  if (comm_rank(comm_) == 0) {
+    Vec vecs[4] = {s.q, s.v, s.a, s.acc};
+    for (int k = 0; k < 4; ++k) {
+      const PetscScalar *x;
+      FX_PETSC(VecGetArrayRead(vecs[k], &x));
+      for (int i = 0; i < n; ++i) buf(k * n + i) = x[L.small_coord0 + i];
+      FX_PETSC(VecRestoreArrayRead(vecs[k], &x));
+    }
+    const PetscScalar *l;
+    FX_PETSC(VecGetArrayRead(s.lambda, &l));
+    for (int i = 0; i < m; ++i) buf(4 * n + i) = l[L.small_row0 + i];
+    FX_PETSC(VecRestoreArrayRead(s.lambda, &l));
+  }
+  MPI_Bcast(buf.data(), static_cast<int>(buf.size()), MPI_DOUBLE, 0, comm_);
+  out.unpack(buf, n, m);
+  return out;
+}
+
+std::vector<double> DistributedAlpha::owned_positions(const DistState &s,
+                                                      std::size_t body) const {
+  const PetscInt n = 3 * bodies_[body]->mesh().owned_nodes;
+  std::vector<double> x(static_cast<std::size_t>(n));
+  const PetscScalar *a;
+  FX_PETSC(VecGetArrayRead(s.q, &a));
+  std::copy(a + (layout_->offset[body] - layout_->start),
+            a + (layout_->offset[body] - layout_->start) + n, x.begin());
+  FX_PETSC(VecRestoreArrayRead(s.q, &a));
+  return x;
+}
+
+void DistributedAlpha::gather(Vec x, std::size_t b) const {
+  detail::AcfLayout &L = *layout_;
+  FX_PETSC(VecScatterBegin(L.gather[b], x, L.local_x[b], INSERT_VALUES, SCATTER_FORWARD));
+  FX_PETSC(VecScatterEnd(L.gather[b], x, L.local_x[b], INSERT_VALUES, SCATTER_FORWARD));
+}
+
+Vec3 DistributedAlpha::point_position(const DistState &s, std::size_t body,
+                                      const fem::PointLocation &p) const {
+  gather(s.q, body);
+  double x[3] = {0, 0, 0};
+  if (comm_rank(comm_) == p.owner) {
+    const mesh::DistributedMesh &m = bodies_[body]->mesh();
+    const int npe = m.nodes_per_element();
+    const PetscScalar *u;
+    FX_PETSC(VecGetArrayRead(layout_->local_x[body], &u));
+    for (int a = 0; a < npe; ++a) {
+      const PetscInt l = m.connectivity[static_cast<std::size_t>(p.element * npe + a)];
+      for (int k = 0; k < 3; ++k) x[k] += p.shape[static_cast<std::size_t>(a)] * u[3 * l + k];
+    }
+    FX_PETSC(VecRestoreArrayRead(layout_->local_x[body], &u));
+  }
+  MPI_Bcast(x, 3, MPI_DOUBLE, p.owner, comm_);
+  return Vec3(x[0], x[1], x[2]);
+}
+
 fem::CorotatedSum DistributedAlpha::internal(Vec x, Mat T) const {
   detail::AcfLayout &L = *layout_;
   FX_PETSC(VecZeroEntries(F_));
@@ -215,8 +449,7 @@ fem::CorotatedSum DistributedAlpha::internal(Vec x, Mat T) const {
   std::string failure;
   for (std::size_t b = 0; b < bodies_.size(); ++b) {
     const mesh::DistributedMesh &m = bodies_[b]->mesh();
-    FX_PETSC(VecScatterBegin(L.gather[b], x, L.local_x[b], INSERT_VALUES, SCATTER_FORWARD));
-    FX_PETSC(VecScatterEnd(L.gather[b], x, L.local_x[b], INSERT_VALUES, SCATTER_FORWARD));
+    gather(x, b);
     PetscScalar *u;
     FX_PETSC(VecGetArray(L.local_x[b], &u));
     for (PetscInt l = 0; l < 3 * m.local_nodes(); ++l)
@@ -233,27 +466,230 @@ fem::CorotatedSum DistributedAlpha::internal(Vec x, Mat T) const {
   return fem::reduce_corotated(comm_, energy, failure);
 }
 
-DistState DistributedAlpha::initial_state(Vec x0, Vec v0, double t0) const {
+namespace {
+
+/// Node j's position and multiplier of a tie set from local arrays (the tied nodes and their
+/// rows are owned).
+void tie_values(const TieSet &t, PetscInt start, const PetscScalar *q, const PetscScalar *l,
+                std::vector<double> &x, std::vector<double> &lambda) {
+  x.resize(3 * t.s.size());
+  lambda.assign(3 * t.s.size(), 0.0);
+  for (std::size_t j = 0; j < t.s.size(); ++j)
+    for (std::size_t k = 0; k < 3; ++k) {
+      x[3 * j + k] = q[t.x_dof[j] - start + static_cast<PetscInt>(k)];
+      if (l) lambda[3 * j + k] = l[t.row0 - start + static_cast<PetscInt>(3 * j + k)];
+    }
+}
+
+} // namespace
+
+double DistributedAlpha::add_constraints(const DistState &next, double bp, double gp,
+                                         bool matrix) const {
+  const detail::AcfLayout &L = *layout_;
+  double violation = 0;
+  if (small_) {
+    const State sm = small_state(next);
+    const PetscScalar *q, *l;
+    FX_PETSC(VecGetArrayRead(next.q, &q));
+    FX_PETSC(VecGetArrayRead(next.lambda, &l));
+    std::vector<double> x, lambda;
+    for (std::size_t i = 0; i < L.ties.size(); ++i) {
+      const TieSet &t = L.ties[i];
+      if (t.s.empty()) continue;
+      tie_values(t, L.start, q, l, x, lambda);
+      const int o = small_->offset(interfaces_[i].node_body);
+      violation = std::max(violation, add_ties(t, x.data(), sm.q.segment<3>(o),
+                                               sm.q.segment<4>(o + 3), lambda.data(), bp,
+                                               matrix ? A_ : nullptr, r_));
+    }
+    FX_PETSC(VecRestoreArrayRead(next.q, &q));
+    FX_PETSC(VecRestoreArrayRead(next.lambda, &l));
+    if (comm_rank(comm_) == 0) {
+      Vector rhs;
+      if (matrix)
+        add_newton_system(*small_, sm, bp, gp, A_, L.small_coord0, L.small_row0, rhs);
+      else
+        newton_system_rhs(*small_, sm, bp, rhs);
+      const int n = L.small_n, m = L.small_m;
+      const auto ic = range(L.small_coord0, n), ir = range(L.small_row0, m);
+      FX_PETSC(VecSetValues(r_, n, ic.data(), rhs.data(), ADD_VALUES));
+      FX_PETSC(VecSetValues(r_, m, ir.data(), rhs.data() + n, ADD_VALUES));
+      if (m > 0) violation = std::max(violation, rhs.tail(m).cwiseAbs().maxCoeff());
+    }
+  }
+  FX_PETSC(VecAssemblyBegin(r_));
+  FX_PETSC(VecAssemblyEnd(r_));
+  if (matrix) {
+    FX_PETSC(MatAssemblyBegin(A_, MAT_FINAL_ASSEMBLY));
+    FX_PETSC(MatAssemblyEnd(A_, MAT_FINAL_ASSEMBLY));
+  }
+  double global;
+  MPI_Allreduce(&violation, &global, 1, MPI_DOUBLE, MPI_MAX, comm_);
+  return global;
+}
+
+namespace {
+
+/// The state's coordinates and velocities with zero multiplier entries, no acceleration or
+/// multipliers yet.
+void zero_rest(Vec v, Vec mask) {
+  FX_PETSC(VecPointwiseMult(v, v, mask));
+}
+
+} // namespace
+
+DistState DistributedAlpha::initial_state(Vec q0, Vec v0, double t0) const {
+  const detail::AcfLayout &L = *layout_;
+  const bool root = comm_rank(comm_) == 0;
   DistState s;
   s.t = t0;
-  s.q = copy_of(x0);
+  s.q = copy_of(q0);
   s.v = copy_of(v0);
+  zero_rest(s.q, cmask_);
+  zero_rest(s.v, cmask_);
   s.acc = create_vector();
+  s.a = create_vector();
+  s.lambda = create_vector();
   const fem::CorotatedSum sum = internal(s.q, nullptr);
   if (!sum.ok) throw Error("initial state: " + sum.failure, true);
-  // M acc = f_g - f(x0), with a direct solve of the constant mass.
-  FX_PETSC(VecWAXPY(r_, -1.0, F_, fg_));
-  KSP k = create_direct_solver(M_, Factorization::Cholesky, nullptr);
-  FX_PETSC(KSPSolve(k, r_, s.acc));
-  KSPConvergedReason reason;
-  FX_PETSC(KSPGetConvergedReason(k, &reason));
-  FX_PETSC(KSPDestroy(&k));
-  if (reason < 0)
-    throw Error(std::string("initial state: the mass-matrix solve failed (") +
-                    KSPConvergedReasons[reason] + ")",
-                true);
-  s.a = copy_of(s.acc);
+  // Positions: every constraint must hold (the ties do by construction of the placement).
+  const double scale = 1 + max_abs(s.q);
+  State sm = small_state(s);
+  {
+    const double ties = tie_violation(s);
+    std::string bad;
+    int nbad = 0;
+    if (ties > 1e-9 * scale)
+      bad += "\n  the ties of the ACF interfaces: residual " + std::to_string(ties), ++nbad;
+    if (small_) {
+      Vector all;
+      small_->all_constraint_values(sm.q, t0, all);
+      for (int r = 0; r < all.size(); ++r)
+        if (!(std::abs(all(r)) <= 1e-9 * scale) && nbad++ < 6)
+          bad += "\n  " + small_->describe_row(r) + ": residual " + std::to_string(all(r));
+    }
+    if (nbad > 0)
+      throw Error("initial conditions: a scene with ACF bodies must be placed assembled (its "
+                  "joints closed; positions are not projected); these constraints are violated:" +
+                      bad,
+                  true);
+  }
+  // The matrix [M Phi_q^T; Phi_q 0] (ties with zero multipliers: no Hessian).
+  factored_ = false;
+  FX_PETSC(MatZeroEntries(A_));
+  FX_PETSC(MatAXPY(A_, 1.0, M_, SAME_NONZERO_PATTERN));
+  {
+    const PetscScalar *q;
+    FX_PETSC(VecGetArrayRead(s.q, &q));
+    std::vector<double> x, lambda;
+    for (std::size_t i = 0; i < L.ties.size(); ++i) {
+      const TieSet &t = L.ties[i];
+      if (t.s.empty()) continue;
+      tie_values(t, L.start, q, nullptr, x, lambda);
+      const int o = small_->offset(interfaces_[i].node_body);
+      add_ties(t, x.data(), sm.q.segment<3>(o), sm.q.segment<4>(o + 3), lambda.data(), 1.0, A_,
+               w_);
+    }
+    FX_PETSC(VecRestoreArrayRead(s.q, &q));
+    if (root && small_) add_mass_system(*small_, sm, A_, L.small_coord0, L.small_row0);
+    FX_PETSC(VecAssemblyBegin(w_));
+    FX_PETSC(VecAssemblyEnd(w_));
+    FX_PETSC(MatAssemblyBegin(A_, MAT_FINAL_ASSEMBLY));
+    FX_PETSC(MatAssemblyEnd(A_, MAT_FINAL_ASSEMBLY));
+  }
+  FX_PETSC(KSPSetUp(ksp_));
+  {
+    PC pc;
+    FX_PETSC(KSPGetPC(ksp_, &pc));
+    PCFailedReason failed;
+    FX_PETSC(PCGetFailedReason(pc, &failed));
+    if (failed != PC_NOERROR)
+      throw Error("initial conditions: the acceleration system [M Phi_q^T; Phi_q 0] is singular "
+                  "(a body without mass, an interface node held by nothing, or joints that "
+                  "leave no consistent acceleration)",
+                  true);
+  }
+  auto solve = [&](const char *what) {
+    FX_PETSC(KSPSolve(ksp_, r_, dz_));
+    KSPConvergedReason reason;
+    FX_PETSC(KSPGetConvergedReason(ksp_, &reason));
+    if (reason < 0 || !std::isfinite(max_abs(dz_)))
+      throw Error(std::string("initial conditions: the solve for the ") + what + " failed (" +
+                      KSPConvergedReasons[reason] + ")",
+                  true);
+  };
+  // Velocities: the smallest change in kinetic energy onto Phi_q v + Phi_t = 0.
+  FX_PETSC(MatMult(A_, s.v, w_));       // multiplier rows: Phi_q v
+  FX_PETSC(VecPointwiseMult(r_, w_, lmask_));
+  FX_PETSC(VecScale(r_, -1.0));
+  Vector phi_t, phi_tt, phi_qt_v;
+  if (root && small_) {
+    small_->constraint_time_terms(sm.q, sm.v, t0, phi_t, phi_tt, phi_qt_v);
+    const Vector m_phi_t = -phi_t;
+    const auto ir = range(L.small_row0, L.small_m);
+    FX_PETSC(VecSetValues(r_, L.small_m, ir.data(), m_phi_t.data(), ADD_VALUES));
+  }
+  FX_PETSC(VecAssemblyBegin(r_));
+  FX_PETSC(VecAssemblyEnd(r_));
+  solve("velocity projection");
+  FX_PETSC(VecPointwiseMult(w_, dz_, cmask_));
+  FX_PETSC(VecAXPY(s.v, 1.0, w_));
+  sm = small_state(s);
+  // Accelerations and multipliers: [M Phi_q^T; Phi_q 0] [acc; lambda] = [Q; gamma].
+  FX_PETSC(VecWAXPY(r_, -1.0, F_, fg_)); // f_g - f(x) on the ACF rows, 0 elsewhere
+  {
+    PetscScalar *r;
+    FX_PETSC(VecGetArray(r_, &r));
+    std::vector<double> gamma;
+    for (std::size_t i = 0; i < L.ties.size(); ++i) {
+      const TieSet &t = L.ties[i];
+      gamma.resize(3 * t.s.size());
+      const int o = small_ ? small_->offset(interfaces_[i].node_body) : 0;
+      if (!t.s.empty()) tie_accelerations(t, sm.v.segment<4>(o + 3), gamma.data());
+      for (std::size_t k = 0; k < gamma.size(); ++k)
+        r[t.row0 - L.start + static_cast<PetscInt>(k)] = gamma[k];
+    }
+    if (root && small_) {
+      const int n = L.small_n, m = L.small_m;
+      Vector r0;
+      small_->dynamics(sm.q, sm.v, Vector::Zero(n), t0, r0, nullptr, nullptr, nullptr);
+      small_->constraint_time_terms(sm.q, sm.v, t0, phi_t, phi_tt, phi_qt_v);
+      const Vector gamma_s = -small_->constraint_convective(sm.q, sm.v, t0) - 2 * phi_qt_v - phi_tt;
+      for (int k = 0; k < n; ++k) r[L.small_coord0 + k] = -r0(k);
+      for (int k = 0; k < m; ++k) r[L.small_row0 + k] = gamma_s(k);
+    }
+    FX_PETSC(VecRestoreArray(r_, &r));
+  }
+  solve("initial accelerations");
+  FX_PETSC(VecPointwiseMult(s.acc, dz_, cmask_));
+  FX_PETSC(VecPointwiseMult(s.lambda, dz_, lmask_));
+  FX_PETSC(VecCopy(s.acc, s.a));
   return s;
+}
+
+double DistributedAlpha::tie_violation(const DistState &s) const {
+  const detail::AcfLayout &L = *layout_;
+  double violation = 0;
+  if (small_) {
+    const State sm = small_state(s);
+    const PetscScalar *q;
+    FX_PETSC(VecGetArrayRead(s.q, &q));
+    for (std::size_t i = 0; i < L.ties.size(); ++i) {
+      const TieSet &t = L.ties[i];
+      const int o = small_->offset(interfaces_[i].node_body);
+      const Vec3 r = sm.q.segment<3>(o);
+      const bodies::Mat3 R = bodies::rotation(sm.q.segment<4>(o + 3));
+      for (std::size_t j = 0; j < t.s.size(); ++j) {
+        const Vec3 x(q[t.x_dof[j] - L.start], q[t.x_dof[j] - L.start + 1],
+                     q[t.x_dof[j] - L.start + 2]);
+        violation = std::max(violation, (x - r - R * t.s[j]).cwiseAbs().maxCoeff());
+      }
+    }
+    FX_PETSC(VecRestoreArrayRead(s.q, &q));
+  }
+  double global;
+  MPI_Allreduce(&violation, &global, 1, MPI_DOUBLE, MPI_MAX, comm_);
+  return global;
 }
 
 void DistributedAlpha::energies(const DistState &s, double &kinetic, double &elastic,
@@ -266,6 +702,17 @@ void DistributedAlpha::energies(const DistState &s, double &kinetic, double &ela
   potential = -potential;
 }
 
+double DistributedAlpha::energy(const DistState &s) const {
+  double k, e, p;
+  energies(s, k, e, p);
+  double total = k + e + p;
+  if (small_) {
+    const State sm = small_state(s);
+    total += small_->energy(sm.q, sm.v);
+  }
+  return total;
+}
+
 void DistributedAlpha::momentum(const DistState &s, Eigen::Vector3d &linear,
                                 Eigen::Vector3d &angular) const {
   FX_PETSC(MatMult(M_, s.v, r_));
@@ -273,7 +720,7 @@ void DistributedAlpha::momentum(const DistState &s, Eigen::Vector3d &linear,
   FX_PETSC(VecGetArrayRead(r_, &p));
   FX_PETSC(VecGetArrayRead(s.q, &x));
   double sums[6] = {0, 0, 0, 0, 0, 0}, g[6];
-  for (PetscInt i = 0; i < layout_->local; i += 3) {
+  for (PetscInt i = 0; i < layout_->acf_local; i += 3) {
     const Eigen::Vector3d pa(p[i], p[i + 1], p[i + 2]), xa(x[i], x[i + 1], x[i + 2]);
     const Eigen::Vector3d l = xa.cross(pa);
     for (int k = 0; k < 3; ++k) sums[k] += pa(k), sums[3 + k] += l(k);
@@ -290,10 +737,44 @@ Eigen::Vector3d DistributedAlpha::centre_of_mass(Vec x) const {
   const PetscScalar *p;
   FX_PETSC(VecGetArrayRead(r_, &p));
   double sums[3] = {0, 0, 0}, g[3];
-  for (PetscInt i = 0; i < layout_->local; ++i) sums[i % 3] += p[i];
+  for (PetscInt i = 0; i < layout_->acf_local; ++i) sums[i % 3] += p[i];
   FX_PETSC(VecRestoreArrayRead(r_, &p));
   MPI_Allreduce(sums, g, 3, MPI_DOUBLE, MPI_SUM, comm_);
   return Eigen::Vector3d(g[0], g[1], g[2]) / mass_;
+}
+
+bool DistributedAlpha::assemble(const DistState &next, const NewtonScaling &k, bool matrix,
+                                double &violation) const {
+  if (!internal(next.q, matrix ? A_ : nullptr).ok) return false; // an inverted element
+  if (matrix) {
+    // A = M + T / beta' on the ACF bodies (no damping: C = 0); M_ has A_'s stored pattern.
+    FX_PETSC(MatScale(A_, 1.0 / k.bp));
+    FX_PETSC(MatAXPY(A_, 1.0, M_, SAME_NONZERO_PATTERN));
+  }
+  // r = -(M acc + f(q) - f_g) / beta' on the ACF rows (0 elsewhere), then the constraints.
+  FX_PETSC(MatMult(M_, next.acc, r_));
+  FX_PETSC(VecAXPY(r_, 1.0, F_));
+  FX_PETSC(VecAXPY(r_, -1.0, fg_));
+  FX_PETSC(VecScale(r_, -1.0 / k.bp));
+  violation = add_constraints(next, k.bp, k.gp, matrix);
+  return true;
+}
+
+void DistributedAlpha::equations(const DistState &s, Vec R) const {
+  double violation;
+  NewtonScaling unit;
+  unit.bp = 1;
+  if (!assemble(s, unit, false, violation))
+    throw Error("DistributedAlpha::equations: an inverted element", true);
+  FX_PETSC(VecAXPBY(R, -1.0, 0.0, r_));
+}
+
+Mat DistributedAlpha::newton_matrix(const DistState &s, double h) const {
+  double violation;
+  factored_ = false;
+  if (!assemble(s, par_.newton_scaling(h), true, violation))
+    throw Error("DistributedAlpha::newton_matrix: an inverted element", true);
+  return A_;
 }
 
 bool DistributedAlpha::step_once(const DistState &s, double h, DistState &next,
@@ -304,10 +785,12 @@ bool DistributedAlpha::step_once(const DistState &s, double h, DistState &next,
     const DistState &s;
     DistState &next;
     double h;
-    void predict() { // acc1 = acc0
+    double violation = 0; ///< max |Phi| at the last right-hand side
+    void predict() { // acc1 = acc0, lambda1 = lambda0
       const double am = da.par_.alpha_m, g = da.par_.gamma, b = da.par_.beta;
       next.t = s.t + h;
       FX_PETSC(VecCopy(s.acc, next.acc));
+      FX_PETSC(VecCopy(s.lambda, next.lambda));
       // a1 = (af acc0 - am a0 + (1 - af) acc1) / (1 - am) = (acc0 - am a0) / (1 - am)
       FX_PETSC(VecAXPBYPCZ(next.a, 1 / (1 - am), -am / (1 - am), 0.0, s.acc, s.a));
       // v1 = v0 + h (1 - g) a0 + h g a1
@@ -322,49 +805,36 @@ bool DistributedAlpha::step_once(const DistState &s, double h, DistState &next,
     bool has_matrix(const NewtonScaling &k) const {
       return da.factored_ && da.bp_ == k.bp && da.gp_ == k.gp;
     }
-    /// r = -(M acc + f(q) - f_g) / beta' (F_ holds f(q)).
-    void residual(double bp_) {
-      FX_PETSC(MatMult(da.M_, next.acc, da.r_));
-      FX_PETSC(VecAXPY(da.r_, 1.0, da.F_));
-      FX_PETSC(VecAXPY(da.r_, -1.0, da.fg_));
-      FX_PETSC(VecScale(da.r_, -1.0 / bp_));
-    }
     bool factorize(const NewtonScaling &k) {
       da.factored_ = false;
-      if (!da.internal(next.q, da.A_).ok) return false;
-      // A = M + T / beta' (no damping yet: C = 0).
-      FX_PETSC(MatScale(da.A_, 1.0 / k.bp));
-      // M_ was duplicated from A_: the same stored pattern (explicit zeros off the mass).
-      FX_PETSC(MatAXPY(da.A_, 1.0, da.M_, SAME_NONZERO_PATTERN));
+      if (!da.assemble(next, k, true, violation)) return false;
       FX_PETSC(KSPSetUp(da.ksp_));
       PC pc;
       FX_PETSC(KSPGetPC(da.ksp_, &pc));
       PCFailedReason failed;
       FX_PETSC(PCGetFailedReason(pc, &failed));
       if (failed != PC_NOERROR) return false;
-      residual(k.bp);
       da.factored_ = true;
       da.bp_ = k.bp;
       da.gp_ = k.gp;
       return true;
     }
-    bool rhs(const NewtonScaling &k) {
-      if (!da.internal(next.q, nullptr).ok) return false; // an inverted element
-      residual(k.bp);
-      return true;
-    }
-    bool solve_update(const NewtonScaling &k, double &increment, double &violation) {
-      violation = 0; // no constraints
-      FX_PETSC(KSPSolve(da.ksp_, da.r_, da.dq_));
+    bool rhs(const NewtonScaling &k) { return da.assemble(next, k, false, violation); }
+    bool solve_update(const NewtonScaling &k, double &increment, double &phi) {
+      phi = violation;
+      FX_PETSC(KSPSolve(da.ksp_, da.r_, da.dz_));
       KSPConvergedReason reason;
       FX_PETSC(KSPGetConvergedReason(da.ksp_, &reason));
       if (reason < 0) return false;
-      FX_PETSC(VecAXPY(next.q, 1.0, da.dq_));
-      FX_PETSC(VecAXPY(next.v, k.gp, da.dq_));
-      FX_PETSC(VecAXPY(next.acc, k.bp, da.dq_));
-      FX_PETSC(VecAXPY(next.a, k.ap, da.dq_));
-      const double d = max_abs(da.dq_);
+      FX_PETSC(VecPointwiseMult(da.w_, da.dz_, da.cmask_)); // dq
+      const double d = max_abs(da.w_);
       if (!std::isfinite(d)) return false;
+      FX_PETSC(VecAXPY(next.q, 1.0, da.w_));
+      FX_PETSC(VecAXPY(next.v, k.gp, da.w_));
+      FX_PETSC(VecAXPY(next.acc, k.bp, da.w_));
+      FX_PETSC(VecAXPY(next.a, k.ap, da.w_));
+      FX_PETSC(VecPointwiseMult(da.w_, da.dz_, da.lmask_)); // the scaled multipliers' update
+      FX_PETSC(VecAXPY(next.lambda, k.bp, da.w_));
       increment = d / (1 + max_abs(next.q));
       return true;
     }

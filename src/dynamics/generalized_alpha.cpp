@@ -369,6 +369,25 @@ void add_newton_system(const Mechanism &mech, const State &next, double bp, doub
   assemble_system(mech, next, bp, gp, assembly, r, phi, rhs, K, C, M);
 }
 
+void add_mass_system(const Mechanism &mech, const State &s, Mat A, PetscInt coord0,
+                     PetscInt row0) {
+  const int n = mech.coordinates(), m = mech.constraints();
+  Vector r, phi, jtl;
+  const Vector zero = Vector::Zero(m);
+  std::vector<Matrix> K, C, M;
+  IterationAssembly assembly(nullptr, nullptr, n, zero, jtl);
+  assembly.petsc = A;
+  assembly.coord0 = coord0;
+  assembly.row0 = row0;
+  jtl.setZero(n);
+  mech.dynamics_blocks(s.q, s.v, Vector::Zero(n), s.t, r, K, C, M);
+  for (int b = 0; b < static_cast<int>(mech.bodies.size()); ++b) {
+    const joints::BodyRef ref{b, mech.offset(b)};
+    assembly.add_block(ref, ref, 0, 0, M[static_cast<std::size_t>(b)]);
+  }
+  mech.constraint(s.q, s.t, phi, assembly);
+}
+
 bool GeneralizedAlpha::factorize(const State &next, double bp, double gp) const {
   NewtonWork &w = *work_;
   w.factored = false;

@@ -57,6 +57,32 @@ const LocalSurface &DistributedMesh::surface(const std::string &name,
   return find_group(surfaces, name, "surface", source, where);
 }
 
+Eigen::Vector3d surface_centroid(const DistributedMesh &mesh, const std::string &name,
+                                 const std::string &where) {
+  const LocalSurface &s = mesh.surface(name, where);
+  const int nf = fem::nodes_per_face(s.type);
+  double local[4] = {0, 0, 0, 0};
+  fem::FaceCoords Xf(nf, 3);
+  for (std::size_t f = 0; f < s.size(); ++f) {
+    for (int a = 0; a < nf; ++a)
+      for (int k = 0; k < 3; ++k)
+        Xf(a, k) =
+            s.coordinates[3 * (f * static_cast<std::size_t>(nf) + static_cast<std::size_t>(a)) +
+                          static_cast<std::size_t>(k)];
+    // int N_a dA from the consistent load of a unit traction (1, 0, 0).
+    const fem::ElementVector w = fem::face_traction_load(s.type, Xf, Eigen::Vector3d(1, 0, 0));
+    for (int a = 0; a < nf; ++a) {
+      local[3] += w(3 * a);
+      for (int k = 0; k < 3; ++k) local[k] += w(3 * a) * Xf(a, k);
+    }
+  }
+  double global[4];
+  MPI_Allreduce(local, global, 4, MPI_DOUBLE, MPI_SUM, mesh.comm);
+  if (!(global[3] > 0))
+    throw Error(where + ": surface '" + name + "' of " + mesh.source + " has no area", true);
+  return Eigen::Vector3d(global[0], global[1], global[2]) / global[3];
+}
+
 const std::vector<PetscInt> &DistributedMesh::volume_group(const std::string &name,
                                                            const std::string &where) const {
   return find_group(volume_groups, name, "volume", source, where);

@@ -13,35 +13,6 @@ CraigBamptonBasis::~CraigBamptonBasis() {
   for (Vec &v : vectors) VecDestroy(&v);
 }
 
-namespace {
-
-/// Area-weighted centroid of a surface over all ranks (each face lives on one rank).
-Eigen::Vector3d centroid(const mesh::DistributedMesh &mesh, const std::string &name) {
-  const mesh::LocalSurface &s = mesh.surface(name, "Craig-Bampton interface");
-  const int nf = fem::nodes_per_face(s.type);
-  double local[4] = {0, 0, 0, 0};
-  fem::FaceCoords Xf(nf, 3);
-  for (std::size_t f = 0; f < s.size(); ++f) {
-    for (int a = 0; a < nf; ++a)
-      for (int k = 0; k < 3; ++k)
-        Xf(a, k) =
-            s.coordinates[3 * (f * static_cast<std::size_t>(nf) + static_cast<std::size_t>(a)) +
-                          static_cast<std::size_t>(k)];
-    const fem::ElementVector w = fem::face_traction_load(s.type, Xf, Eigen::Vector3d(1, 0, 0));
-    for (int a = 0; a < nf; ++a) {
-      local[3] += w(3 * a);
-      for (int k = 0; k < 3; ++k) local[k] += w(3 * a) * Xf(a, k);
-    }
-  }
-  double global[4];
-  MPI_Allreduce(local, global, 4, MPI_DOUBLE, MPI_SUM, mesh.comm);
-  if (!(global[3] > 0))
-    throw Error("Craig-Bampton: interface surface '" + name + "' has no area", true);
-  return Eigen::Vector3d(global[0], global[1], global[2]) / global[3];
-}
-
-} // namespace
-
 void craig_bampton(const mesh::DistributedMesh &mesh, Mat K, Mat M,
                    const std::vector<std::string> &interfaces, int fixed_modes,
                    CraigBamptonBasis &out) {
@@ -50,7 +21,7 @@ void craig_bampton(const mesh::DistributedMesh &mesh, Mat K, Mat M,
     throw Error("Craig-Bampton: a flexible body needs at least one interface (its frame)", true);
   const std::size_t ni = interfaces.size();
   out.centroids.clear();
-  for (const auto &name : interfaces) out.centroids.push_back(centroid(mesh, name));
+  for (const auto &name : interfaces) out.centroids.push_back(mesh::surface_centroid(mesh, name, "Craig-Bampton interface"));
 
   // Owned DOFs of every interface surface, and the union of all of them.
   std::vector<std::vector<PetscInt>> nodes(ni);

@@ -74,3 +74,18 @@ private:
 };
 
 } // namespace flexopt::bodies
+
+namespace flexopt::bodies {
+
+/// The interface node of an ACF body's interface (docs/theory.md section 8.2): a massless rigid
+/// body with its reference point at the interface centroid c_I (mesh coordinates) and the mesh
+/// axes, held by the ties to the body's surface nodes. Joints, drivers and loads attach to it
+/// as to a rigid body.
+class InterfaceNode : public RigidBody {
+public:
+  InterfaceNode(std::string name, const Vec3 &centroid)
+      : RigidBody(std::move(name), MassProperties{0.0, centroid, Mat3::Zero()}) {}
+  const char *model() const override { return "interface"; }
+};
+
+} // namespace flexopt::bodies

@@ -1,84 +1,159 @@
 #pragma once
 /// \file Generalized-alpha time integration on the distributed backend (docs/theory.md sections
-/// 6.4 and 8.2): the state is a set of PETSc Vecs over all ranks and the Newton matrix one
-/// PETSc Mat, solved by a KSP (a direct MUMPS LU by default, options prefix `mech_`); the
-/// Newton iteration, its kept matrix and the step halving are those of GeneralizedAlpha
-/// (detail::newton_loop).
+/// 6.4 and 8.2): a mechanism of ACF bodies, whose node positions are distributed over the
+/// ranks, and a small part (rigid, FFRF and interface-node bodies with their joints, drivers and
+/// loads: a dynamics::Mechanism evaluated on rank 0) whose coordinates and multipliers rank 0
+/// owns. The interfaces of the ACF bodies are tied to interface-node bodies of the small part
+/// (RBE2 ties, dynamics/ties.hpp). One PETSc vector layout holds every unknown; the Newton
+/// matrix is one PETSc Mat over all ranks, solved by a KSP (a direct MUMPS LU by default,
+/// options prefix `mech_`); the Newton iteration, its kept matrix and the step halving are those
+/// of GeneralizedAlpha (detail::newton_loop).
 ///
-/// This version integrates free ACF bodies under gravity, without constraints:
-///   M acc + f(x) - M (1 (x) g) = 0.
-/// The layout: each rank owns the coordinates of its owned nodes of body 0, then body 1, ...
-/// Joints, interface nodes and the small (rigid, FFRF) part of a scene come with section 8.2.
+/// Layout on rank r: the coordinates of its owned nodes of ACF body 0, body 1, ..., then (rank 0)
+/// the small part's coordinates; then the multipliers of the ties of its owned tied nodes, then
+/// (rank 0) the small part's enforced constraint rows. All state vectors have this layout: q, v,
+/// a, acc are zero on the multiplier entries, lambda on the coordinate entries.
 #include "flexopt/bodies/acf_body.hpp"
 #include "flexopt/dynamics/generalized_alpha.hpp"
+#include "flexopt/dynamics/ties.hpp"
+#include "flexopt/fem/probe.hpp"
 
 #include <functional>
 #include <memory>
 #include <petscksp.h>
+#include <string>
 #include <vector>
 
 namespace flexopt::dynamics {
 
-/// The state of a step: t and the PETSc vectors q, v, a, acc (the integrator's layout). Copies
-/// are deep (new vectors with the same values).
+/// The state of a step: t and the PETSc vectors q, v, a, acc and lambda (the integrator's
+/// layout). Copies are deep (new vectors with the same values).
 struct DistState {
   double t = 0;
-  Vec q = nullptr, v = nullptr, a = nullptr, acc = nullptr;
+  Vec q = nullptr, v = nullptr, a = nullptr, acc = nullptr, lambda = nullptr;
   DistState() = default;
   DistState(const DistState &o);
   DistState &operator=(const DistState &o);
   ~DistState();
 };
 
+/// An interface of an ACF body: the owned nodes of its surface are tied rigidly to the
+/// interface-node body `node_body` of the small mechanism (whose reference point is c_I).
+struct AcfInterface {
+  std::size_t body = 0;     ///< the ACF body
+  std::string surface;      ///< its physical surface
+  int node_body = 0;        ///< the interface node: a body of the small mechanism (7 coordinates)
+  Vec3 centroid{0, 0, 0};   ///< c_I (mesh coordinates)
+  std::string where = "";   ///< for messages (the case key)
+};
+
 namespace detail {
-struct AcfLayout; ///< the DOF numbers of every body's local nodes and the scatters to them
+struct AcfLayout; ///< the DOF numbers of every body's local nodes, the ties, the scatters
 }
 
 class DistributedAlpha {
 public:
-  /// The bodies must share one communicator and outlive the integrator. Collective.
+  /// ACF bodies (sharing one communicator), the small mechanism (finalized, identical on every
+  /// rank; null or without bodies for free ACF bodies) and the interfaces tying them; gravity
+  /// acts on the ACF bodies (the small mechanism has its own). All must outlive the integrator.
+  /// Collective; throws a collective flexopt::Error for a missing surface or two interfaces of a
+  /// body sharing a node.
+  DistributedAlpha(std::vector<const bodies::AcfBody *> bodies, const Mechanism *small,
+                   std::vector<AcfInterface> interfaces, const Eigen::Vector3d &gravity,
+                   AlphaParameters parameters, NewtonSettings settings = {});
+  /// Free ACF bodies under gravity (no small part).
   DistributedAlpha(std::vector<const bodies::AcfBody *> bodies, const Eigen::Vector3d &gravity,
                    AlphaParameters parameters, NewtonSettings settings = {});
   ~DistributedAlpha();
   DistributedAlpha(const DistributedAlpha &) = delete;
   DistributedAlpha &operator=(const DistributedAlpha &) = delete;
 
-  /// A vector of the integrator's layout; the caller destroys it. Collective.
+  /// A zero vector of the integrator's layout; the caller destroys it. Collective.
   Vec create_vector() const;
-  /// Sets field(X) at the owned nodes of body b (X: reference position) in v. Not collective.
+  /// Sets field(X) at the owned nodes of ACF body b (X: reference position) in v. Not
+  /// collective.
   void set_nodal(Vec v, std::size_t body,
                  const std::function<Eigen::Vector3d(const Eigen::Vector3d &)> &field) const;
+  /// Sets the small part's coordinate entries of v (rank 0 writes; the values must be the same
+  /// on every rank). Not collective.
+  void set_small(Vec v, const Vector &values) const;
+  /// The small part's state (q, v, a, acc, lambda), replicated on every rank. Collective.
+  State small_state(const DistState &s) const;
+  /// World positions of the owned nodes of ACF body b (3 per node, node-major). Not collective.
+  std::vector<double> owned_positions(const DistState &s, std::size_t body) const;
+  /// The position at a located point of ACF body b (FE interpolation), on every rank.
+  /// Collective.
+  Vec3 point_position(const DistState &s, std::size_t body, const fem::PointLocation &p) const;
 
-  /// Positions x0 and velocities v0 at t0, acc = a = M^-1 (f_g - f(x0)). Collective; throws a
-  /// collective flexopt::Error if an element of x0 is inverted.
-  DistState initial_state(Vec x0, Vec v0, double t0) const;
+  /// The consistent state at t0 from placed positions q0 and velocities v0 (this layout,
+  /// multiplier entries ignored): the positions must satisfy every enforced constraint (ties
+  /// and the small part's rows, to 1e-9 of the scene's size); the velocities are projected onto
+  /// Phi_q v + Phi_t = 0 (the smallest change in kinetic energy); acc and lambda solve the
+  /// acceleration-level equations [M Phi_q^T; Phi_q 0] [acc; lambda] = [Q; gamma]; a = acc.
+  /// Collective; throws a collective flexopt::Error naming the violated constraints, an
+  /// inverted element or a singular system.
+  DistState initial_state(Vec q0, Vec v0, double t0) const;
   /// Advances s by h to `next`, halving the step (recursively, up to max_halvings) when Newton
   /// fails. Returns false (and fills `info`) if even the smallest substep fails. Collective.
   bool advance(const DistState &s, double h, DistState &next, StepInfo &info) const;
-  /// Kinetic energy 1/2 v^T M v, elastic energy and the potential of gravity -f_g . x at a
-  /// state. Collective.
+
+  /// The equations at a state, R = [R_d; Phi] in this layout: on the coordinates the
+  /// equations of motion M acc + f(x) - f_g + Phi_q^T lambda (ACF bodies) and those of the small
+  /// part (Mechanism::dynamics plus Phi_q^T lambda), on the multipliers the constraints. The
+  /// rest of the step residual (R_q, R_v, R_a of GeneralizedAlpha::residual) is linear. Collective.
+  void equations(const DistState &s, Vec R) const;
+  /// The scaled Newton matrix of section 6.4 at s for the step size h: its product with
+  /// [dq; dlambda_hat] is the derivative of [R_d / beta'; Phi] along q += dq, v += gamma' dq,
+  /// a += alpha' dq, acc += beta' dq, lambda += beta' dlambda_hat. Owned by the integrator (valid
+  /// until its next step). Collective.
+  Mat newton_matrix(const DistState &s, double h) const;
+
+  /// Kinetic energy 1/2 v^T M v, elastic energy and the potential of gravity -f_g . x of the
+  /// ACF bodies. Collective.
   void energies(const DistState &s, double &kinetic, double &elastic, double &potential) const;
+  /// The whole mechanism's energy: the ACF bodies' plus the small part's (Mechanism::energy).
+  /// Collective.
+  double energy(const DistState &s) const;
+  /// Largest |Phi| of the ties. Collective.
+  double tie_violation(const DistState &s) const;
   /// Linear momentum M v summed over all nodes and angular momentum sum_a x_a x (M v)_a about
-  /// the world origin. Collective.
+  /// the world origin, of the ACF bodies. Collective.
   void momentum(const DistState &s, Eigen::Vector3d &linear, Eigen::Vector3d &angular) const;
-  /// 1_k^T M x / m: the centre of mass of all bodies. Collective.
+  /// 1_k^T M x / m: the centre of mass of the ACF bodies. Collective.
   Eigen::Vector3d centre_of_mass(Vec x) const;
+
+  /// out := 1 on the coordinate entries of the layout, 0 on the multipliers. Not collective.
+  void coordinate_mask(Vec out) const;
+  /// Unknowns over all ranks: coordinates and multipliers.
+  PetscInt global_size() const;
 
 private:
   bool step_once(const DistState &s, double h, DistState &next, StepInfo &info) const;
-  /// Energy and force (and tangent) of all bodies at positions x into F_ (and A_). Collective.
+  /// Energy and force (and tangent) of all ACF bodies at positions x into F_ (and T). Collective.
   fem::CorotatedSum internal(Vec x, Mat T) const;
+  /// Adds the ties and the small part to the right-hand side r_ (and the matrix A_) at `next`
+  /// with the scaling bp, gp; returns max |Phi| over all ranks. Collective (assembles r_, A_).
+  double add_constraints(const DistState &next, double bp, double gp, bool matrix) const;
+  /// Fills r_ = -[R_d / beta'; Phi] at `next` and, if `matrix`, A_ with the scaled Newton matrix;
+  /// max |Phi| into violation. False if an element is inverted. Collective.
+  bool assemble(const DistState &next, const NewtonScaling &k, bool matrix,
+                double &violation) const;
+  /// Positions of ACF body b's local nodes (owned and ghosts) into layout_->local_x[b].
+  void gather(Vec x, std::size_t body) const;
 
   std::vector<const bodies::AcfBody *> bodies_;
+  const Mechanism *small_ = nullptr;
+  std::vector<AcfInterface> interfaces_;
   MPI_Comm comm_;
   std::unique_ptr<detail::AcfLayout> layout_;
   AlphaParameters par_;
   NewtonSettings settings_;
   double mass_ = 0;
-  Mat M_ = nullptr;                                      ///< the consistent mass, this layout
-  Vec fg_ = nullptr;                                     ///< gravity load
-  mutable Vec F_ = nullptr, r_ = nullptr, dq_ = nullptr; ///< work vectors
-  mutable Mat A_ = nullptr;                              ///< the iteration matrix M + T / beta'
+  Mat M_ = nullptr;   ///< the ACF bodies' consistent mass (the pattern of A_)
+  Vec fg_ = nullptr;  ///< gravity load on the ACF bodies
+  Vec cmask_ = nullptr, lmask_ = nullptr; ///< 1 on the coordinate (multiplier) entries, else 0
+  mutable Vec F_ = nullptr, r_ = nullptr, dz_ = nullptr, w_ = nullptr; ///< work vectors
+  mutable Mat A_ = nullptr; ///< the iteration matrix
   mutable KSP ksp_ = nullptr;
   mutable bool factored_ = false;
   mutable double bp_ = 0, gp_ = 0;

@@ -64,6 +64,12 @@ struct DistributedMesh {
                                             const std::string &where) const;
 };
 
+/// Area-weighted centroid of a physical surface over all ranks (each face lives on one rank).
+/// Collective; throws a collective flexopt::Error naming `where` for a missing surface or one
+/// without area.
+Eigen::Vector3d surface_centroid(const DistributedMesh &mesh, const std::string &name,
+                                 const std::string &where);
+
 /// Partitions `root_mesh` (significant on rank 0 only) over `comm` and distributes it.
 /// Collective.
 DistributedMesh distribute_mesh(MPI_Comm comm, const MeshData *root_mesh);
