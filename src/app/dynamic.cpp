@@ -1,6 +1,8 @@
-// `flexopt simulate` for `analysis: dynamic`: a mechanism of rigid and FFRF bodies integrated
-// with generalized-alpha; motion.xdmf (every body's mesh moving and, for flexible bodies,
-// deforming), summary.json (sensors, energy, constraint violation, Newton statistics).
+// `flexopt simulate` for `analysis: dynamic`: a mechanism of rigid, FFRF and ACF bodies
+// integrated with generalized-alpha, on the dense/replicated backend (no ACF body) or the
+// distributed one (docs/theory.md section 8.2); motion.xdmf (every body's mesh moving and, for
+// flexible bodies, deforming), summary.json (sensors, energy, constraint violation, Newton
+// statistics).
 #include "app_common.hpp"
 #include "flexopt/bodies/ffrf_body.hpp"
 #include "flexopt/bodies/rigid_body.hpp"
@@ -21,14 +23,17 @@ namespace {
 /// before the run stops (structurally redundant rows stay at round-off, ~1e-15).
 constexpr double kRedundantDriftTolerance = 1e-8;
 
-/// Current world coordinates of the owned nodes of body b and, for a flexible body, their
-/// elastic displacement Psi zeta (frame axes) into `elastic`.
+/// Current world coordinates of the owned nodes of case body b (a rigid or FFRF body of the
+/// mechanism) and, for a flexible body, their elastic displacement Psi zeta (frame axes) into
+/// `elastic`.
 std::vector<double> body_positions(const dynamics::Scene &scene, std::size_t b,
                                    const dynamics::Vector &q, std::vector<double> &elastic) {
   const mesh::DistributedMesh &m = scene.meshes[b];
   const dynamics::Mechanism &mech = scene.mechanism;
-  const int o = mech.offset(static_cast<int>(b)), ne = mech.size(static_cast<int>(b)) - 7;
-  const bodies::Vec3 r = q.segment<3>(o), origin = mech.bodies[b]->origin();
+  const int mb = scene.bodies[b].mechanism;
+  const int o = mech.offset(mb), ne = mech.size(mb) - 7;
+  const bodies::Vec3 r = q.segment<3>(o),
+                     origin = mech.bodies[static_cast<std::size_t>(mb)]->origin();
   const bodies::Mat3 A = bodies::rotation(q.segment<4>(o + 3));
   const auto nodes = static_cast<std::size_t>(m.owned_nodes);
   std::vector<double> x(3 * nodes);
@@ -49,6 +54,119 @@ std::vector<double> body_positions(const dynamics::Scene &scene, std::size_t b,
 io::Json vec3_json(const bodies::Vec3 &v) {
   return io::Json(std::vector<double>{v.x(), v.y(), v.z()});
 }
+
+/// What the dense and the distributed runs do differently: the state and its integrator, the
+/// energy, the bodies' positions and the sensors. Every member is collective.
+class Backend {
+public:
+  virtual ~Backend() = default;
+  /// One step of h from the current state (which it replaces on success, with the time t).
+  virtual bool advance(double h, double t, dynamics::StepInfo &info) = 0;
+  /// The state of the mechanism (the small part of a scene with ACF bodies), replicated.
+  virtual const dynamics::State &mechanism_state() const = 0;
+  /// Largest residual of the ACF ties (0 without ACF bodies).
+  virtual double tie_violation() const = 0;
+  virtual double energy() const = 0;
+  virtual bodies::Vec3 sensor(const dynamics::BoundSensor &s) const = 0;
+  /// Owned node positions of case body b and the elastic displacement field (empty: none).
+  virtual std::vector<double> positions(std::size_t b, std::vector<double> &elastic) const = 0;
+};
+
+/// Rigid and FFRF bodies: GeneralizedAlpha on the replicated mechanism.
+class DenseBackend : public Backend {
+public:
+  DenseBackend(const dynamics::Scene &scene, dynamics::AlphaParameters par,
+               dynamics::NewtonSettings newton)
+      : scene_(scene), ga_(scene.mechanism, par, newton),
+        state_(ga_.initial_state(scene.q0, scene.v0, 0.0)) {}
+  bool advance(double h, double t, dynamics::StepInfo &info) override {
+    if (!ga_.advance(state_, h, next_, info)) return false;
+    next_.t = t;
+    state_ = next_;
+    return true;
+  }
+  const dynamics::State &mechanism_state() const override { return state_; }
+  double tie_violation() const override { return 0; }
+  double energy() const override { return scene_.mechanism.energy(state_.q, state_.v); }
+  bodies::Vec3 sensor(const dynamics::BoundSensor &s) const override {
+    return dynamics::sensor_value(scene_, s, state_.q);
+  }
+  std::vector<double> positions(std::size_t b, std::vector<double> &elastic) const override {
+    return body_positions(scene_, b, state_.q, elastic);
+  }
+
+private:
+  const dynamics::Scene &scene_;
+  dynamics::GeneralizedAlpha ga_;
+  dynamics::State state_, next_;
+};
+
+/// A scene with ACF bodies: DistributedAlpha over all ranks, the mechanism as its small part.
+class DistributedBackend : public Backend {
+public:
+  DistributedBackend(const dynamics::Scene &scene, const bodies::Vec3 &gravity,
+                     dynamics::AlphaParameters par, dynamics::NewtonSettings newton)
+      : scene_(scene), da_(acf_list(scene), &scene.mechanism, scene.acf_interfaces, gravity, par,
+                           newton) {
+    Vec x0, v0;
+    dynamics::acf_initial_vectors(scene, da_, x0, v0);
+    try {
+      state_ = da_.initial_state(x0, v0, 0.0);
+    } catch (...) {
+      VecDestroy(&x0);
+      VecDestroy(&v0);
+      throw;
+    }
+    VecDestroy(&x0);
+    VecDestroy(&v0);
+    small_ = da_.small_state(state_);
+  }
+  bool advance(double h, double t, dynamics::StepInfo &info) override {
+    if (!da_.advance(state_, h, next_, info)) return false;
+    next_.t = t;
+    state_ = next_;
+    small_ = da_.small_state(state_);
+    return true;
+  }
+  const dynamics::State &mechanism_state() const override { return small_; }
+  double tie_violation() const override { return da_.tie_violation(state_); }
+  double energy() const override { return da_.energy(state_); }
+  bodies::Vec3 sensor(const dynamics::BoundSensor &s) const override {
+    if (s.acf >= 0) return dynamics::acf_sensor_value(scene_, da_, s, state_, small_);
+    return dynamics::sensor_value(scene_, s, small_.q);
+  }
+  std::vector<double> positions(std::size_t b, std::vector<double> &elastic) const override {
+    const dynamics::SceneBody &sb = scene_.bodies[b];
+    if (sb.acf < 0) return body_positions(scene_, b, small_.q, elastic);
+    std::vector<double> x = da_.owned_positions(state_, static_cast<std::size_t>(sb.acf));
+    elastic.clear();
+    if (sb.nodes.empty()) return x;
+    // The elastic displacement in the frame of the first interface node:
+    // A^T (x - r_I) - (X - c_I).
+    const int o = scene_.mechanism.offset(sb.nodes.front());
+    const bodies::Vec3 r = small_.q.segment<3>(o);
+    const bodies::Mat3 A = bodies::rotation(small_.q.segment<4>(o + 3));
+    const mesh::DistributedMesh &m = scene_.meshes[b];
+    elastic.resize(x.size());
+    for (std::size_t i = 0; i < x.size() / 3; ++i) {
+      const bodies::Vec3 X(&m.coordinates[3 * i]), xi(&x[3 * i]);
+      const bodies::Vec3 e = A.transpose() * (xi - r) - (X - sb.centroids.front());
+      for (int k = 0; k < 3; ++k) elastic[3 * i + static_cast<std::size_t>(k)] = e(k);
+    }
+    return x;
+  }
+
+private:
+  static std::vector<const bodies::AcfBody *> acf_list(const dynamics::Scene &scene) {
+    std::vector<const bodies::AcfBody *> list;
+    for (const auto &a : scene.acf) list.push_back(a.get());
+    return list;
+  }
+  const dynamics::Scene &scene_;
+  dynamics::DistributedAlpha da_;
+  dynamics::DistState state_, next_;
+  dynamics::State small_;
+};
 
 } // namespace
 
@@ -75,8 +193,19 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
   const auto par = dynamics::AlphaParameters::from_rho_inf(c.time.rho_inf);
   dynamics::NewtonSettings newton;
   newton.reuse_contraction = c.time.newton_reuse;
-  const dynamics::GeneralizedAlpha ga(mech, par, newton);
-  dynamics::State state = ga.initial_state(scene.q0, scene.v0, 0.0);
+  std::unique_ptr<Backend> run;
+  if (scene.acf.empty()) {
+    run = std::make_unique<DenseBackend>(scene, par, newton);
+  } else {
+    print0(ctx.comm(),
+           "mechanism: %zu ACF bodies on the distributed backend (one PETSc system over %d "
+           "rank(s); Newton solver: options prefix mech_, MUMPS LU by default)\n",
+           scene.acf.size(), ctx.size());
+    run = std::make_unique<DistributedBackend>(
+        scene, c.gravity ? bodies::Vec3(c.gravity->at(0), c.gravity->at(1), c.gravity->at(2))
+                         : bodies::Vec3::Zero(),
+        par, newton);
+  }
   const double h = c.time.step;
   const long long steps = std::llround(c.time.end / h);
   print0(ctx.comm(),
@@ -87,8 +216,8 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
          static_cast<double>(steps) * h, newton.reuse_contraction);
 
   std::vector<io::MotionBody> mb;
-  for (std::size_t b = 0; b < mech.bodies.size(); ++b)
-    mb.push_back({mech.bodies[b]->name(), mesh::grid_layout(scene.meshes[b])});
+  for (std::size_t b = 0; b < c.bodies.size(); ++b)
+    mb.push_back({c.bodies[b].name, mesh::grid_layout(scene.meshes[b])});
   io::MotionWriter writer(mb, dir, "motion");
 
   std::vector<double> out_t, energy;
@@ -101,9 +230,11 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
     double unenforced = 0;
     int row = -1;
   };
-  auto monitor = [&](const dynamics::State &st) {
+  auto monitor = [&]() {
+    const dynamics::State &st = run->mechanism_state();
     mech.all_constraint_values(st.q, st.t, all);
     Residuals out;
+    max_violation = std::max(max_violation, run->tie_violation());
     for (int r = 0; r < all.size(); ++r) {
       const double v = std::abs(all(r));
       max_violation = std::max(max_violation, v);
@@ -111,34 +242,34 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
     }
     return out;
   };
-  auto record = [&](const dynamics::State &st) {
-    out_t.push_back(st.t);
-    energy.push_back(mech.energy(st.q, st.v));
+  auto record = [&](double t) {
+    out_t.push_back(t);
+    energy.push_back(run->energy());
     for (std::size_t k = 0; k < scene.sensors.size(); ++k)
-      sensor_values[k].push_back(dynamics::sensor_value(scene, scene.sensors[k], st.q));
-    writer.begin_step(st.t);
+      sensor_values[k].push_back(run->sensor(scene.sensors[k]));
+    writer.begin_step(t);
     std::vector<double> elastic;
-    for (std::size_t b = 0; b < mech.bodies.size(); ++b) {
-      const auto x = body_positions(scene, b, st.q, elastic);
+    for (std::size_t b = 0; b < c.bodies.size(); ++b) {
+      const auto x = run->positions(b, elastic);
       writer.positions(b, x.data());
-      if (mech.size(static_cast<int>(b)) > 7)
-        writer.node_vector(b, "elastic_displacement", elastic.data());
+      if (!elastic.empty()) writer.node_vector(b, "elastic_displacement", elastic.data());
     }
   };
-  monitor(state);
-  record(state);
+  monitor();
+  record(0.0);
 
   long long newton_total = 0, factorizations_total = 0;
   int newton_max = 0, halvings_max = 0;
   const double t_start = wall_time();
   double last_print = t_start;
-  dynamics::State next;
+  double t_now = 0;
   for (long long n = 0; n < steps; ++n) {
     dynamics::StepInfo info;
-    if (!ga.advance(state, h, next, info)) {
+    const double t_next = static_cast<double>(n + 1) * h; // no drift of t over many steps
+    if (!run->advance(h, t_next, info)) {
       std::ostringstream msg;
-      msg << "integrate: Newton did not converge in step " << n + 1 << " (t = " << state.t
-          << " s -> " << state.t + h << " s) after "
+      msg << "integrate: Newton did not converge in step " << n + 1 << " (t = " << t_now
+          << " s -> " << t_next << " s) after "
           << (1 << dynamics::NewtonSettings{}.max_halvings)
           << "-fold step halving; increments of the last attempt:";
       for (double v : info.increment) msg << ' ' << v;
@@ -146,16 +277,15 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
       for (double v : info.violation) msg << ' ' << v;
       msg << ". Reduce time.step or check the scene (a singular configuration, a driver "
              "demanding impossible motion).";
-      throw Error(msg.str(), true); // replicated computation: every rank fails here
+      throw Error(msg.str(), true); // every rank fails here (collective Newton loop)
     }
-    next.t = static_cast<double>(n + 1) * h; // no drift of t over many steps
-    state = next;
+    t_now = t_next;
     // Rows left out as redundant must stay satisfied: if one does not, it was only dependent
     // in the initial configuration (a singular position such as a dead point), not
     // structurally, and the mechanism is not what the case describes.
-    const Residuals res = monitor(state);
+    const Residuals res = monitor();
     if (res.unenforced > kRedundantDriftTolerance * scene.length_scale)
-      throw Error("integrate: at t = " + std::to_string(state.t) + " s (step " +
+      throw Error("integrate: at t = " + std::to_string(t_now) + " s (step " +
                       std::to_string(n + 1) + ") the constraint " + mech.describe_row(res.row) +
                       ", left out as redundant at t = 0, is violated by " +
                       std::to_string(res.unenforced) +
@@ -167,12 +297,12 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
     factorizations_total += info.factorizations;
     newton_max = std::max(newton_max, info.iterations);
     halvings_max = std::max(halvings_max, info.halvings);
-    if ((n + 1) % c.output_every == 0 || n + 1 == steps) record(state);
+    if ((n + 1) % c.output_every == 0 || n + 1 == steps) record(t_now);
     const double now = wall_time();
     if (now - last_print > 2.0 || n + 1 == steps) {
       const double rate = static_cast<double>(n + 1) / std::max(now - t_start, 1e-9);
       print0(ctx.comm(),
-             "  t = %-10.6g step %lld/%lld  Newton %.2f/step  %.0f steps/s  ETA %.1f s\n", state.t,
+             "  t = %-10.6g step %lld/%lld  Newton %.2f/step  %.0f steps/s  ETA %.1f s\n", t_now,
              n + 1, steps, static_cast<double>(newton_total) / static_cast<double>(n + 1), rate,
              static_cast<double>(steps - n - 1) / rate);
       last_print = now;
@@ -209,10 +339,19 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
   }
   s["sensors"] = sensors;
   io::Json bl = io::Json::array();
-  for (std::size_t k = 0; k < mech.bodies.size(); ++k) {
-    const auto &b = mech.bodies[k];
+  for (std::size_t k = 0; k < c.bodies.size(); ++k) {
+    const dynamics::SceneBody &sb = scene.bodies[k];
     io::Json j = io::Json::object();
-    j["name"] = b->name();
+    j["name"] = c.bodies[k].name;
+    if (sb.acf >= 0) {
+      j["model"] = "acf";
+      j["mass"] = scene.acf[static_cast<std::size_t>(sb.acf)]->total_mass();
+      j["dofs"] = 3LL * scene.meshes[k].global_nodes;
+      j["elements"] = static_cast<long long>(scene.meshes[k].global_elements);
+      bl.push_back(j);
+      continue;
+    }
+    const auto &b = mech.bodies[static_cast<std::size_t>(sb.mechanism)];
     j["model"] = b->model();
     j["mass"] = b->mass();
     if (const auto *rigid = dynamic_cast<const bodies::RigidBody *>(b.get())) {

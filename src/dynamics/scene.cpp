@@ -174,10 +174,53 @@ Scene build_scene(MPI_Comm comm, const io::Case &c) {
   std::vector<Mat3> R0(nbodies);
   std::vector<Vec3> origin(nbodies);
   std::vector<bodies::Vector> elastic0(nbodies), elastic_rate0(nbodies); // zeta, zeta' at t = 0
+  scene.meshes.reserve(nbodies);
+  scene.bodies.resize(nbodies);
   for (std::size_t b = 0; b < nbodies; ++b) {
     const io::BodySpec &spec = c.bodies[b];
     const auto &mat = c.material(spec.material);
-    if (spec.model == "ffrf") {
+    SceneBody &sb = scene.bodies[b];
+    sb.mechanism = static_cast<int>(mech.bodies.size());
+    if (spec.model == "acf") {
+      scene.meshes.push_back(mesh::load_body_mesh(comm, spec));
+      const mesh::DistributedMesh &m = scene.meshes.back();
+      sb.mechanism = -1;
+      sb.acf = static_cast<int>(scene.acf.size());
+      scene.acf.push_back(std::make_unique<bodies::AcfBody>(
+          spec.name, m, fem::IsotropicMaterial{mat.E, mat.nu, mat.density}));
+      std::string names;
+      for (const std::string &iface : spec.interfaces) {
+        const Vec3 cI = mesh::surface_centroid(m, iface, spec.where.str() + ": body '" +
+                                                             spec.name + "' interface");
+        interfaces[b][iface] = cI;
+        sb.nodes.push_back(static_cast<int>(mech.bodies.size()));
+        sb.centroids.push_back(cI);
+        scene.acf_interfaces.push_back({static_cast<std::size_t>(sb.acf), iface,
+                                        sb.nodes.back(), cI,
+                                        spec.where.str() + ": body '" + spec.name + "'"});
+        mech.bodies.push_back(std::make_shared<bodies::InterfaceNode>(spec.name + ":" + iface, cI));
+        names += (names.empty() ? "" : ", ") + iface;
+      }
+      // Initial elastic fields, added to the rigid placement of the nodes.
+      for (const bool rate : {false, true}) {
+        const auto &text = rate ? spec.initial.elastic_velocity : spec.initial.elastic_displacement;
+        if (text[0].empty()) continue;
+        const auto f = std::make_shared<std::array<PointExpression, 3>>(std::array<PointExpression, 3>{
+            PointExpression(text[0]), PointExpression(text[1]), PointExpression(text[2])});
+        (rate ? sb.u0_rate : sb.u0) = [f](const Vec3 &X) {
+          return Vec3((*f)[0](X.x(), X.y(), X.z()), (*f)[1](X.x(), X.y(), X.z()),
+                      (*f)[2](X.x(), X.y(), X.z()));
+        };
+      }
+      scene.owned_modes.emplace_back();
+      scene.reduction_seconds.push_back(0.0);
+      print0(comm,
+             "body %s: acf (absolute nodal coordinates, co-rotated elements), mass %.6g kg, %lld "
+             "nodes (%lld DOFs), %lld elements, interface nodes: %s\n",
+             spec.name.c_str(), scene.acf.back()->total_mass(),
+             static_cast<long long>(m.global_nodes), 3LL * m.global_nodes,
+             static_cast<long long>(m.global_elements), names.empty() ? "none" : names.c_str());
+    } else if (spec.model == "ffrf") {
       if (spec.interfaces.empty())
         throw Error(spec.where.str() + ": body '" + spec.name +
                         "' (model: ffrf) lists no interfaces; its floating frame is clamped at "
@@ -266,24 +309,55 @@ Scene build_scene(MPI_Comm comm, const io::Case &c) {
     body_index[spec.name] = static_cast<int>(b);
     R0[b] = Eigen::AngleAxisd(spec.initial.angle, v3(spec.initial.axis)).toRotationMatrix();
     origin[b] = v3(spec.initial.position);
+    sb.position = origin[b];
+    sb.R = R0[b];
+    sb.velocity = v3(spec.initial.velocity);
+    sb.omega = v3(spec.initial.angular_velocity);
   }
   int total = 0;
   for (const auto &b : mech.bodies) total += b->coordinates();
   scene.q0.setZero(total);
   scene.v0.setZero(total);
   for (std::size_t b = 0, o = 0; b < nbodies; ++b) {
-    const bodies::Body &body = *mech.bodies[b];
-    const auto n = static_cast<Eigen::Index>(body.coordinates());
-    const bodies::Vector q = body.placement(origin[b], R0[b]);
-    scene.q0.segment(static_cast<Eigen::Index>(o), n) = q;
-    scene.v0.segment(static_cast<Eigen::Index>(o), n) = body.placement_velocity(
-        q, v3(c.bodies[b].initial.velocity), v3(c.bodies[b].initial.angular_velocity));
-    // FFRF: the elastic coordinates follow the 7 frame coordinates.
-    if (elastic0[b].size() > 0)
-      scene.q0.segment(static_cast<Eigen::Index>(o) + 7, n - 7) = elastic0[b];
-    if (elastic_rate0[b].size() > 0)
-      scene.v0.segment(static_cast<Eigen::Index>(o) + 7, n - 7) = elastic_rate0[b];
-    o += static_cast<std::size_t>(n);
+    const SceneBody &sb = scene.bodies[b];
+    std::vector<int> list = sb.nodes; // an ACF body's interface nodes move with it
+    if (sb.mechanism >= 0) list.push_back(sb.mechanism);
+    for (std::size_t i = 0; i < list.size(); ++i) {
+      const int mb = list[i];
+      const bodies::Body &body = *mech.bodies[static_cast<std::size_t>(mb)];
+      const auto n = static_cast<Eigen::Index>(body.coordinates());
+      bodies::Vector q = body.placement(sb.position, sb.R);
+      bodies::Vector v = body.placement_velocity(q, sb.velocity, sb.omega);
+      if (sb.acf >= 0 && (sb.u0 || sb.u0_rate)) {
+        // An interface node moves with the mean initial elastic field of its surface's nodes
+        // (exact when the field moves the surface rigidly by a translation; otherwise the ties
+        // are violated and the initial state says so).
+        const mesh::DistributedMesh &m = scene.meshes[b];
+        const auto it = m.surface_nodes.find(c.bodies[b].interfaces[i]);
+        double sum[7] = {0, 0, 0, 0, 0, 0, 0}, all[7];
+        if (it != m.surface_nodes.end())
+          for (PetscInt g : it->second) {
+            const Vec3 X(&m.coordinates[3 * static_cast<std::size_t>(g - m.node_start)]);
+            const Vec3 u = sb.u0 ? sb.u0(X) : Vec3::Zero(),
+                       w = sb.u0_rate ? sb.u0_rate(X) : Vec3::Zero();
+            for (int k = 0; k < 3; ++k) sum[k] += u(k), sum[3 + k] += w(k);
+            sum[6] += 1;
+          }
+        MPI_Allreduce(sum, all, 7, MPI_DOUBLE, MPI_SUM, comm);
+        const Vec3 u = Vec3(all[0], all[1], all[2]) / all[6],
+                   w = Vec3(all[3], all[4], all[5]) / all[6];
+        q.head<3>() += sb.R * u;
+        v.head<3>() += sb.omega.cross(sb.R * u) + sb.R * w;
+      }
+      scene.q0.segment(static_cast<Eigen::Index>(o), n) = q;
+      scene.v0.segment(static_cast<Eigen::Index>(o), n) = v;
+      // FFRF: the elastic coordinates follow the 7 frame coordinates.
+      if (elastic0[b].size() > 0)
+        scene.q0.segment(static_cast<Eigen::Index>(o) + 7, n - 7) = elastic0[b];
+      if (elastic_rate0[b].size() > 0)
+        scene.v0.segment(static_cast<Eigen::Index>(o) + 7, n - 7) = elastic_rate0[b];
+      o += static_cast<std::size_t>(n);
+    }
   }
 
   std::map<std::string, Vec3> ground;
@@ -301,11 +375,12 @@ Scene build_scene(MPI_Comm comm, const io::Case &c) {
       a.world = a.s;
       return a;
     }
-    const int b = body_index.at(body);
-    const auto ub = static_cast<std::size_t>(b);
-    a.body = b;
+    const auto ub = static_cast<std::size_t>(body_index.at(body));
+    const SceneBody &sb = scene.bodies[ub];
+    // An ACF body's interface: its interface node (reference point at the centroid).
+    a.body = sb.mechanism >= 0 ? sb.mechanism : sb.nodes[interface_index(ub, iface)];
     const Vec3 X = interfaces[ub].at(iface);
-    a.s = X - mech.bodies[ub]->origin();
+    a.s = X - mech.bodies[static_cast<std::size_t>(a.body)]->origin();
     a.R = R0[ub];
     a.world = origin[ub] + a.R * X;
     if (reductions[ub]) {
@@ -317,11 +392,13 @@ Scene build_scene(MPI_Comm comm, const io::Case &c) {
   };
 
   // Euler-parameter normalization, one row per body, first.
-  for (std::size_t b = 0; b < c.bodies.size(); ++b) {
+  for (std::size_t b = 0; b < mech.bodies.size(); ++b) {
     Equation e;
     e.kind = K::Normalize;
     e.a = static_cast<int>(b);
-    e.owner = "body " + c.bodies[b].name + " (|p| = 1)";
+    e.owner = std::string(mech.bodies[b]->model() == std::string("interface") ? "interface node "
+                                                                               : "body ") +
+              mech.bodies[b]->name() + " (|p| = 1)";
     mech.equations.push_back(e);
   }
   std::map<std::string, const io::JointSpec *> joints_by_name;
@@ -353,9 +430,10 @@ Scene build_scene(MPI_Comm comm, const io::Case &c) {
   if (c.gravity) mech.gravity = v3(*c.gravity);
   for (const io::ForceSpec &f : c.forces) {
     PointForce pf;
-    pf.body = body_index.at(f.body);
-    const auto ub = static_cast<std::size_t>(pf.body);
-    pf.s = interfaces[ub].at(f.interface) - mech.bodies[ub]->origin();
+    const Attachment a = attach(f.body, f.interface);
+    const auto ub = static_cast<std::size_t>(body_index.at(f.body));
+    pf.body = a.body;
+    pf.s = a.s;
     if (reductions[ub]) pf.S = reductions[ub]->translation[interface_index(ub, f.interface)];
     for (int k = 0; k < 3; ++k)
       pf.value[static_cast<std::size_t>(k)] = Expression(f.value[static_cast<std::size_t>(k)]);
@@ -365,10 +443,25 @@ Scene build_scene(MPI_Comm comm, const io::Case &c) {
     BoundSensor bs;
     bs.name = s.name;
     bs.quantity = s.quantity;
-    bs.body = body_index.at(s.body);
-    const auto ub = static_cast<std::size_t>(bs.body);
+    const auto ub = static_cast<std::size_t>(body_index.at(s.body));
     bs.point = v3(s.point);
-    bs.s = bs.point - mech.bodies[ub]->origin();
+    const SceneBody &sb = scene.bodies[ub];
+    if (sb.acf >= 0) {
+      // The point in the ACF body's mesh; the frame of its first interface node.
+      bs.acf = sb.acf;
+      bs.body = sb.nodes.empty() ? -1 : sb.nodes.front();
+      if (bs.body < 0 && (s.quantity == "elastic_displacement" || s.quantity == "rotation_angle"))
+        throw Error(s.where.str() + ": sensor '" + s.name + "': " + s.quantity +
+                        " of an ACF body is measured in the frame of its first interface, and "
+                        "body '" + s.body + "' lists no interfaces",
+                    true);
+      bs.location = fem::locate(scene.meshes[ub], {bs.point.x(), bs.point.y(), bs.point.z()},
+                                s.where.str() + ": sensor '" + s.name + "' point");
+      scene.sensors.push_back(bs);
+      continue;
+    }
+    bs.body = sb.mechanism;
+    bs.s = bs.point - mech.bodies[static_cast<std::size_t>(bs.body)]->origin();
     if (reductions[ub])
       bs.S = reduce::basis_at_point(scene.meshes[ub], *reductions[ub], bs.point,
                                     s.where.str() + ": sensor '" + s.name + "' point");
@@ -376,12 +469,50 @@ Scene build_scene(MPI_Comm comm, const io::Case &c) {
   }
   mech.finalize();
   for (BoundSensor &bs : scene.sensors)
-    if (bs.S.cols() == 0) bs.S.setZero(3, mech.size(bs.body) - 7);
+    if (bs.acf < 0 && bs.S.cols() == 0) bs.S.setZero(3, mech.size(bs.body) - 7);
   scene.redundant_rows = mech.drop_redundant_rows(scene.q0, 0.0);
-  for (int b = 0; b < static_cast<int>(nbodies); ++b)
+  for (int b = 0; b < static_cast<int>(mech.bodies.size()); ++b)
     scene.length_scale =
         std::max(scene.length_scale, scene.q0.segment<3>(mech.offset(b)).cwiseAbs().maxCoeff());
   return scene;
+}
+
+void acf_initial_vectors(const Scene &scene, const DistributedAlpha &da, Vec &x0, Vec &v0) {
+  x0 = da.create_vector();
+  v0 = da.create_vector();
+  for (const SceneBody &sb : scene.bodies) {
+    if (sb.acf < 0) continue;
+    const auto k = static_cast<std::size_t>(sb.acf);
+    auto placed = [&](const Vec3 &X) { return Vec3(X + (sb.u0 ? sb.u0(X) : Vec3::Zero())); };
+    da.set_nodal(x0, k, [&](const Vec3 &X) { return Vec3(sb.position + sb.R * placed(X)); });
+    da.set_nodal(v0, k, [&](const Vec3 &X) {
+      return Vec3(sb.velocity + sb.omega.cross(sb.R * placed(X)) +
+                  (sb.u0_rate ? Vec3(sb.R * sb.u0_rate(X)) : Vec3::Zero()));
+    });
+  }
+  da.set_small(x0, scene.q0);
+  da.set_small(v0, scene.v0);
+}
+
+Vec3 acf_sensor_value(const Scene &scene, const DistributedAlpha &da, const BoundSensor &s,
+                      const DistState &state, const State &small) {
+  const Mechanism &mech = scene.mechanism;
+  if (s.quantity == "rotation_angle") {
+    const int o = mech.offset(s.body);
+    const Mat3 A = bodies::rotation(small.q.segment<4>(o + 3).normalized());
+    const Mat3 A0 = bodies::rotation(scene.q0.segment<4>(o + 3).normalized());
+    return bodies::rotation_vector(A * A0.transpose());
+  }
+  const Vec3 x = da.point_position(state, static_cast<std::size_t>(s.acf), s.location);
+  if (s.quantity == "position") return x;
+  std::size_t b = 0; // the case body
+  while (scene.bodies[b].acf != s.acf) ++b;
+  const SceneBody &sb = scene.bodies[b];
+  if (s.quantity == "displacement") return x - (sb.position + sb.R * s.point);
+  // elastic_displacement: in the frame of the first interface node, relative to the centroid.
+  const int o = mech.offset(s.body);
+  const Mat3 A = bodies::rotation(small.q.segment<4>(o + 3));
+  return A.transpose() * (x - small.q.segment<3>(o)) - (s.point - sb.centroids.front());
 }
 
 Vec3 sensor_value(const Scene &scene, const BoundSensor &s, const Vector &q) {

@@ -244,9 +244,9 @@ void read_initial(const Reader &r, const YAML::Node &v, const std::string &path,
     s.angular_velocity = r.vector3(v["angular_velocity"], path + ".angular_velocity");
   for (const char *key : {"elastic_displacement", "elastic_velocity"}) {
     if (!v[key]) continue;
-    if (model != "ffrf")
+    if (model != "ffrf" && model != "acf")
       r.fail(r.key_node(v, key),
-             path + "." + key + ": only an ffrf body has elastic coordinates (model: " + model +
+             path + "." + key + ": only a flexible (ffrf or acf) body deforms (model: " + model +
                  ")");
     (std::string(key) == "elastic_velocity" ? s.elastic_velocity : s.elastic_displacement) =
         r.point_field(v[key], path + "." + key);
@@ -275,9 +275,6 @@ void read_bodies(const Reader &r, const YAML::Node &node, const fs::path &dir, C
         r.fail(v["name"], path + ".name: duplicate body name '" + b.name + "'");
     if (v["model"]) {
       b.model = r.choice(v["model"], path + ".model", {"rigid", "ffrf", "acf", "auto"});
-      if (dynamic && b.model == "acf")
-        r.fail(v["model"], path + ".model: 'acf' is not supported yet (this version simulates "
-                                  "rigid and ffrf bodies)");
     }
     for (const char *key : {"reduction", "damping"})
       if (v[key] && b.model != "ffrf")

@@ -496,10 +496,10 @@ TEST_F(CaseFiles, FfrfInitialElasticFields) {
 
 TEST_F(CaseFiles, InitialElasticFieldErrors) {
   const std::string field = "      velocity: [1, 2, 3]\n      elastic_velocity: [0, \"x\", 0]\n";
-  // A rigid body has no elastic coordinates.
+  // A rigid body does not deform.
   EXPECT_CASE_ERROR(
       dynamic_with("      velocity: [1, 2, 3]\n", field), "case.yaml:18:",
-      "bodies[1].initial.elastic_velocity: only an ffrf body has elastic coordinates");
+      "bodies[1].initial.elastic_velocity: only a flexible (ffrf or acf) body deforms");
   auto ffrf_with = [&](const std::string &to) {
     std::string y = dynamic_with("      velocity: [1, 2, 3]\n", to);
     y.replace(y.find("    interfaces: [pin_a, pin_b]\n"), 31,
@@ -514,9 +514,9 @@ TEST_F(CaseFiles, InitialElasticFieldErrors) {
       "bodies[1].initial.elastic_displacement[1]: cannot parse \"t*x\": unknown name \"t\"");
 }
 
-TEST_F(CaseFiles, AcfNotSupportedYetInDynamicAnalysis) {
-  EXPECT_CASE_ERROR(dynamic_with("model: rigid", "model: acf"),
-                    "case.yaml:6:12:", "bodies[0].model: 'acf' is not supported yet");
+TEST_F(CaseFiles, AcfBodiesTakeNoReductionNorElasticInitialState) {
+  EXPECT_CASE_ERROR(dynamic_with("model: rigid", "model: acf\n    reduction: {modes: 4}"),
+                    "case.yaml:7:", "bodies[0].reduction: only an ffrf body takes it (model: acf)");
 }
 
 TEST_F(CaseFiles, StaticAnalysisIgnoresModel) {

@@ -3,10 +3,14 @@
 /// integrated (rank 0, broadcast), FFRF bodies reduced (in parallel); interfaces located,
 /// joints and drivers expanded into constraint equations, loads and sensors bound
 /// (docs/theory.md sections 6.3 and 7.4).
+#include "flexopt/bodies/acf_body.hpp"
+#include "flexopt/dynamics/distributed_alpha.hpp"
 #include "flexopt/dynamics/mechanism.hpp"
+#include "flexopt/fem/probe.hpp"
 #include "flexopt/io/case.hpp"
 #include "flexopt/mesh/distributed_mesh.hpp"
 
+#include <functional>
 #include <memory>
 #include <mpi.h>
 #include <string>
@@ -16,6 +20,8 @@ namespace flexopt::dynamics {
 
 /// A sensor bound to a body: `point` in body (mesh) coordinates; s + S zeta is the point
 /// relative to the body's reference point (S: the basis at the point, empty for rigid bodies).
+/// On an ACF body (`acf` >= 0), `body` is the node of its first interface (-1: none), whose
+/// frame measures the elastic displacement, and `location` the point in the body's mesh.
 struct BoundSensor {
   std::string name;
   std::string quantity; ///< position | displacement | elastic_displacement | rotation_angle
@@ -23,16 +29,39 @@ struct BoundSensor {
   Vec3 point{0, 0, 0};
   Vec3 s{0, 0, 0};
   joints::Elastic S;
+  int acf = -1;
+  fem::PointLocation location;
+};
+
+/// What a case body became: a body of the mechanism (rigid, FFRF) or an ACF body with one
+/// interface-node body per interface.
+struct SceneBody {
+  int mechanism = -1;            ///< body index in Scene::mechanism (-1: ACF)
+  int acf = -1;                  ///< index in Scene::acf (-1: not ACF)
+  std::vector<int> nodes;        ///< ACF: the interface nodes' bodies, in the case's order
+  std::vector<Vec3> centroids;   ///< ACF: the interface centroids c_I (mesh coordinates)
+  Vec3 position{0, 0, 0};        ///< initial placement: mesh point X at position + R X
+  bodies::Mat3 R = bodies::Mat3::Identity();
+  Vec3 velocity{0, 0, 0}, omega{0, 0, 0}; ///< initial velocity of the mesh origin, spin
+  /// ACF: initial elastic displacement u(X) and velocity (mesh axes), added to the placement:
+  /// x = position + R (X + u), v = velocity + omega x R (X + u) + R u'. Null: zero.
+  std::function<Vec3(const Vec3 &)> u0, u0_rate;
 };
 
 struct Scene {
+  /// The rigid, FFRF and interface-node bodies with the joints, drivers and loads: the whole
+  /// mechanism without ACF bodies, its small part with them.
   Mechanism mechanism;
-  std::vector<mesh::DistributedMesh> meshes; ///< per body (for output)
+  /// Per case body, in the case's order (reserved once: the ACF bodies refer to them).
+  std::vector<mesh::DistributedMesh> meshes;
+  std::vector<SceneBody> bodies; ///< per case body
+  std::vector<std::unique_ptr<bodies::AcfBody>> acf;
+  std::vector<AcfInterface> acf_interfaces; ///< every ACF interface and its node
   /// Per body: the reduction basis at the owned nodes, (3 owned nodes) x n, node-major (empty
   /// for rigid bodies): the deformed mesh of the output.
   std::vector<Eigen::MatrixXd> owned_modes;
   std::vector<double> reduction_seconds; ///< per body: wall time of its reduction (0: rigid)
-  Vector q0, v0;                         ///< placed coordinates and velocities at t = 0
+  Vector q0, v0; ///< placed coordinates and velocities of `mechanism` at t = 0
   std::vector<BoundSensor> sensors;
   std::vector<std::string> redundant_rows; ///< constraint rows found redundant and not enforced
   double length_scale = 1;                 ///< largest extent of the placed scene [m]
@@ -75,6 +104,17 @@ joints::Equation driver_equation(const std::string &joint_type, const Attachment
 /// Builds the scene of a dynamic case. Collective; throws collective flexopt::Errors naming the
 /// case key for scene-level problems (an interface without area, a sensor on a missing body).
 Scene build_scene(MPI_Comm comm, const io::Case &c);
+
+/// The initial positions and velocities of a scene with ACF bodies in the layout of `da` (built
+/// on the scene's ACF bodies, mechanism and interfaces): every ACF body placed rigidly, the
+/// mechanism's coordinates from q0, v0. The caller destroys x0 and v0. Collective.
+void acf_initial_vectors(const Scene &scene, const DistributedAlpha &da, Vec &x0, Vec &v0);
+
+/// Value of a sensor of an ACF body at a state of `da` (the meaning of sensor_value; the elastic
+/// displacement is A_I^T (x - r_I) - (X - c_I) in the frame of the body's first interface node
+/// I; rotation_angle is that node's). Collective.
+Vec3 acf_sensor_value(const Scene &scene, const DistributedAlpha &da, const BoundSensor &s,
+                      const DistState &state, const State &small);
 
 /// Value of a sensor at coordinates q (3 numbers): position (world), displacement from the
 /// initial position, elastic_displacement (S zeta, in the axes of the body frame; zero for a

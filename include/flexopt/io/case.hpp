@@ -42,9 +42,10 @@ struct InitialSpec {
   double angle = 0;                                ///< [rad]
   std::array<double, 3> velocity{0, 0, 0};         ///< of the body-frame origin [m/s]
   std::array<double, 3> angular_velocity{0, 0, 0}; ///< world frame [rad/s]
-  /// ffrf only: the elastic displacement [m] and velocity [m/s] relative to the body frame, as
-  /// expressions in the mesh coordinates x, y, z (components in the mesh axes), projected onto
-  /// the reduction basis (docs/theory.md section 7.6). Empty: zero.
+  /// ffrf and acf only: the elastic displacement [m] and velocity [m/s] relative to the body
+  /// frame, as expressions in the mesh coordinates x, y, z (components in the mesh axes);
+  /// projected onto the reduction basis of an ffrf body (docs/theory.md section 7.6), added to
+  /// the placed nodes of an acf body (section 8.2). Empty: zero.
   std::array<std::string, 3> elastic_displacement, elastic_velocity;
 };
 
