@@ -323,6 +323,11 @@ DistributedAlpha::DistributedAlpha(std::vector<const bodies::AcfBody *> bodies,
   dz_ = create_vector();
   w_ = create_vector();
   // The operator is A_ itself: refilled in place, refactorized at the next solve after that.
+  // MUMPS delays the pivots of the saddle point's zero diagonal (multipliers, massless
+  // interface nodes) to later fronts, beyond its default workspace estimate (INFOG(1) = -9 on
+  // 2 ranks for a Tet4 link with two interfaces): twice the estimate again by default.
+  insert_default_petsc_options("-mech_mat_mumps_icntl_14 200",
+                               "the distributed backend's default MUMPS workspace relaxation");
   ksp_ = create_direct_solver(A_, Factorization::LU, "mech_");
 }
 
