@@ -106,8 +106,8 @@ class DistributedBackend : public Backend {
 public:
   DistributedBackend(const dynamics::Scene &scene, const bodies::Vec3 &gravity,
                      dynamics::AlphaParameters par, dynamics::NewtonSettings newton)
-      : scene_(scene), da_(acf_list(scene), &scene.mechanism, scene.acf_interfaces, gravity, par,
-                           newton) {
+      : scene_(scene),
+        da_(acf_list(scene), &scene.mechanism, scene.acf_interfaces, gravity, par, newton) {
     Vec x0, v0;
     dynamics::acf_initial_vectors(scene, da_, x0, v0);
     try {
@@ -202,8 +202,9 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
            "rank(s); Newton solver: options prefix mech_, MUMPS LU by default)\n",
            scene.acf.size(), ctx.size());
     run = std::make_unique<DistributedBackend>(
-        scene, c.gravity ? bodies::Vec3(c.gravity->at(0), c.gravity->at(1), c.gravity->at(2))
-                         : bodies::Vec3::Zero(),
+        scene,
+        c.gravity ? bodies::Vec3(c.gravity->at(0), c.gravity->at(1), c.gravity->at(2))
+                  : bodies::Vec3::Zero(),
         par, newton);
   }
   const double h = c.time.step;
@@ -268,9 +269,8 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
     const double t_next = static_cast<double>(n + 1) * h; // no drift of t over many steps
     if (!run->advance(h, t_next, info)) {
       std::ostringstream msg;
-      msg << "integrate: Newton did not converge in step " << n + 1 << " (t = " << t_now
-          << " s -> " << t_next << " s) after "
-          << (1 << dynamics::NewtonSettings{}.max_halvings)
+      msg << "integrate: Newton did not converge in step " << n + 1 << " (t = " << t_now << " s -> "
+          << t_next << " s) after " << (1 << dynamics::NewtonSettings{}.max_halvings)
           << "-fold step halving; increments of the last attempt:";
       for (double v : info.increment) msg << ' ' << v;
       msg << "; constraint residuals:";

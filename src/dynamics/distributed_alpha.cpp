@@ -74,7 +74,7 @@ namespace detail {
 struct AcfLayout {
   PetscInt local = 0, start = 0, global = 0;
   PetscInt acf_local = 0, coords_local = 0;
-  int small_n = 0, small_m = 0;        ///< the small part's coordinates and enforced rows
+  int small_n = 0, small_m = 0;              ///< the small part's coordinates and enforced rows
   PetscInt small_coord0 = 0, small_row0 = 0; ///< their first global numbers (every rank)
   std::vector<PetscInt> offset;
   std::vector<std::vector<PetscInt>> node_dof;
@@ -102,8 +102,7 @@ std::vector<PetscInt> range(PetscInt first, int n) {
 void touch(Mat P, const std::vector<PetscInt> &rows, const std::vector<PetscInt> &cols) {
   std::vector<PetscScalar> zeros(rows.size() * cols.size(), 0.0);
   FX_PETSC(MatSetValues(P, static_cast<PetscInt>(rows.size()), rows.data(),
-                        static_cast<PetscInt>(cols.size()), cols.data(), zeros.data(),
-                        ADD_VALUES));
+                        static_cast<PetscInt>(cols.size()), cols.data(), zeros.data(), ADD_VALUES));
 }
 
 } // namespace
@@ -233,8 +232,7 @@ DistributedAlpha::DistributedAlpha(std::vector<const bodies::AcfBody *> bodies,
   for (const TieSet &t : L.ties) {
     const auto node = range(t.coord0, 7), p = range(t.coord0 + 3, 4);
     for (std::size_t j = 0; j < t.s.size(); ++j) {
-      const auto rows = range(t.row0 + 3 * static_cast<PetscInt>(j), 3),
-                 x = range(t.x_dof[j], 3);
+      const auto rows = range(t.row0 + 3 * static_cast<PetscInt>(j), 3), x = range(t.x_dof[j], 3);
       touch(P, rows, x);
       touch(P, x, rows);
       touch(P, rows, node);
@@ -409,8 +407,7 @@ State DistributedAlpha::small_state(const DistState &s) const {
   return out;
 }
 
-std::vector<double> DistributedAlpha::owned_positions(const DistState &s,
-                                                      std::size_t body) const {
+std::vector<double> DistributedAlpha::owned_positions(const DistState &s, std::size_t body) const {
   const PetscInt n = 3 * bodies_[body]->mesh().owned_nodes;
   std::vector<double> x(static_cast<std::size_t>(n));
   const PetscScalar *a;
@@ -503,9 +500,9 @@ double DistributedAlpha::add_constraints(const DistState &next, double bp, doubl
       if (t.s.empty()) continue;
       tie_values(t, L.start, q, l, x, lambda);
       const int o = small_->offset(interfaces_[i].node_body);
-      violation = std::max(violation, add_ties(t, x.data(), sm.q.segment<3>(o),
-                                               sm.q.segment<4>(o + 3), lambda.data(), bp,
-                                               matrix ? A_ : nullptr, r_));
+      violation =
+          std::max(violation, add_ties(t, x.data(), sm.q.segment<3>(o), sm.q.segment<4>(o + 3),
+                                       lambda.data(), bp, matrix ? A_ : nullptr, r_));
     }
     FX_PETSC(VecRestoreArrayRead(next.q, &q));
     FX_PETSC(VecRestoreArrayRead(next.lambda, &l));
@@ -592,8 +589,7 @@ DistState DistributedAlpha::initial_state(Vec q0, Vec v0, double t0) const {
       if (t.s.empty()) continue;
       tie_values(t, L.start, q, nullptr, x, lambda);
       const int o = small_->offset(interfaces_[i].node_body);
-      add_ties(t, x.data(), sm.q.segment<3>(o), sm.q.segment<4>(o + 3), lambda.data(), 1.0, A_,
-               w_);
+      add_ties(t, x.data(), sm.q.segment<3>(o), sm.q.segment<4>(o + 3), lambda.data(), 1.0, A_, w_);
     }
     FX_PETSC(VecRestoreArrayRead(s.q, &q));
     if (root && small_) add_mass_system(*small_, sm, A_, L.small_coord0, L.small_row0);
@@ -624,7 +620,7 @@ DistState DistributedAlpha::initial_state(Vec q0, Vec v0, double t0) const {
                   true);
   };
   // Velocities: the smallest change in kinetic energy onto Phi_q v + Phi_t = 0.
-  FX_PETSC(MatMult(A_, s.v, w_));       // multiplier rows: Phi_q v
+  FX_PETSC(MatMult(A_, s.v, w_)); // multiplier rows: Phi_q v
   FX_PETSC(VecPointwiseMult(r_, w_, lmask_));
   FX_PETSC(VecScale(r_, -1.0));
   Vector phi_t, phi_tt, phi_qt_v;
@@ -791,7 +787,7 @@ bool DistributedAlpha::step_once(const DistState &s, double h, DistState &next,
     DistState &next;
     double h;
     double violation = 0; ///< max |Phi| at the last right-hand side
-    void predict() { // acc1 = acc0, lambda1 = lambda0
+    void predict() {      // acc1 = acc0, lambda1 = lambda0
       const double am = da.par_.alpha_m, g = da.par_.gamma, b = da.par_.beta;
       next.t = s.t + h;
       FX_PETSC(VecCopy(s.acc, next.acc));

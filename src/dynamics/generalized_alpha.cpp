@@ -369,8 +369,7 @@ void add_newton_system(const Mechanism &mech, const State &next, double bp, doub
   assemble_system(mech, next, bp, gp, assembly, r, phi, rhs, K, C, M);
 }
 
-void add_mass_system(const Mechanism &mech, const State &s, Mat A, PetscInt coord0,
-                     PetscInt row0) {
+void add_mass_system(const Mechanism &mech, const State &s, Mat A, PetscInt coord0, PetscInt row0) {
   const int n = mech.coordinates(), m = mech.constraints();
   Vector r, phi, jtl;
   const Vector zero = Vector::Zero(m);

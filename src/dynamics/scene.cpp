@@ -190,14 +190,13 @@ Scene build_scene(MPI_Comm comm, const io::Case &c) {
           spec.name, m, fem::IsotropicMaterial{mat.E, mat.nu, mat.density}));
       std::string names;
       for (const std::string &iface : spec.interfaces) {
-        const Vec3 cI = mesh::surface_centroid(m, iface, spec.where.str() + ": body '" +
-                                                             spec.name + "' interface");
+        const Vec3 cI = mesh::surface_centroid(
+            m, iface, spec.where.str() + ": body '" + spec.name + "' interface");
         interfaces[b][iface] = cI;
         sb.nodes.push_back(static_cast<int>(mech.bodies.size()));
         sb.centroids.push_back(cI);
-        scene.acf_interfaces.push_back({static_cast<std::size_t>(sb.acf), iface,
-                                        sb.nodes.back(), cI,
-                                        spec.where.str() + ": body '" + spec.name + "'"});
+        scene.acf_interfaces.push_back({static_cast<std::size_t>(sb.acf), iface, sb.nodes.back(),
+                                        cI, spec.where.str() + ": body '" + spec.name + "'"});
         mech.bodies.push_back(std::make_shared<bodies::InterfaceNode>(spec.name + ":" + iface, cI));
         names += (names.empty() ? "" : ", ") + iface;
       }
@@ -205,8 +204,9 @@ Scene build_scene(MPI_Comm comm, const io::Case &c) {
       for (const bool rate : {false, true}) {
         const auto &text = rate ? spec.initial.elastic_velocity : spec.initial.elastic_displacement;
         if (text[0].empty()) continue;
-        const auto f = std::make_shared<std::array<PointExpression, 3>>(std::array<PointExpression, 3>{
-            PointExpression(text[0]), PointExpression(text[1]), PointExpression(text[2])});
+        const auto f =
+            std::make_shared<std::array<PointExpression, 3>>(std::array<PointExpression, 3>{
+                PointExpression(text[0]), PointExpression(text[1]), PointExpression(text[2])});
         (rate ? sb.u0_rate : sb.u0) = [f](const Vec3 &X) {
           return Vec3((*f)[0](X.x(), X.y(), X.z()), (*f)[1](X.x(), X.y(), X.z()),
                       (*f)[2](X.x(), X.y(), X.z()));
@@ -397,7 +397,7 @@ Scene build_scene(MPI_Comm comm, const io::Case &c) {
     e.kind = K::Normalize;
     e.a = static_cast<int>(b);
     e.owner = std::string(mech.bodies[b]->model() == std::string("interface") ? "interface node "
-                                                                               : "body ") +
+                                                                              : "body ") +
               mech.bodies[b]->name() + " (|p| = 1)";
     mech.equations.push_back(e);
   }
@@ -454,7 +454,8 @@ Scene build_scene(MPI_Comm comm, const io::Case &c) {
       if (bs.body < 0 && (s.quantity == "elastic_displacement" || s.quantity == "rotation_angle"))
         throw Error(s.where.str() + ": sensor '" + s.name + "': " + s.quantity +
                         " of an ACF body is measured in the frame of its first interface, and "
-                        "body '" + s.body + "' lists no interfaces",
+                        "body '" +
+                        s.body + "' lists no interfaces",
                     true);
       bs.location = fem::locate(scene.meshes[ub], {bs.point.x(), bs.point.y(), bs.point.z()},
                                 s.where.str() + ": sensor '" + s.name + "' point");

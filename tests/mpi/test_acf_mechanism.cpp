@@ -179,8 +179,7 @@ TEST(AcfMechanism, NewtonMatrixIsTheDerivativeOfTheEquations) {
   };
   p.da->equations(moved(eps), Rp);
   p.da->equations(moved(-eps), Rm);
-  const Vector az = gather_all(Az), rp = gather_all(Rp), rm = gather_all(Rm),
-               c = gather_all(cmask);
+  const Vector az = gather_all(Az), rp = gather_all(Rp), rm = gather_all(Rm), c = gather_all(cmask);
   Vector fd = (rp - rm) / (2 * eps);
   for (Eigen::Index i = 0; i < fd.size(); ++i)
     if (c(i) != 0) fd(i) /= k.bp; // the coordinate rows are R_d / beta'
@@ -239,7 +238,8 @@ TEST(AcfMechanism, StiffBeamSwingsAsTheRigidPendulum) {
   add_joints(rigid, 0, 0, 1);
   Vector q0(rigid.coordinates());
   for (int b = 0; b < 2; ++b)
-    q0.segment(rigid.offset(b), 7) = rigid.body(b).placement(Vec3::Zero(), bodies::Mat3::Identity());
+    q0.segment(rigid.offset(b), 7) =
+        rigid.body(b).placement(Vec3::Zero(), bodies::Mat3::Identity());
   const dynamics::GeneralizedAlpha ga(rigid, dynamics::AlphaParameters::from_rho_inf(0.8));
   dynamics::State s = ga.initial_state(q0, Vector::Zero(q0.size()), 0.0), next;
   for (int n = 0; n < steps; ++n) {
@@ -257,7 +257,7 @@ TEST(AcfMechanism, StiffBeamSwingsAsTheRigidPendulum) {
                 "%.6f), |difference| %.3e m, sag scale %.3e m\n",
                 steps, acf.x(), acf.y(), rig.x(), rig.y(), (acf - rig).norm(), sag);
   EXPECT_GT((rig - kTip).norm(), 0.1); // it has swung
-  EXPECT_LT((acf - rig).norm(), sag); // measured 5.1e-6 m against 2.5e-4 m
+  EXPECT_LT((acf - rig).norm(), sag);  // measured 5.1e-6 m against 2.5e-4 m
 }
 
 TEST(AcfMechanism, SameOnOneAndTwoRanks) {

@@ -40,11 +40,11 @@ struct DistState {
 /// An interface of an ACF body: the owned nodes of its surface are tied rigidly to the
 /// interface-node body `node_body` of the small mechanism (whose reference point is c_I).
 struct AcfInterface {
-  std::size_t body = 0;     ///< the ACF body
-  std::string surface;      ///< its physical surface
-  int node_body = 0;        ///< the interface node: a body of the small mechanism (7 coordinates)
-  Vec3 centroid{0, 0, 0};   ///< c_I (mesh coordinates)
-  std::string where = "";   ///< for messages (the case key)
+  std::size_t body = 0;   ///< the ACF body
+  std::string surface;    ///< its physical surface
+  int node_body = 0;      ///< the interface node: a body of the small mechanism (7 coordinates)
+  Vec3 centroid{0, 0, 0}; ///< c_I (mesh coordinates)
+  std::string where = ""; ///< for messages (the case key)
 };
 
 namespace detail {
@@ -149,11 +149,11 @@ private:
   AlphaParameters par_;
   NewtonSettings settings_;
   double mass_ = 0;
-  Mat M_ = nullptr;   ///< the ACF bodies' consistent mass (the pattern of A_)
-  Vec fg_ = nullptr;  ///< gravity load on the ACF bodies
+  Mat M_ = nullptr;                       ///< the ACF bodies' consistent mass (the pattern of A_)
+  Vec fg_ = nullptr;                      ///< gravity load on the ACF bodies
   Vec cmask_ = nullptr, lmask_ = nullptr; ///< 1 on the coordinate (multiplier) entries, else 0
   mutable Vec F_ = nullptr, r_ = nullptr, dz_ = nullptr, w_ = nullptr; ///< work vectors
-  mutable Mat A_ = nullptr; ///< the iteration matrix
+  mutable Mat A_ = nullptr;                                            ///< the iteration matrix
   mutable KSP ksp_ = nullptr;
   mutable bool factored_ = false;
   mutable double bp_ = 0, gp_ = 0;

@@ -36,11 +36,11 @@ struct BoundSensor {
 /// What a case body became: a body of the mechanism (rigid, FFRF) or an ACF body with one
 /// interface-node body per interface.
 struct SceneBody {
-  int mechanism = -1;            ///< body index in Scene::mechanism (-1: ACF)
-  int acf = -1;                  ///< index in Scene::acf (-1: not ACF)
-  std::vector<int> nodes;        ///< ACF: the interface nodes' bodies, in the case's order
-  std::vector<Vec3> centroids;   ///< ACF: the interface centroids c_I (mesh coordinates)
-  Vec3 position{0, 0, 0};        ///< initial placement: mesh point X at position + R X
+  int mechanism = -1;          ///< body index in Scene::mechanism (-1: ACF)
+  int acf = -1;                ///< index in Scene::acf (-1: not ACF)
+  std::vector<int> nodes;      ///< ACF: the interface nodes' bodies, in the case's order
+  std::vector<Vec3> centroids; ///< ACF: the interface centroids c_I (mesh coordinates)
+  Vec3 position{0, 0, 0};      ///< initial placement: mesh point X at position + R X
   bodies::Mat3 R = bodies::Mat3::Identity();
   Vec3 velocity{0, 0, 0}, omega{0, 0, 0}; ///< initial velocity of the mesh origin, spin
   /// ACF: initial elastic displacement u(X) and velocity (mesh axes), added to the placement:
