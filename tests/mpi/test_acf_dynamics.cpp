@@ -115,12 +115,8 @@ TEST(AcfDynamics, CentreOfMassFallsOnTheParabola) {
 TEST(AcfDynamics, SameOnOneAndTwoRanks) {
   // The whole run on this communicator and, on rank 0, alone on PETSC_COMM_SELF (one part).
   mesh::MeshData data;
-  const std::string geo = std::string(FLEXOPT_SOURCE_DIR) + "/meshes/beam.geo";
-  run_on_root(PETSC_COMM_WORLD, 0, [&] {
-    data = mesh::read_gmsh(geo, mesh::MeshOptions{0.05, 2});
-  });
+  auto m = test_support::load_test_mesh("beam.geo", 0.05, 2, &data);
   const bool root = comm_rank(PETSC_COMM_WORLD) == 0;
-  auto m = mesh::distribute_mesh(PETSC_COMM_WORLD, root ? &data : nullptr);
   const Eigen::Vector3d g(0, -9.81, 0);
   const Figures all = throw_beam(m, g, 1e-3, 60, 0.8);
   if (root) {

@@ -115,24 +115,6 @@ struct AcfPendulum {
   }
 };
 
-/// All entries of a distributed vector, on every rank. Collective.
-Vector gather_all(Vec v) {
-  Vec all;
-  VecScatter sc;
-  VecScatterCreateToAll(v, &sc, &all);
-  VecScatterBegin(sc, v, all, INSERT_VALUES, SCATTER_FORWARD);
-  VecScatterEnd(sc, v, all, INSERT_VALUES, SCATTER_FORWARD);
-  PetscInt size;
-  VecGetSize(all, &size);
-  const PetscScalar *a;
-  VecGetArrayRead(all, &a);
-  Vector out = Eigen::Map<const Vector>(a, size);
-  VecRestoreArrayRead(all, &a);
-  VecScatterDestroy(&sc);
-  VecDestroy(&all);
-  return out;
-}
-
 } // namespace
 
 TEST(AcfMechanism, NewtonMatrixIsTheDerivativeOfTheEquations) {
@@ -179,7 +161,8 @@ TEST(AcfMechanism, NewtonMatrixIsTheDerivativeOfTheEquations) {
   };
   p.da->equations(moved(eps), Rp);
   p.da->equations(moved(-eps), Rm);
-  const Vector az = gather_all(Az), rp = gather_all(Rp), rm = gather_all(Rm), c = gather_all(cmask);
+  const Vector az = test_support::gather_all(Az), rp = test_support::gather_all(Rp),
+               rm = test_support::gather_all(Rm), c = test_support::gather_all(cmask);
   Vector fd = (rp - rm) / (2 * eps);
   for (Eigen::Index i = 0; i < fd.size(); ++i)
     if (c(i) != 0) fd(i) /= k.bp; // the coordinate rows are R_d / beta'
@@ -262,12 +245,8 @@ TEST(AcfMechanism, StiffBeamSwingsAsTheRigidPendulum) {
 
 TEST(AcfMechanism, SameOnOneAndTwoRanks) {
   mesh::MeshData data;
-  const std::string geo = std::string(FLEXOPT_SOURCE_DIR) + "/meshes/beam.geo";
-  run_on_root(PETSC_COMM_WORLD, 0, [&] {
-    data = mesh::read_gmsh(geo, mesh::MeshOptions{0.05, 2});
-  });
+  auto m = test_support::load_test_mesh("beam.geo", 0.05, 2, &data);
   const bool root = comm_rank(PETSC_COMM_WORLD) == 0;
-  auto m = mesh::distribute_mesh(PETSC_COMM_WORLD, root ? &data : nullptr);
   const AcfPendulum all(m, 2.1e10, 0.8);
   const dynamics::DistState sa = all.run(all.initial(), 1e-3, 50);
   const Vec3 tip_all = all.tip(sa);

@@ -4,6 +4,8 @@
 #include "flexopt/core/context.hpp"
 #include "flexopt/mesh/distributed_mesh.hpp"
 
+#include <Eigen/Dense>
+#include <petscvec.h>
 #include <string>
 
 namespace flexopt::test_support {
@@ -21,6 +23,24 @@ inline mesh::DistributedMesh load_test_mesh(const std::string &geometry, double 
   if (root_copy) *root_copy = data;
   return mesh::distribute_mesh(PETSC_COMM_WORLD,
                                comm_rank(PETSC_COMM_WORLD) == 0 ? &data : nullptr);
+}
+
+/// All entries of a distributed vector, on every rank. Collective.
+inline Eigen::VectorXd gather_all(Vec v) {
+  Vec all;
+  VecScatter sc;
+  VecScatterCreateToAll(v, &sc, &all);
+  VecScatterBegin(sc, v, all, INSERT_VALUES, SCATTER_FORWARD);
+  VecScatterEnd(sc, v, all, INSERT_VALUES, SCATTER_FORWARD);
+  PetscInt size;
+  VecGetSize(all, &size);
+  const PetscScalar *a;
+  VecGetArrayRead(all, &a);
+  Eigen::VectorXd out = Eigen::Map<const Eigen::VectorXd>(a, size);
+  VecRestoreArrayRead(all, &a);
+  VecScatterDestroy(&sc);
+  VecDestroy(&all);
+  return out;
 }
 
 } // namespace flexopt::test_support

@@ -9,6 +9,7 @@
 #include "flexopt/core/context.hpp"
 #include "flexopt/dynamics/generalized_alpha.hpp"
 #include "flexopt/dynamics/ties.hpp"
+#include "test_meshes.hpp"
 
 #include <gtest/gtest.h>
 #include <petscmat.h>
@@ -16,31 +17,9 @@
 using namespace flexopt;
 using dynamics::Vector;
 
-namespace {
-
-/// All entries of a distributed vector, on every rank. Collective.
-Vector gather_all(Vec v) {
-  Vec all;
-  VecScatter sc;
-  VecScatterCreateToAll(v, &sc, &all);
-  VecScatterBegin(sc, v, all, INSERT_VALUES, SCATTER_FORWARD);
-  VecScatterEnd(sc, v, all, INSERT_VALUES, SCATTER_FORWARD);
-  PetscInt size;
-  VecGetSize(all, &size);
-  const PetscScalar *a;
-  VecGetArrayRead(all, &a);
-  Vector out = Eigen::Map<const Vector>(a, size);
-  VecRestoreArrayRead(all, &a);
-  VecScatterDestroy(&sc);
-  VecDestroy(&all);
-  return out;
-}
-
-} // namespace
-
 TEST(SmallSystem, PetscNewtonMatrixIsTheDerivativeOfTheResidual) {
   Vector q0;
-  const dynamics::Mechanism mech = test_support::chain(4, q0);
+  const dynamics::Mechanism mech = ::test_support::chain(4, q0);
   const int n = mech.coordinates(), m = mech.constraints();
   // A moving, not converged state (every term of the matrix matters).
   dynamics::State s;
@@ -74,7 +53,7 @@ TEST(SmallSystem, PetscNewtonMatrixIsTheDerivativeOfTheResidual) {
   VecAssemblyBegin(X);
   VecAssemblyEnd(X);
   MatMult(A, X, AX);
-  const Vector ax = gather_all(AX);
+  const Vector ax = flexopt::test_support::gather_all(AX);
   Vector Ax(n + m);
   for (int k = 0; k < n + m; ++k) Ax(k) = ax(k < n ? c0 + k : r0 + (k - n));
   double outside = 0; // nothing outside the two ranges
@@ -136,7 +115,7 @@ TEST(SmallSystem, TieRowsAreTheDerivativeOfTheResidual) {
                        rv);
     VecAssemblyBegin(rv);
     VecAssemblyEnd(rv);
-    const Vector out = gather_all(rv);
+    const Vector out = flexopt::test_support::gather_all(rv);
     VecDestroy(&rv);
     return out;
   };
@@ -163,7 +142,8 @@ TEST(SmallSystem, TieRowsAreTheDerivativeOfTheResidual) {
   VecAssemblyBegin(D);
   VecAssemblyEnd(D);
   MatMult(A, D, AD);
-  const Vector Ad = gather_all(AD), r0 = gather_all(rhs);
+  const Vector Ad = flexopt::test_support::gather_all(AD),
+               r0 = flexopt::test_support::gather_all(rhs);
   if (root) {
     // The tie rows of -rhs are Phi_j.
     for (int j = 0; j < nt; ++j) {
