@@ -318,14 +318,8 @@ void add_surface_traction(const mesh::DistributedMesh &mesh, const std::string &
                           const Eigen::Vector3d &t, const std::string &where, Vec f) {
   const mesh::LocalSurface &s = mesh.surface(surface, where);
   const int npf = nodes_per_face(s.type);
-  Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor, 9, 3> Xf(npf, 3);
   for (std::size_t k = 0; k < s.size(); ++k) {
-    for (int a = 0; a < npf; ++a)
-      for (int c = 0; c < 3; ++c)
-        Xf(a, c) =
-            s.coordinates[3 * (k * static_cast<std::size_t>(npf) + static_cast<std::size_t>(a)) +
-                          static_cast<std::size_t>(c)];
-    ElementVector fe = face_traction_load(s.type, Xf, t);
+    const ElementVector fe = face_traction_load(s.type, s.face_coordinates(k), t);
     FX_PETSC(VecSetValuesBlocked(f, npf, &s.global_nodes[k * static_cast<std::size_t>(npf)],
                                  fe.data(), ADD_VALUES));
   }

@@ -57,18 +57,23 @@ const LocalSurface &DistributedMesh::surface(const std::string &name,
   return find_group(surfaces, name, "surface", source, where);
 }
 
+fem::FaceCoords LocalSurface::face_coordinates(std::size_t f) const {
+  const auto nf = static_cast<std::size_t>(fem::nodes_per_face(type));
+  fem::FaceCoords X(static_cast<Eigen::Index>(nf), 3);
+  for (std::size_t a = 0; a < nf; ++a)
+    for (std::size_t k = 0; k < 3; ++k)
+      X(static_cast<Eigen::Index>(a), static_cast<Eigen::Index>(k)) =
+          coordinates[3 * (f * nf + a) + k];
+  return X;
+}
+
 Eigen::Vector3d surface_centroid(const DistributedMesh &mesh, const std::string &name,
                                  const std::string &where) {
   const LocalSurface &s = mesh.surface(name, where);
   const int nf = fem::nodes_per_face(s.type);
   double local[4] = {0, 0, 0, 0};
-  fem::FaceCoords Xf(nf, 3);
   for (std::size_t f = 0; f < s.size(); ++f) {
-    for (int a = 0; a < nf; ++a)
-      for (int k = 0; k < 3; ++k)
-        Xf(a, k) =
-            s.coordinates[3 * (f * static_cast<std::size_t>(nf) + static_cast<std::size_t>(a)) +
-                          static_cast<std::size_t>(k)];
+    const fem::FaceCoords Xf = s.face_coordinates(f);
     // int N_a dA from the consistent load of a unit traction (1, 0, 0).
     const fem::ElementVector w = fem::face_traction_load(s.type, Xf, Eigen::Vector3d(1, 0, 0));
     for (int a = 0; a < nf; ++a) {

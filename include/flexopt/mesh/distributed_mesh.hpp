@@ -27,6 +27,8 @@ struct LocalSurface {
   std::size_t size() const {
     return global_nodes.size() / static_cast<std::size_t>(fem::nodes_per_face(type));
   }
+  /// Coordinates of face f, one row per node.
+  fem::FaceCoords face_coordinates(std::size_t f) const;
 };
 
 struct DistributedMesh {
