@@ -91,6 +91,17 @@ struct AcfLayout {
 
 namespace {
 
+/// Factorizes the KSP's operator (if it changed); false if the factorization failed (a zero
+/// pivot, MUMPS out of workspace).
+bool factorized(KSP ksp) {
+  FX_PETSC(KSPSetUp(ksp));
+  PC pc;
+  FX_PETSC(KSPGetPC(ksp, &pc));
+  PCFailedReason failed;
+  FX_PETSC(PCGetFailedReason(pc, &failed));
+  return failed == PC_NOERROR;
+}
+
 /// The PETSc indices first .. first + n - 1.
 std::vector<PetscInt> range(PetscInt first, int n) {
   std::vector<PetscInt> idx(static_cast<std::size_t>(n));
@@ -120,6 +131,8 @@ DistributedAlpha::DistributedAlpha(std::vector<const bodies::AcfBody *> bodies,
       layout_(std::make_unique<detail::AcfLayout>()), par_(parameters), settings_(settings) {
   if (bodies_.empty()) throw Error("DistributedAlpha: no ACF body");
   if (small_ && small_->bodies.empty()) small_ = nullptr;
+  if (!interfaces_.empty() && !small_)
+    throw Error("DistributedAlpha: ACF interfaces need the small mechanism of their nodes");
   comm_ = bodies_.front()->mesh().comm;
   const int size = comm_size(comm_), rank = comm_rank(comm_);
   detail::AcfLayout &L = *layout_;
@@ -218,8 +231,6 @@ DistributedAlpha::DistributedAlpha(std::vector<const bodies::AcfBody *> bodies,
     row += 3 * static_cast<PetscInt>(t.s.size());
     L.ties.push_back(std::move(t));
   }
-  if (!interfaces_.empty() && !small_)
-    throw Error("DistributedAlpha: ACF interfaces need the small mechanism of their nodes");
   // The pattern: every element's full block (the mass and the tangent), the ties' rows, their
   // transposes and (p, p) blocks, and the small part's coupled body blocks and rows.
   Mat P;
@@ -468,22 +479,33 @@ fem::CorotatedSum DistributedAlpha::internal(Vec x, Mat T) const {
   return fem::reduce_corotated(comm_, energy, failure);
 }
 
-namespace {
-
-/// Node j's position and multiplier of a tie set from local arrays (the tied nodes and their
-/// rows are owned).
-void tie_values(const TieSet &t, PetscInt start, const PetscScalar *q, const PetscScalar *l,
-                std::vector<double> &x, std::vector<double> &lambda) {
-  x.resize(3 * t.s.size());
-  lambda.assign(3 * t.s.size(), 0.0);
-  for (std::size_t j = 0; j < t.s.size(); ++j)
-    for (std::size_t k = 0; k < 3; ++k) {
-      x[3 * j + k] = q[t.x_dof[j] - start + static_cast<PetscInt>(k)];
-      if (l) lambda[3 * j + k] = l[t.row0 - start + static_cast<PetscInt>(3 * j + k)];
-    }
+double DistributedAlpha::add_all_ties(const DistState &s, const State &small, bool multipliers,
+                                      double bp, Mat A, Vec rhs) const {
+  const detail::AcfLayout &L = *layout_;
+  const PetscScalar *q, *l = nullptr;
+  FX_PETSC(VecGetArrayRead(s.q, &q));
+  if (multipliers) FX_PETSC(VecGetArrayRead(s.lambda, &l));
+  double violation = 0;
+  std::vector<double> x, lambda;
+  for (std::size_t i = 0; i < L.ties.size(); ++i) {
+    const TieSet &t = L.ties[i];
+    if (t.s.empty()) continue;
+    // The tied nodes and their rows are owned: their values are in the local arrays.
+    x.resize(3 * t.s.size());
+    lambda.assign(3 * t.s.size(), 0.0);
+    for (std::size_t j = 0; j < t.s.size(); ++j)
+      for (std::size_t k = 0; k < 3; ++k) {
+        x[3 * j + k] = q[t.x_dof[j] - L.start + static_cast<PetscInt>(k)];
+        if (l) lambda[3 * j + k] = l[t.row0 - L.start + static_cast<PetscInt>(3 * j + k)];
+      }
+    const int o = small_->offset(interfaces_[i].node_body);
+    violation = std::max(violation, add_ties(t, x.data(), small.q.segment<3>(o),
+                                             small.q.segment<4>(o + 3), lambda.data(), bp, A, rhs));
+  }
+  FX_PETSC(VecRestoreArrayRead(s.q, &q));
+  if (l) FX_PETSC(VecRestoreArrayRead(s.lambda, &l));
+  return violation;
 }
-
-} // namespace
 
 double DistributedAlpha::add_constraints(const DistState &next, double bp, double gp,
                                          bool matrix) const {
@@ -491,21 +513,7 @@ double DistributedAlpha::add_constraints(const DistState &next, double bp, doubl
   double violation = 0;
   if (small_) {
     const State sm = small_state(next);
-    const PetscScalar *q, *l;
-    FX_PETSC(VecGetArrayRead(next.q, &q));
-    FX_PETSC(VecGetArrayRead(next.lambda, &l));
-    std::vector<double> x, lambda;
-    for (std::size_t i = 0; i < L.ties.size(); ++i) {
-      const TieSet &t = L.ties[i];
-      if (t.s.empty()) continue;
-      tie_values(t, L.start, q, l, x, lambda);
-      const int o = small_->offset(interfaces_[i].node_body);
-      violation =
-          std::max(violation, add_ties(t, x.data(), sm.q.segment<3>(o), sm.q.segment<4>(o + 3),
-                                       lambda.data(), bp, matrix ? A_ : nullptr, r_));
-    }
-    FX_PETSC(VecRestoreArrayRead(next.q, &q));
-    FX_PETSC(VecRestoreArrayRead(next.lambda, &l));
+    violation = add_all_ties(next, sm, true, bp, matrix ? A_ : nullptr, r_);
     if (comm_rank(comm_) == 0) {
       Vector rhs;
       if (matrix)
@@ -530,16 +538,6 @@ double DistributedAlpha::add_constraints(const DistState &next, double bp, doubl
   return global;
 }
 
-namespace {
-
-/// The state's coordinates and velocities with zero multiplier entries, no acceleration or
-/// multipliers yet.
-void zero_rest(Vec v, Vec mask) {
-  FX_PETSC(VecPointwiseMult(v, v, mask));
-}
-
-} // namespace
-
 DistState DistributedAlpha::initial_state(Vec q0, Vec v0, double t0) const {
   const detail::AcfLayout &L = *layout_;
   const bool root = comm_rank(comm_) == 0;
@@ -547,8 +545,8 @@ DistState DistributedAlpha::initial_state(Vec q0, Vec v0, double t0) const {
   s.t = t0;
   s.q = copy_of(q0);
   s.v = copy_of(v0);
-  zero_rest(s.q, cmask_);
-  zero_rest(s.v, cmask_);
+  FX_PETSC(VecPointwiseMult(s.q, s.q, cmask_)); // no values on the multiplier entries
+  FX_PETSC(VecPointwiseMult(s.v, s.v, cmask_));
   s.acc = create_vector();
   s.a = create_vector();
   s.lambda = create_vector();
@@ -581,35 +579,18 @@ DistState DistributedAlpha::initial_state(Vec q0, Vec v0, double t0) const {
   FX_PETSC(MatZeroEntries(A_));
   FX_PETSC(MatAXPY(A_, 1.0, M_, SAME_NONZERO_PATTERN));
   {
-    const PetscScalar *q;
-    FX_PETSC(VecGetArrayRead(s.q, &q));
-    std::vector<double> x, lambda;
-    for (std::size_t i = 0; i < L.ties.size(); ++i) {
-      const TieSet &t = L.ties[i];
-      if (t.s.empty()) continue;
-      tie_values(t, L.start, q, nullptr, x, lambda);
-      const int o = small_->offset(interfaces_[i].node_body);
-      add_ties(t, x.data(), sm.q.segment<3>(o), sm.q.segment<4>(o + 3), lambda.data(), 1.0, A_, w_);
-    }
-    FX_PETSC(VecRestoreArrayRead(s.q, &q));
+    if (small_) add_all_ties(s, sm, false, 1.0, A_, w_); // w_: the ties' right-hand side, unused
     if (root && small_) add_mass_system(*small_, sm, A_, L.small_coord0, L.small_row0);
     FX_PETSC(VecAssemblyBegin(w_));
     FX_PETSC(VecAssemblyEnd(w_));
     FX_PETSC(MatAssemblyBegin(A_, MAT_FINAL_ASSEMBLY));
     FX_PETSC(MatAssemblyEnd(A_, MAT_FINAL_ASSEMBLY));
   }
-  FX_PETSC(KSPSetUp(ksp_));
-  {
-    PC pc;
-    FX_PETSC(KSPGetPC(ksp_, &pc));
-    PCFailedReason failed;
-    FX_PETSC(PCGetFailedReason(pc, &failed));
-    if (failed != PC_NOERROR)
-      throw Error("initial conditions: the acceleration system [M Phi_q^T; Phi_q 0] is singular "
-                  "(a body without mass, an interface node held by nothing, or joints that "
-                  "leave no consistent acceleration)",
-                  true);
-  }
+  if (!factorized(ksp_))
+    throw Error("initial conditions: the acceleration system [M Phi_q^T; Phi_q 0] is singular "
+                "(a body without mass, an interface node held by nothing, or joints that "
+                "leave no consistent acceleration)",
+                true);
   auto solve = [&](const char *what) {
     FX_PETSC(KSPSolve(ksp_, r_, dz_));
     KSPConvergedReason reason;
@@ -808,13 +789,7 @@ bool DistributedAlpha::step_once(const DistState &s, double h, DistState &next,
     }
     bool factorize(const NewtonScaling &k) {
       da.factored_ = false;
-      if (!da.assemble(next, k, true, violation)) return false;
-      FX_PETSC(KSPSetUp(da.ksp_));
-      PC pc;
-      FX_PETSC(KSPGetPC(da.ksp_, &pc));
-      PCFailedReason failed;
-      FX_PETSC(PCGetFailedReason(pc, &failed));
-      if (failed != PC_NOERROR) return false;
+      if (!da.assemble(next, k, true, violation) || !factorized(da.ksp_)) return false;
       da.factored_ = true;
       da.bp_ = k.bp;
       da.gp_ = k.gp;

@@ -138,6 +138,11 @@ private:
   /// max |Phi| into violation. False if an element is inverted. Collective.
   bool assemble(const DistState &next, const NewtonScaling &k, bool matrix,
                 double &violation) const;
+  /// Adds every tie at s (the interface nodes from `small`; the multipliers if `multipliers`,
+  /// else zero) with the scaling bp into A (null: none) and rhs; returns this rank's max |Phi|.
+  /// Not collective (no assembly).
+  double add_all_ties(const DistState &s, const State &small, bool multipliers, double bp, Mat A,
+                      Vec rhs) const;
   /// Positions of ACF body b's local nodes (owned and ghosts) into layout_->local_x[b].
   void gather(Vec x, std::size_t body) const;
 
