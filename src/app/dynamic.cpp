@@ -104,21 +104,21 @@ private:
 /// A scene with ACF bodies: DistributedAlpha over all ranks, the mechanism as its small part.
 class DistributedBackend : public Backend {
 public:
-  DistributedBackend(const dynamics::Scene &scene, const bodies::Vec3 &gravity,
-                     dynamics::AlphaParameters par, dynamics::NewtonSettings newton)
-      : scene_(scene),
-        da_(acf_list(scene), &scene.mechanism, scene.acf_interfaces, gravity, par, newton) {
+  /// Gravity acts on the ACF bodies as on the mechanism's.
+  DistributedBackend(const dynamics::Scene &scene, dynamics::AlphaParameters par,
+                     dynamics::NewtonSettings newton)
+      : scene_(scene), da_(acf_list(scene), &scene.mechanism, scene.acf_interfaces,
+                           scene.mechanism.gravity, par, newton) {
     Vec x0, v0;
     dynamics::acf_initial_vectors(scene, da_, x0, v0);
-    try {
-      state_ = da_.initial_state(x0, v0, 0.0);
-    } catch (...) {
-      VecDestroy(&x0);
-      VecDestroy(&v0);
-      throw;
-    }
-    VecDestroy(&x0);
-    VecDestroy(&v0);
+    struct Destroy {
+      Vec &x, &v;
+      ~Destroy() {
+        VecDestroy(&x);
+        VecDestroy(&v);
+      }
+    } destroy{x0, v0}; // also when the initial state throws
+    state_ = da_.initial_state(x0, v0, 0.0);
     small_ = da_.small_state(state_);
   }
   bool advance(double h, double t, dynamics::StepInfo &info) override {
@@ -132,7 +132,7 @@ public:
   double tie_violation() const override { return da_.tie_violation(state_); }
   double energy() const override { return da_.energy(state_); }
   bodies::Vec3 sensor(const dynamics::BoundSensor &s) const override {
-    if (s.acf >= 0) return dynamics::acf_sensor_value(scene_, da_, s, state_, small_);
+    if (s.acf_body >= 0) return dynamics::acf_sensor_value(scene_, da_, s, state_, small_);
     return dynamics::sensor_value(scene_, s, small_.q);
   }
   std::vector<double> positions(std::size_t b, std::vector<double> &elastic) const override {
@@ -141,16 +141,13 @@ public:
     std::vector<double> x = da_.owned_positions(state_, static_cast<std::size_t>(sb.acf));
     elastic.clear();
     if (sb.nodes.empty()) return x;
-    // The elastic displacement in the frame of the first interface node:
-    // A^T (x - r_I) - (X - c_I).
-    const int o = scene_.mechanism.offset(sb.nodes.front());
-    const bodies::Vec3 r = small_.q.segment<3>(o);
-    const bodies::Mat3 A = bodies::rotation(small_.q.segment<4>(o + 3));
+    // The elastic displacement in the frame of the first interface node.
+    const dynamics::InterfaceFrame frame = dynamics::first_interface_frame(scene_, sb, small_);
     const mesh::DistributedMesh &m = scene_.meshes[b];
     elastic.resize(x.size());
     for (std::size_t i = 0; i < x.size() / 3; ++i) {
-      const bodies::Vec3 X(&m.coordinates[3 * i]), xi(&x[3 * i]);
-      const bodies::Vec3 e = A.transpose() * (xi - r) - (X - sb.centroids.front());
+      const bodies::Vec3 e =
+          frame.elastic(bodies::Vec3(&x[3 * i]), bodies::Vec3(&m.coordinates[3 * i]));
       for (int k = 0; k < 3; ++k) elastic[3 * i + static_cast<std::size_t>(k)] = e(k);
     }
     return x;
@@ -201,11 +198,7 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
            "mechanism: %zu ACF bodies on the distributed backend (one PETSc system over %d "
            "rank(s); Newton solver: options prefix mech_, MUMPS LU by default)\n",
            scene.acf.size(), ctx.size());
-    run = std::make_unique<DistributedBackend>(
-        scene,
-        c.gravity ? bodies::Vec3(c.gravity->at(0), c.gravity->at(1), c.gravity->at(2))
-                  : bodies::Vec3::Zero(),
-        par, newton);
+    run = std::make_unique<DistributedBackend>(scene, par, newton);
   }
   const double h = c.time.step;
   const long long steps = std::llround(c.time.end / h);

@@ -449,7 +449,7 @@ Scene build_scene(MPI_Comm comm, const io::Case &c) {
     const SceneBody &sb = scene.bodies[ub];
     if (sb.acf >= 0) {
       // The point in the ACF body's mesh; the frame of its first interface node.
-      bs.acf = sb.acf;
+      bs.acf_body = static_cast<int>(ub);
       bs.body = sb.nodes.empty() ? -1 : sb.nodes.front();
       if (bs.body < 0 && (s.quantity == "elastic_displacement" || s.quantity == "rotation_angle"))
         throw Error(s.where.str() + ": sensor '" + s.name + "': " + s.quantity +
@@ -471,7 +471,7 @@ Scene build_scene(MPI_Comm comm, const io::Case &c) {
   }
   mech.finalize();
   for (BoundSensor &bs : scene.sensors)
-    if (bs.acf < 0 && bs.S.cols() == 0) bs.S.setZero(3, mech.size(bs.body) - 7);
+    if (bs.acf_body < 0 && bs.S.cols() == 0) bs.S.setZero(3, mech.size(bs.body) - 7);
   scene.redundant_rows = mech.drop_redundant_rows(scene.q0, 0.0);
   for (int b = 0; b < static_cast<int>(mech.bodies.size()); ++b)
     scene.length_scale =
@@ -496,25 +496,25 @@ void acf_initial_vectors(const Scene &scene, const DistributedAlpha &da, Vec &x0
   da.set_small(v0, scene.v0);
 }
 
+InterfaceFrame first_interface_frame(const Scene &scene, const SceneBody &body,
+                                     const State &small) {
+  const int o = scene.mechanism.offset(body.nodes.front());
+  InterfaceFrame f;
+  f.r = small.q.segment<3>(o);
+  f.A = bodies::rotation(small.q.segment<4>(o + 3));
+  f.c = body.centroids.front();
+  return f;
+}
+
 Vec3 acf_sensor_value(const Scene &scene, const DistributedAlpha &da, const BoundSensor &s,
                       const DistState &state, const State &small) {
-  const Mechanism &mech = scene.mechanism;
-  if (s.quantity == "rotation_angle") {
-    const int o = mech.offset(s.body);
-    const Mat3 A = bodies::rotation(small.q.segment<4>(o + 3).normalized());
-    const Mat3 A0 = bodies::rotation(scene.q0.segment<4>(o + 3).normalized());
-    return bodies::rotation_vector(A * A0.transpose());
-  }
-  const Vec3 x = da.point_position(state, static_cast<std::size_t>(s.acf), s.location);
+  // The first interface node's rotation, as for the body of any other sensor.
+  if (s.quantity == "rotation_angle") return sensor_value(scene, s, small.q);
+  const SceneBody &sb = scene.bodies[static_cast<std::size_t>(s.acf_body)];
+  const Vec3 x = da.point_position(state, static_cast<std::size_t>(sb.acf), s.location);
   if (s.quantity == "position") return x;
-  std::size_t b = 0; // the case body
-  while (scene.bodies[b].acf != s.acf) ++b;
-  const SceneBody &sb = scene.bodies[b];
   if (s.quantity == "displacement") return x - (sb.position + sb.R * s.point);
-  // elastic_displacement: in the frame of the first interface node, relative to the centroid.
-  const int o = mech.offset(s.body);
-  const Mat3 A = bodies::rotation(small.q.segment<4>(o + 3));
-  return A.transpose() * (x - small.q.segment<3>(o)) - (s.point - sb.centroids.front());
+  return first_interface_frame(scene, sb, small).elastic(x, s.point);
 }
 
 Vec3 sensor_value(const Scene &scene, const BoundSensor &s, const Vector &q) {

@@ -20,8 +20,9 @@ namespace flexopt::dynamics {
 
 /// A sensor bound to a body: `point` in body (mesh) coordinates; s + S zeta is the point
 /// relative to the body's reference point (S: the basis at the point, empty for rigid bodies).
-/// On an ACF body (`acf` >= 0), `body` is the node of its first interface (-1: none), whose
-/// frame measures the elastic displacement, and `location` the point in the body's mesh.
+/// On an ACF body (`acf_body` >= 0: that case body), `body` is the node of its first interface
+/// (-1: none), whose frame measures the elastic displacement, and `location` the point in the
+/// body's mesh.
 struct BoundSensor {
   std::string name;
   std::string quantity; ///< position | displacement | elastic_displacement | rotation_angle
@@ -29,7 +30,7 @@ struct BoundSensor {
   Vec3 point{0, 0, 0};
   Vec3 s{0, 0, 0};
   joints::Elastic S;
-  int acf = -1;
+  int acf_body = -1;
   fem::PointLocation location;
 };
 
@@ -109,6 +110,16 @@ Scene build_scene(MPI_Comm comm, const io::Case &c);
 /// on the scene's ACF bodies, mechanism and interfaces): every ACF body placed rigidly, the
 /// mechanism's coordinates from q0, v0. The caller destroys x0 and v0. Collective.
 void acf_initial_vectors(const Scene &scene, const DistributedAlpha &da, Vec &x0, Vec &v0);
+
+/// The frame of an ACF body's first interface node at the mechanism state `small`: origin r_I,
+/// rotation A_I, the interface centroid c_I (mesh coordinates). The elastic displacement of a
+/// point X at x is A_I^T (x - r_I) - (X - c_I), as for an FFRF body clamped there.
+struct InterfaceFrame {
+  Vec3 r{0, 0, 0}, c{0, 0, 0};
+  bodies::Mat3 A = bodies::Mat3::Identity();
+  Vec3 elastic(const Vec3 &x, const Vec3 &X) const { return A.transpose() * (x - r) - (X - c); }
+};
+InterfaceFrame first_interface_frame(const Scene &scene, const SceneBody &body, const State &small);
 
 /// Value of a sensor of an ACF body at a state of `da` (the meaning of sensor_value; the elastic
 /// displacement is A_I^T (x - r_I) - (X - c_I) in the frame of the body's first interface node
