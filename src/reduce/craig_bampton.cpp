@@ -21,7 +21,8 @@ void craig_bampton(const mesh::DistributedMesh &mesh, Mat K, Mat M,
     throw Error("Craig-Bampton: a flexible body needs at least one interface (its frame)", true);
   const std::size_t ni = interfaces.size();
   out.centroids.clear();
-  for (const auto &name : interfaces) out.centroids.push_back(mesh::surface_centroid(mesh, name, "Craig-Bampton interface"));
+  for (const auto &name : interfaces)
+    out.centroids.push_back(mesh::surface_centroid(mesh, name, "Craig-Bampton interface"));
 
   // Owned DOFs of every interface surface, and the union of all of them.
   std::vector<std::vector<PetscInt>> nodes(ni);

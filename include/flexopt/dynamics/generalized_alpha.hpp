@@ -136,8 +136,7 @@ void add_newton_system(const Mechanism &mech, const State &next, double bp, doub
 /// The matrix [M Phi_q^T; Phi_q 0] of `mech` at s (offsets and target as add_newton_system):
 /// the consistent initial accelerations and the mass-weighted velocity projection of the
 /// distributed backend. Not collective.
-void add_mass_system(const Mechanism &mech, const State &s, Mat A, PetscInt coord0,
-                     PetscInt row0);
+void add_mass_system(const Mechanism &mech, const State &s, Mat A, PetscInt coord0, PetscInt row0);
 /// The right-hand side of add_newton_system alone (no derivatives): for iterations on a kept
 /// matrix. Not collective.
 void newton_system_rhs(const Mechanism &mech, const State &next, double bp, Vector &rhs);
