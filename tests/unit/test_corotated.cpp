@@ -4,7 +4,9 @@
 //  - rigid motions: zero energy and force; E(Qx + t) = E(x), f(Qx + t) = Q f(x);
 //  - no net force and no net moment (momentum conservation);
 //  - f is the gradient of E and T the Hessian (central differences; symmetric);
-//  - T = K at the reference configuration, and for Tet4 f = R K u~ (the textbook force).
+//  - T = K at the reference configuration, and for Tet4 f = R K u~ (the textbook force);
+//  - damping (corotated_damping): zero for rigid velocity fields, moment-free, f = dD/dv, Cv and
+//    Cx against central differences, Cv = beta K at the reference.
 #include "flexopt/fem/corotated.hpp"
 #include "reference_elements.hpp"
 
@@ -207,4 +209,92 @@ TEST(CorotatedElement, PolarRotationAndInvertedElements) {
   } catch (const flexopt::Error &err) {
     EXPECT_NE(std::string(err.what()).find("inverted"), std::string::npos) << err.what();
   }
+}
+
+namespace {
+
+/// A velocity of 1 m/s scale at every node: a rigid field (v0 + omega x x) plus a random part.
+ElementVector velocities(const ElementCoords &x, std::mt19937 &rng, double random_part) {
+  std::uniform_real_distribution<double> u(-1, 1);
+  const Vector3d v0(u(rng), u(rng), u(rng)), omega(u(rng), u(rng), u(rng));
+  ElementVector v(3 * x.rows());
+  for (int a = 0; a < x.rows(); ++a)
+    v.segment<3>(3 * a) =
+        v0 + omega.cross(x.row(a).transpose()) + random_part * Vector3d(u(rng), u(rng), u(rng));
+  return v;
+}
+
+} // namespace
+
+// Damping (corotated_damping): a rigid velocity field dissipates nothing and gives no force at
+// a deformed, rotated configuration (u~' = 0 exactly); the force has no net force or moment;
+// the force is the gradient of D = P / 2 in v; Cv and Cx against central differences of f.
+TEST(CorotatedDamping, RigidVelocitiesAreFreeAndTheForceIsMomentFree) {
+  const double beta = 1e-3;
+  for_each_sample(21, [&](ElementType type, const Sample &sm, std::mt19937 &rng) {
+    const CorotatedElement &e = sm.e;
+    const ElementCoords &x = sm.x;
+    ElementVector f;
+    const ElementVector rigid = velocities(x, rng, 0.0);
+    const double P0 = corotated_damping(e, x, rigid, beta, &f, nullptr, nullptr);
+    // Scale: the force of a 1 1/s strain rate, beta |K| * 0.1 m/s.
+    const double fscale = beta * e.K.cwiseAbs().maxCoeff() * 0.1;
+    EXPECT_LT(std::abs(P0), 1e-20 * fscale) << element_name(type);
+    EXPECT_LT(max_abs(f), 1e-11 * fscale) << element_name(type);
+    const ElementVector v = velocities(x, rng, 0.1);
+    const double P = corotated_damping(e, x, v, beta, &f, nullptr, nullptr);
+    EXPECT_GT(P, 0) << element_name(type);
+    Vector3d net = Vector3d::Zero(), moment = Vector3d::Zero();
+    for (int a = 0; a < x.rows(); ++a) {
+      net += f.segment<3>(3 * a);
+      moment += x.row(a).transpose().cross(f.segment<3>(3 * a));
+    }
+    const double fs = max_abs(f);
+    EXPECT_LT(net.cwiseAbs().maxCoeff(), 1e-11 * fs) << element_name(type);
+    EXPECT_LT(moment.cwiseAbs().maxCoeff(), 1e-11 * fs * 4) << element_name(type);
+    // The power is f . v (D is quadratic in v).
+    EXPECT_NEAR(f.dot(v), P, 1e-12 * P) << element_name(type);
+  });
+}
+
+TEST(CorotatedDamping, ForceIsTheGradientAndBothTangentsTheDerivatives) {
+  const double beta = 1e-3;
+  for_each_sample(22, [&](ElementType type, const Sample &sm, std::mt19937 &rng) {
+    const CorotatedElement &e = sm.e;
+    const ElementCoords &x = sm.x;
+    const ElementVector v = velocities(x, rng, 0.1);
+    ElementVector f;
+    ElementMatrix Cv, Cx;
+    corotated_damping(e, x, v, beta, &f, &Cv, &Cx);
+    const int nd = 3 * static_cast<int>(x.rows());
+    // Central differences: in v with a step of 1e-4 m/s (D is quadratic in v: exact up to
+    // round-off), in x with 1e-7 m (as for the elastic tangent).
+    const double dv = 1e-4, dx = 1e-7;
+    ElementVector ffd(nd);
+    ElementMatrix Cvfd(nd, nd), Cxfd(nd, nd);
+    for (int j = 0; j < nd; ++j) {
+      ElementVector vp = v, vm = v, fp, fm;
+      vp(j) += dv;
+      vm(j) -= dv;
+      const double Pp = corotated_damping(e, x, vp, beta, &fp, nullptr, nullptr);
+      const double Pm = corotated_damping(e, x, vm, beta, &fm, nullptr, nullptr);
+      ffd(j) = (Pp - Pm) / 2 / (2 * dv);
+      Cvfd.col(j) = (fp - fm) / (2 * dv);
+      ElementCoords xp = x, xm = x;
+      xp(j / 3, j % 3) += dx;
+      xm(j / 3, j % 3) -= dx;
+      corotated_damping(e, xp, v, beta, &fp, nullptr, nullptr);
+      corotated_damping(e, xm, v, beta, &fm, nullptr, nullptr);
+      Cxfd.col(j) = (fp - fm) / (2 * dx);
+    }
+    const double fs = max_abs(f), cvs = Cv.cwiseAbs().maxCoeff(), cxs = Cx.cwiseAbs().maxCoeff();
+    EXPECT_LT(max_abs(f - ffd), 1e-8 * fs) << element_name(type);
+    EXPECT_LT((Cv - Cvfd).cwiseAbs().maxCoeff(), 1e-8 * cvs) << element_name(type);
+    EXPECT_LT((Cx - Cxfd).cwiseAbs().maxCoeff(), 1e-6 * cxs) << element_name(type);
+    // At the reference configuration and rest: Cv = beta K (the linear Rayleigh term).
+    ElementMatrix C0;
+    corotated_damping(e, sm.X, ElementVector::Zero(nd), beta, nullptr, &C0, nullptr);
+    EXPECT_LT((C0 - beta * e.K).cwiseAbs().maxCoeff(), 1e-12 * beta * e.K.cwiseAbs().maxCoeff())
+        << element_name(type);
+  });
 }

@@ -37,6 +37,16 @@ CorotatedElement corotated_element(ElementType type, const ElementCoords &X,
 double corotated_state(const CorotatedElement &e, const ElementCoords &x, ElementVector *f,
                        ElementMatrix *T);
 
+/// Stiffness-proportional (Rayleigh) damping on the co-rotated velocities (docs/theory.md
+/// section 8.1): with u~' = d u~/dt = B(x) v at positions x and velocities v (one row / 3 per
+/// node), returns the dissipated power P = beta u~'^T K u~' [W] (twice the dissipation function
+/// D = 1/2 beta u~'^T K u~') and, for non-null pointers, the damping force f = dD/dv [N] (3n),
+/// Cv = df/dv [N s/m] (symmetric) and Cx = df/dx [N/m] (not symmetric). f vanishes for every
+/// rigid velocity field and carries no net force or moment. beta [s]: the damping ratio of an
+/// elastic mode of angular frequency w is beta w / 2. Throws like corotated_state.
+double corotated_damping(const CorotatedElement &e, const ElementCoords &x, const ElementVector &v,
+                         double beta, ElementVector *f, ElementMatrix *Cv, ElementMatrix *Cx);
+
 /// The rotation of the polar decomposition F = R U (U symmetric positive definite) of a matrix
 /// with det F > 0, by Higham's iteration R <- (R + R^-T) / 2 from R = F, to round-off.
 Eigen::Matrix3d polar_rotation(const Eigen::Matrix3d &F);
