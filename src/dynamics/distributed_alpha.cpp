@@ -78,11 +78,12 @@ struct AcfLayout {
   PetscInt small_coord0 = 0, small_row0 = 0; ///< their first global numbers (every rank)
   std::vector<PetscInt> offset;
   std::vector<std::vector<PetscInt>> node_dof;
-  std::vector<Vec> local_x;
+  std::vector<Vec> local_x, local_v; ///< positions, velocities of the local nodes
   std::vector<VecScatter> gather;
   std::vector<TieSet> ties;
   ~AcfLayout() {
     for (Vec &v : local_x) VecDestroy(&v);
+    for (Vec &v : local_v) VecDestroy(&v);
     for (VecScatter &g : gather) VecScatterDestroy(&g);
   }
 };
@@ -211,10 +212,12 @@ DistributedAlpha::DistributedAlpha(std::vector<const bodies::AcfBody *> bodies,
                                               starts.begin() - 1);
       dof[static_cast<std::size_t>(l)] = offs[r] + 3 * (g - starts[r]);
     }
-    Vec lx;
+    Vec lx, lv;
     FX_PETSC(VecCreateSeq(PETSC_COMM_SELF, 3 * m.local_nodes(), &lx));
+    FX_PETSC(VecDuplicate(lx, &lv));
     L.node_dof.push_back(std::move(dof));
     L.local_x.push_back(lx);
+    L.local_v.push_back(lv);
   }
   // The ties in this numbering.
   PetscInt row = L.start + L.coords_local;
@@ -429,10 +432,11 @@ std::vector<double> DistributedAlpha::owned_positions(const DistState &s, std::s
   return x;
 }
 
-void DistributedAlpha::gather(Vec x, std::size_t b) const {
+void DistributedAlpha::gather(Vec x, std::size_t b, Vec local) const {
   detail::AcfLayout &L = *layout_;
-  FX_PETSC(VecScatterBegin(L.gather[b], x, L.local_x[b], INSERT_VALUES, SCATTER_FORWARD));
-  FX_PETSC(VecScatterEnd(L.gather[b], x, L.local_x[b], INSERT_VALUES, SCATTER_FORWARD));
+  if (!local) local = L.local_x[b];
+  FX_PETSC(VecScatterBegin(L.gather[b], x, local, INSERT_VALUES, SCATTER_FORWARD));
+  FX_PETSC(VecScatterEnd(L.gather[b], x, local, INSERT_VALUES, SCATTER_FORWARD));
 }
 
 Vec3 DistributedAlpha::point_position(const DistState &s, std::size_t body,
@@ -454,7 +458,7 @@ Vec3 DistributedAlpha::point_position(const DistState &s, std::size_t body,
   return Vec3(x[0], x[1], x[2]);
 }
 
-fem::CorotatedSum DistributedAlpha::internal(Vec x, Mat T) const {
+fem::CorotatedSum DistributedAlpha::internal(Vec x, Mat T, Vec v, double gp) const {
   detail::AcfLayout &L = *layout_;
   FX_PETSC(VecZeroEntries(F_));
   if (T) FX_PETSC(MatZeroEntries(T));
@@ -467,7 +471,17 @@ fem::CorotatedSum DistributedAlpha::internal(Vec x, Mat T) const {
     FX_PETSC(VecGetArray(L.local_x[b], &u));
     for (PetscInt l = 0; l < 3 * m.local_nodes(); ++l)
       u[l] -= m.coordinates[static_cast<std::size_t>(l)];
-    energy += fem::add_corotated(m, bodies_[b]->elements(), u, L.node_dof[b], F_, T, failure);
+    fem::CorotatedDamping damping;
+    const bool damped = v && bodies_[b]->damping() > 0;
+    if (damped) {
+      gather(v, b, L.local_v[b]);
+      FX_PETSC(VecGetArrayRead(L.local_v[b], &damping.v));
+      damping.beta = bodies_[b]->damping();
+      damping.gp = gp;
+    }
+    energy += fem::add_corotated(m, bodies_[b]->elements(), u, L.node_dof[b], F_, T, failure,
+                                 damped ? &damping : nullptr);
+    if (damped) FX_PETSC(VecRestoreArrayRead(L.local_v[b], &damping.v));
     FX_PETSC(VecRestoreArray(L.local_x[b], &u));
   }
   FX_PETSC(VecAssemblyBegin(F_));
@@ -618,7 +632,8 @@ DistState DistributedAlpha::initial_state(Vec q0, Vec v0, double t0) const {
   FX_PETSC(VecAXPY(s.v, 1.0, w_));
   sm = small_state(s);
   // Accelerations and multipliers: [M Phi_q^T; Phi_q 0] [acc; lambda] = [Q; gamma].
-  FX_PETSC(VecWAXPY(r_, -1.0, F_, fg_)); // f_g - f(x) on the ACF rows, 0 elsewhere
+  internal(s.q, nullptr, s.v);           // the damping force at the projected velocities
+  FX_PETSC(VecWAXPY(r_, -1.0, F_, fg_)); // f_g - f(x) - f_d(x, v) on the ACF rows, 0 elsewhere
   {
     PetscScalar *r;
     FX_PETSC(VecGetArray(r_, &r));
@@ -684,6 +699,21 @@ void DistributedAlpha::energies(const DistState &s, double &kinetic, double &ela
   potential = -potential;
 }
 
+double DistributedAlpha::damping_work(const DistState &a, const DistState &b) const {
+  // dz_ = f_d(a) + f_d(b), each as the force with velocities less the force without.
+  FX_PETSC(VecZeroEntries(dz_));
+  for (const DistState *s : {&a, &b}) {
+    internal(s->q, nullptr, s->v);
+    FX_PETSC(VecAXPY(dz_, 1.0, F_));
+    internal(s->q, nullptr);
+    FX_PETSC(VecAXPY(dz_, -1.0, F_));
+  }
+  FX_PETSC(VecWAXPY(w_, -1.0, a.q, b.q));
+  double work;
+  FX_PETSC(VecDot(w_, dz_, &work));
+  return 0.5 * work;
+}
+
 double DistributedAlpha::energy(const DistState &s) const {
   double k, e, p;
   energies(s, k, e, p);
@@ -727,13 +757,16 @@ Eigen::Vector3d DistributedAlpha::centre_of_mass(Vec x) const {
 
 bool DistributedAlpha::assemble(const DistState &next, const NewtonScaling &k, bool matrix,
                                 double &violation) const {
-  if (!internal(next.q, matrix ? A_ : nullptr).ok) return false; // an inverted element
+  // An inverted element fails the evaluation.
+  if (!internal(next.q, matrix ? A_ : nullptr, next.v, k.gp).ok) return false;
   if (matrix) {
-    // A = M + T / beta' on the ACF bodies (no damping: C = 0); M_ has A_'s stored pattern.
+    // A = M + (T + df_d/dx + gamma' df_d/dv) / beta' on the ACF bodies; M_ has A_'s stored
+    // pattern.
     FX_PETSC(MatScale(A_, 1.0 / k.bp));
     FX_PETSC(MatAXPY(A_, 1.0, M_, SAME_NONZERO_PATTERN));
   }
-  // r = -(M acc + f(q) - f_g) / beta' on the ACF rows (0 elsewhere), then the constraints.
+  // r = -(M acc + f(q) + f_d(q, v) - f_g) / beta' on the ACF rows (0 elsewhere), then the
+  // constraints.
   FX_PETSC(MatMult(M_, next.acc, r_));
   FX_PETSC(VecAXPY(r_, 1.0, F_));
   FX_PETSC(VecAXPY(r_, -1.0, fg_));

@@ -187,7 +187,8 @@ Scene build_scene(MPI_Comm comm, const io::Case &c) {
       sb.mechanism = -1;
       sb.acf = static_cast<int>(scene.acf.size());
       scene.acf.push_back(std::make_unique<bodies::AcfBody>(
-          spec.name, m, fem::IsotropicMaterial{mat.E, mat.nu, mat.density}));
+          spec.name, m, fem::IsotropicMaterial{mat.E, mat.nu, mat.density}, std::vector<double>{},
+          spec.rayleigh[1]));
       std::string names;
       for (const std::string &iface : spec.interfaces) {
         const Vec3 cI = mesh::surface_centroid(

@@ -375,12 +375,13 @@ std::vector<CorotatedElement> corotated_elements(const mesh::DistributedMesh &me
 
 double add_corotated(const mesh::DistributedMesh &mesh,
                      const std::vector<CorotatedElement> &elements, const PetscScalar *u,
-                     const std::vector<PetscInt> &node_dof, Vec F, Mat T, std::string &failure) {
+                     const std::vector<PetscInt> &node_dof, Vec F, Mat T, std::string &failure,
+                     const CorotatedDamping *damping) {
   double energy = 0;
   LogScope log("FxAssembleCorot");
   double fsorted[kMaxDofs];
-  ElementVector fe;
-  ElementMatrix Te;
+  ElementVector fe, fd;
+  ElementMatrix Te, Cv, Cx;
   for (PetscInt e = 0; e < mesh.local_elements(); ++e) {
     const CorotatedElement &ce = elements[static_cast<std::size_t>(e)];
     const ElementVector ue = gather_element(mesh, e, u);
@@ -388,6 +389,12 @@ double add_corotated(const mesh::DistributedMesh &mesh,
     for (int a = 0; a < x.rows(); ++a) x.row(a) += ue.segment<3>(3 * a).transpose();
     try {
       energy += corotated_state(ce, x, &fe, T ? &Te : nullptr);
+      if (damping) {
+        corotated_damping(ce, x, gather_element(mesh, e, damping->v), damping->beta, &fd,
+                          T ? &Cv : nullptr, T ? &Cx : nullptr);
+        fe += fd;
+        if (T) Te += Cx + damping->gp * Cv;
+      }
     } catch (const Error &err) {
       if (failure.empty()) failure = element_context(mesh, e, err);
       continue;

@@ -276,10 +276,12 @@ void read_bodies(const Reader &r, const YAML::Node &node, const fs::path &dir, C
     if (v["model"]) {
       b.model = r.choice(v["model"], path + ".model", {"rigid", "ffrf", "acf", "auto"});
     }
-    for (const char *key : {"reduction", "damping"})
-      if (v[key] && b.model != "ffrf")
-        r.fail(r.key_node(v, key),
-               path + "." + key + ": only an ffrf body takes it (model: " + b.model + ")");
+    if (v["reduction"] && b.model != "ffrf")
+      r.fail(r.key_node(v, "reduction"),
+             path + ".reduction: only an ffrf body takes it (model: " + b.model + ")");
+    if (v["damping"] && b.model != "ffrf" && b.model != "acf")
+      r.fail(r.key_node(v, "damping"),
+             path + ".damping: only ffrf and acf bodies take it (model: " + b.model + ")");
     if (v["reduction"]) {
       const YAML::Node &m = v["reduction"];
       const std::string mp = path + ".reduction";
@@ -315,6 +317,10 @@ void read_bodies(const Reader &r, const YAML::Node &node, const fs::path &dir, C
         if (b.rayleigh[k] < 0)
           r.fail(ray[k], mp + ".rayleigh[" + std::to_string(k) + "]: must not be negative");
       }
+      if (b.model == "acf" && b.rayleigh[0] != 0)
+        r.fail(ray[0], mp + ".rayleigh[0]: an acf body takes stiffness-proportional damping "
+                            "only, [0, b]: mass-proportional damping of its absolute velocities "
+                            "would brake its rigid motion (docs/theory.md section 8.1)");
     }
     b.geometry_key = r.string(r.require(v, "geometry", path), path + ".geometry");
     b.geometry = (dir / b.geometry_key).string();

@@ -76,8 +76,8 @@ struct AcfPendulum {
   bodies::AcfBody beam;
   dynamics::Mechanism mech;
   std::unique_ptr<dynamics::DistributedAlpha> da;
-  AcfPendulum(const mesh::DistributedMesh &m, double E, double rho_inf)
-      : beam("beam", m, fem::IsotropicMaterial{E, 0.3, 7850}) {
+  AcfPendulum(const mesh::DistributedMesh &m, double E, double rho_inf, double damping = 0)
+      : beam("beam", m, fem::IsotropicMaterial{E, 0.3, 7850}, std::vector<double>{}, damping) {
     mech.bodies.push_back(std::make_shared<bodies::InterfaceNode>("beam:clamp", kClamp));
     mech.bodies.push_back(std::make_shared<bodies::InterfaceNode>("beam:tip", kTip));
     mech.bodies.push_back(std::make_shared<bodies::RigidBody>("block", block()));
@@ -117,10 +117,11 @@ struct AcfPendulum {
 
 } // namespace
 
-TEST(AcfMechanism, NewtonMatrixIsTheDerivativeOfTheEquations) {
+/// Checks the Newton matrix of the pendulum with stiffness-proportional damping b.
+void check_newton_matrix(double damping) {
   auto m = test_support::load_test_mesh("beam.geo", 0.05, 2);
   // A soft beam (E / 100) so that the elastic forces and the tie multipliers are not small.
-  const AcfPendulum p(m, 2.1e9, 0.8);
+  const AcfPendulum p(m, 2.1e9, 0.8, damping);
   const double h = 1e-3;
   const dynamics::DistState s = p.run(p.initial(), h, 5);
   const auto k = dynamics::AlphaParameters::from_rho_inf(0.8).newton_scaling(h);
@@ -168,10 +169,22 @@ TEST(AcfMechanism, NewtonMatrixIsTheDerivativeOfTheEquations) {
     if (c(i) != 0) fd(i) /= k.bp; // the coordinate rows are R_d / beta'
   const double err = (az - fd).cwiseAbs().maxCoeff(), ref = az.cwiseAbs().maxCoeff();
   if (comm_rank(m.comm) == 0)
-    std::printf("ACF pendulum Newton matrix (%lld unknowns): |A z - FD| / |A z| = %.2e\n",
-                static_cast<long long>(fd.size()), err / ref);
+    std::printf("ACF pendulum Newton matrix (%lld unknowns, damping %g s): |A z - FD| / |A z| = "
+                "%.2e\n",
+                static_cast<long long>(fd.size()), damping, err / ref);
   EXPECT_LT(err, 1e-6 * ref);
   for (Vec *v : {&z, &Az, &Rp, &Rm, &cmask}) VecDestroy(v);
+}
+
+TEST(AcfMechanism, NewtonMatrixIsTheDerivativeOfTheEquations) {
+  check_newton_matrix(0);
+}
+
+// With damping b = 1e-3 s (the first bending mode of the soft beam, ~100 rad/s, 5 % of
+// critical; the element rates after 5 steps make f_d comparable to the elastic force's change):
+// the matrix adds (df_d/dx + gamma' df_d/dv) / beta'.
+TEST(AcfMechanism, NewtonMatrixWithDampingIsTheDerivativeOfTheEquations) {
+  check_newton_matrix(1e-3);
 }
 
 TEST(AcfMechanism, SwingingPendulumKeepsItsEnergy) {

@@ -514,9 +514,17 @@ TEST_F(CaseFiles, InitialElasticFieldErrors) {
       "bodies[1].initial.elastic_displacement[1]: cannot parse \"t*x\": unknown name \"t\"");
 }
 
-TEST_F(CaseFiles, AcfBodiesTakeNoReductionNorElasticInitialState) {
+TEST_F(CaseFiles, AcfBodiesTakeNoReductionAndStiffnessDampingOnly) {
   EXPECT_CASE_ERROR(dynamic_with("model: rigid", "model: acf\n    reduction: {modes: 4}"),
                     "case.yaml:7:", "bodies[0].reduction: only an ffrf body takes it (model: acf)");
+  EXPECT_CASE_ERROR(
+      dynamic_with("model: rigid", "model: acf\n    damping: {rayleigh: [0.5, 1.0e-4]}"),
+      "case.yaml:7:", "bodies[0].damping.rayleigh[0]: an acf body takes stiffness-proportional");
+  EXPECT_CASE_ERROR(
+      dynamic_with("model: rigid", "model: rigid\n    damping: {rayleigh: [0, 1.0e-4]}"),
+      "case.yaml:7:", "bodies[0].damping: only ffrf and acf bodies take it (model: rigid)");
+  write(dynamic_with("model: rigid", "model: acf\n    damping: {rayleigh: [0, 1.0e-4]}"));
+  EXPECT_DOUBLE_EQ(load_case(dir_.string()).bodies[0].rayleigh[1], 1.0e-4);
 }
 
 TEST_F(CaseFiles, StaticAnalysisIgnoresModel) {

@@ -15,9 +15,12 @@ namespace flexopt::bodies {
 class AcfBody {
 public:
   /// Builds the co-rotated elements (E scaled by modulus_factor[e], empty: 1). Collective over
-  /// the mesh's communicator. The mesh must outlive the body.
+  /// the mesh's communicator. The mesh must outlive the body. damping: the coefficient b [s] of
+  /// stiffness-proportional damping on the co-rotated velocities (fem::corotated_damping; 0:
+  /// none).
   AcfBody(std::string name, const mesh::DistributedMesh &mesh,
-          const fem::IsotropicMaterial &material, const std::vector<double> &modulus_factor = {});
+          const fem::IsotropicMaterial &material, const std::vector<double> &modulus_factor = {},
+          double damping = 0);
 
   const std::string &name() const { return name_; }
   const mesh::DistributedMesh &mesh() const { return mesh_; }
@@ -25,6 +28,8 @@ public:
   const fem::IsotropicMaterial &material() const { return material_; }
   /// density x volume [kg] (the same on every rank).
   double total_mass() const { return mass_; }
+  /// The stiffness-proportional damping coefficient b [s] (0: none).
+  double damping() const { return damping_; }
 
 private:
   std::string name_;
@@ -32,6 +37,7 @@ private:
   fem::IsotropicMaterial material_;
   std::vector<fem::CorotatedElement> elements_;
   double mass_ = 0;
+  double damping_ = 0;
 };
 
 } // namespace flexopt::bodies

@@ -114,6 +114,10 @@ public:
   /// The whole mechanism's energy: the ACF bodies' plus the small part's (Mechanism::energy).
   /// Collective.
   double energy(const DistState &s) const;
+  /// The work [J] done against the damping forces of the ACF bodies from state a to state b,
+  /// (q_b - q_a) . (f_d(a) + f_d(b)) / 2: with rho_inf = 1 (the trapezoidal rule) the energy
+  /// lost over a step, up to the scheme's drift. Collective.
+  double damping_work(const DistState &a, const DistState &b) const;
   /// Largest |Phi| of the ties. Collective.
   double tie_violation(const DistState &s) const;
   /// Linear momentum M v summed over all nodes and angular momentum sum_a x_a x (M v)_a about
@@ -129,8 +133,10 @@ public:
 
 private:
   bool step_once(const DistState &s, double h, DistState &next, StepInfo &info) const;
-  /// Energy and force (and tangent) of all ACF bodies at positions x into F_ (and T). Collective.
-  fem::CorotatedSum internal(Vec x, Mat T) const;
+  /// Energy and force (and tangent) of all ACF bodies at positions x into F_ (and T); with
+  /// velocities v, the damping force of the damped bodies is added (and their Jacobians,
+  /// df_d/dx + gp df_d/dv). Collective.
+  fem::CorotatedSum internal(Vec x, Mat T, Vec v = nullptr, double gp = 0) const;
   /// Adds the ties and the small part to the right-hand side r_ (and the matrix A_) at `next`
   /// with the scaling bp, gp; returns max |Phi| over all ranks. Collective (assembles r_, A_).
   double add_constraints(const DistState &next, double bp, double gp, bool matrix) const;
@@ -143,8 +149,9 @@ private:
   /// Not collective (no assembly).
   double add_all_ties(const DistState &s, const State &small, bool multipliers, double bp, Mat A,
                       Vec rhs) const;
-  /// Positions of ACF body b's local nodes (owned and ghosts) into layout_->local_x[b].
-  void gather(Vec x, std::size_t body) const;
+  /// Values of x at ACF body b's local nodes (owned and ghosts) into `local` (null:
+  /// layout_->local_x[b]).
+  void gather(Vec x, std::size_t body, Vec local = nullptr) const;
 
   std::vector<const bodies::AcfBody *> bodies_;
   const Mechanism *small_ = nullptr;

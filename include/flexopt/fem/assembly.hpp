@@ -98,14 +98,23 @@ struct CorotatedSum {
   std::string failure; ///< then: the first such element (lowest rank), with its mesh tag
 };
 
+/// Damping in the element loop (corotated_damping): the velocities (3 per local node, like u),
+/// the coefficient beta [s] and the weight gp of df/dv in the tangent, T += df/dx + gp df/dv.
+struct CorotatedDamping {
+  const PetscScalar *v = nullptr;
+  double beta = 0, gp = 0;
+};
+
 /// The element loop of assemble_corotated without its zeroing, final assembly and reductions:
 /// adds the force (and the tangent if T is not null) of the local elements at the displacement
 /// u (3 per local node: owned, then ghosts) at the DOFs node_dof[local node] + component
-/// (empty: the mesh's own numbering). Returns this rank's energy; the first inverted element's
-/// message goes to `failure` (if empty). Not collective.
+/// (empty: the mesh's own numbering), and with `damping` its force (and Jacobians). Returns this
+/// rank's energy; the first inverted element's message goes to `failure` (if empty). Not
+/// collective.
 double add_corotated(const mesh::DistributedMesh &mesh,
                      const std::vector<CorotatedElement> &elements, const PetscScalar *u,
-                     const std::vector<PetscInt> &node_dof, Vec F, Mat T, std::string &failure);
+                     const std::vector<PetscInt> &node_dof, Vec F, Mat T, std::string &failure,
+                     const CorotatedDamping *damping = nullptr);
 
 /// Sums the energies over the ranks and spreads the first failure (lowest rank). Collective.
 CorotatedSum reduce_corotated(MPI_Comm comm, double energy, std::string failure);
