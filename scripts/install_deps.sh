@@ -16,6 +16,7 @@ PACKAGES=(
   libmuparser-dev
   python3 python3-yaml python3-numpy python3-scipy python3-h5py
   python3-paraview   # tests open the XDMF output with ParaView's own reader
+  python3-matplotlib # scripts/study_ffrf_vs_acf.py draws docs/figures/ffrf_vs_acf.png
 )
 
 missing=()
