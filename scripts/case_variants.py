@@ -40,3 +40,19 @@ def run_variant(flexopt, case, out, name, replace, ranks=2, end=None):
         f.write(text)
     run_flexopt(["mpirun", "-n", str(ranks), flexopt, "simulate", d, "--out", os.path.join(d, "out")])
     return json.load(open(os.path.join(d, "out", "summary.json")))
+
+
+def check_arguments():
+    """The command line of the check scripts that run case variants: --flexopt BIN --out DIR."""
+    import argparse
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--flexopt", required=True)
+    ap.add_argument("--out", required=True)
+    return ap.parse_args()
+
+
+def finish(failures):
+    """Prints each failure and exits with 1 if there is any, else 0."""
+    for f in failures:
+        print("FAIL: " + f)
+    sys.exit(1 if failures else 0)

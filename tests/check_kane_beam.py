@@ -11,12 +11,11 @@ its first bending frequency 3.80 rad/s; Kane, Ryan & Banerjee 1987) run three wa
     formulations' discretization difference being -0.6 % and +0.1 % of the reference).
 
 usage: check_kane_beam.py --flexopt BIN --out DIR"""
-import argparse
 import os
 import sys
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "scripts"))
-from case_variants import run_variant  # noqa: E402
+from case_variants import check_arguments, finish, run_variant  # noqa: E402
 
 CASE = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "cases", "kane_beam")
 REFERENCE, T_REFERENCE = -0.5744, 6.76
@@ -33,10 +32,7 @@ def minimum(t, y, t_max):
 
 
 def main():
-    ap = argparse.ArgumentParser()
-    ap.add_argument("--flexopt", required=True)
-    ap.add_argument("--out", required=True)
-    a = ap.parse_args()
+    a = check_arguments()
     failures = []
     ffrf = "model: ffrf\n    reduction: {modes: 8, geometric_stiffening: %s}"
     acf_t, acf_y = tip(run_variant(a.flexopt, CASE, a.out, "acf", []))
@@ -62,9 +58,7 @@ def main():
         failures.append("linear FFRF did not show its divergence (|v| > 1 m before T_s)")
     if not abs(m_stf / m_acf - 1) <= 0.02:
         failures.append("stiffened FFRF not within 2 % of ACF")
-    for f in failures:
-        print("FAIL: " + f)
-    sys.exit(1 if failures else 0)
+    finish(failures)
 
 
 if __name__ == "__main__":

@@ -19,12 +19,11 @@ beam model of the rod (scripts/reference/slider_crank_beam.py).
    as the square of the speed; the remaining modelling difference is ~0.2 %).
 
 usage: check_slider_crank_acf.py --flexopt BIN --out DIR"""
-import argparse
 import os
 import sys
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "scripts"))
-from case_variants import run_variant  # noqa: E402
+from case_variants import check_arguments, finish, run_variant  # noqa: E402
 
 CASE = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "cases",
                     "slider_crank_flexible")
@@ -66,10 +65,7 @@ def difference(a, b):
 
 
 def main():
-    ap = argparse.ArgumentParser()
-    ap.add_argument("--flexopt", required=True)
-    ap.add_argument("--out", required=True)
-    a = ap.parse_args()
+    a = check_arguments()
     failures = []
 
     acf = run_variant(a.flexopt, CASE, a.out, "acf", ACF)
@@ -104,9 +100,7 @@ def main():
           f"(P-delta scaled by ({w}/150)^2: {100 * pdelta * (w / 150) ** 2:.2f} %)")
     if not small <= 0.03:
         failures.append(f"ACF and FFRF differ by more than 3 % at {w} rad/s")
-    for f in failures:
-        print("FAIL: " + f)
-    sys.exit(1 if failures else 0)
+    finish(failures)
 
 
 if __name__ == "__main__":
