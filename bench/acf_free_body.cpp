@@ -47,6 +47,10 @@ int main(int argc, char **argv) {
     da.set_nodal(v0, 0, [&](const Eigen::Vector3d &X) { return Eigen::Vector3d(w.cross(X - c0)); });
     dynamics::DistState s = da.initial_state(x0, v0, 0.0), next;
     long iterations = 0, factorizations = 0;
+    // The time steps in their own stage of -log_view (set-up and initial state apart).
+    PetscLogStage stage;
+    PetscLogStageRegister("Time steps", &stage);
+    PetscLogStagePush(stage);
     const double t0 = MPI_Wtime();
     for (int n = 0; n < steps; ++n) {
       dynamics::StepInfo info;
@@ -57,6 +61,7 @@ int main(int argc, char **argv) {
       s = next;
     }
     const double wall = MPI_Wtime() - t0;
+    PetscLogStagePop();
     // The peak resident set of each process (getrusage: MUMPS's Fortran allocations included,
     // which PETSc's own memory counters miss), the largest over the ranks.
     struct rusage usage;

@@ -8,6 +8,8 @@ PACKAGES=(
   petsc-dev slepc-dev
   libopenmpi-dev openmpi-bin
   libmetis-dev
+  libopenblas0-serial # optimized BLAS/LAPACK for MUMPS, ScaLAPACK and LAPACK (replaces the
+                      # reference BLAS through Debian's alternatives; 3x faster ACF steps)
   libhdf5-openmpi-dev
   gmsh libgmsh-dev
   libeigen3-dev
