@@ -254,6 +254,10 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
 
   long long newton_total = 0, factorizations_total = 0;
   int newton_max = 0, halvings_max = 0;
+  // The time steps are their own -log_view stage (the set-up, meshing and initial state apart).
+  PetscLogStage stage;
+  FX_PETSC(PetscLogStageRegister("Time steps", &stage));
+  FX_PETSC(PetscLogStagePush(stage));
   const double t_start = wall_time();
   double last_print = t_start;
   double t_now = 0;
@@ -302,6 +306,7 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
     }
   }
   const double t_int = wall_time() - t_start;
+  FX_PETSC(PetscLogStagePop());
   const std::string xdmf = writer.close();
 
   s["coordinates"] = mech.coordinates();

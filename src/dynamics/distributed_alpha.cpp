@@ -3,6 +3,7 @@
 #include "flexopt/core/context.hpp"
 #include "flexopt/core/direct_solver.hpp"
 #include "flexopt/core/error.hpp"
+#include "flexopt/core/log.hpp"
 #include "flexopt/dynamics/newton_loop.hpp"
 
 #include <algorithm>
@@ -757,6 +758,7 @@ Eigen::Vector3d DistributedAlpha::centre_of_mass(Vec x) const {
 
 bool DistributedAlpha::assemble(const DistState &next, const NewtonScaling &k, bool matrix,
                                 double &violation) const {
+  LogScope log(matrix ? "FxNewtonMatrix" : "FxNewtonRhs"); // the element loops included
   // An inverted element fails the evaluation.
   if (!internal(next.q, matrix ? A_ : nullptr, next.v, k.gp).ok) return false;
   if (matrix) {

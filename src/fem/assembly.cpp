@@ -378,7 +378,8 @@ double add_corotated(const mesh::DistributedMesh &mesh,
                      const std::vector<PetscInt> &node_dof, Vec F, Mat T, std::string &failure,
                      const CorotatedDamping *damping) {
   double energy = 0;
-  LogScope log("FxAssembleCorot");
+  // Two events: the loops with the tangent (a Newton matrix) and those of the force alone.
+  LogScope log(T ? "FxCorotTangent" : "FxCorotForce");
   double fsorted[kMaxDofs];
   ElementVector fe, fd;
   ElementMatrix Te, Cv, Cx;
