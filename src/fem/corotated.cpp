@@ -32,8 +32,10 @@ template <int NN> struct Kinematics {
   Mat3d Omega; ///< w = Omega d: the element spin of the local perturbations d_b = R^T dx_b
   Matd3 Y, Hx; ///< blocks [y_a]x and [h_a]x
 
-  /// Throws flexopt::Error naming the element if it is inverted at the centroid.
-  Kinematics(const CorotatedElement &e, const ElementCoords &x) : h(e.h), Nc(e.Nc) {
+  /// Throws flexopt::Error naming the element if it is inverted at the centroid. Omega, Y and Hx
+  /// (only the tangents use them) are set if `tangent_data`.
+  Kinematics(const CorotatedElement &e, const ElementCoords &x, bool tangent_data)
+      : h(e.h), Nc(e.Nc) {
     // Differences to node 0 keep full relative accuracy far from the origin (sum_a h_a = 0,
     // sum_a Nc_a = 1).
     const Nodes dx = x.rowwise() - x.row(0), dX = e.X.rowwise() - e.X.row(0);
@@ -56,6 +58,7 @@ template <int NN> struct Kinematics {
       y.row(a) = (R.transpose() * (dx.row(a).transpose() - xc)).transpose();
       ut.row(a) = y.row(a) - (dX.row(a) - Xc.transpose());
     }
+    if (!tangent_data) return;
     for (int b = 0; b < NN; ++b) {
       const Mat3 hb = skew(h.row(b).transpose());
       Omega.template middleCols<3>(3 * b) = Gi * hb;
@@ -100,7 +103,7 @@ template <int NN> struct Kinematics {
       gsum += ga;
     }
     Mat3d Am;
-    Am.noalias() = Mg * dg;
+    Am.noalias() = Mg.lazyProduct(dg);
     Am.noalias() += gy * Omega;
     const Mat3 Gs = skew(gsum);
     for (int b = 0; b < NN; ++b)
@@ -114,8 +117,8 @@ template <int NN> struct Kinematics {
     Ac.noalias() -= skew(U * c) * Omega;
     const Mat3d Cc = Gi * (Am - Ac);
     Matd Tl = dg;
-    Tl.noalias() -= Fx * Omega;
-    Tl.noalias() -= Hx * Cc;
+    Tl.noalias() -= Fx.lazyProduct(Omega);
+    Tl.noalias() -= Hx.lazyProduct(Cc);
     return Tl;
   }
 
@@ -126,19 +129,29 @@ template <int NN> struct Kinematics {
     return out;
   }
 
-  /// R_blk A R_blk^T (3n x 3n), symmetrized if `symmetric` (the exact Hessian is symmetric;
-  /// this removes round-off).
-  ElementMatrix global(const Matd &A, bool symmetric) const {
-    ElementMatrix out(kNd, kNd);
-    for (int a = 0; a < NN; ++a)
-      for (int b = 0; b < NN; ++b)
-        out.template block<3, 3>(3 * a, 3 * b) =
-            R * A.template block<3, 3>(3 * a, 3 * b) * R.transpose();
-    if (symmetric) {
-      const ElementMatrix s = 0.5 * (out + out.transpose());
-      out = s;
+  /// R_blk A R_blk^T (3n x 3n) into `out`, symmetrized if `symmetric` (the exact Hessian is
+  /// symmetric; this removes round-off): (B + B^T) / 2 block by block, without temporaries.
+  void global(const Matd &A, bool symmetric, ElementMatrix &out) const {
+    out.resize(kNd, kNd);
+    const Mat3 Rt = R.transpose();
+    if (!symmetric) {
+      for (int a = 0; a < NN; ++a)
+        for (int b = 0; b < NN; ++b)
+          out.template block<3, 3>(3 * a, 3 * b).noalias() =
+              R.lazyProduct(Mat3(A.template block<3, 3>(3 * a, 3 * b))).lazyProduct(Rt);
+      return;
     }
-    return out;
+    for (int a = 0; a < NN; ++a) {
+      const Mat3 d = R.lazyProduct(Mat3(A.template block<3, 3>(3 * a, 3 * a))).lazyProduct(Rt);
+      out.template block<3, 3>(3 * a, 3 * a) = 0.5 * (d + d.transpose());
+      for (int b = a + 1; b < NN; ++b) {
+        const Mat3 ab = R.lazyProduct(Mat3(A.template block<3, 3>(3 * a, 3 * b))).lazyProduct(Rt);
+        const Mat3 ba = R.lazyProduct(Mat3(A.template block<3, 3>(3 * b, 3 * a))).lazyProduct(Rt);
+        const Mat3 sym = 0.5 * (ab + ba.transpose());
+        out.template block<3, 3>(3 * a, 3 * b) = sym;
+        out.template block<3, 3>(3 * b, 3 * a) = sym.transpose();
+      }
+    }
   }
 };
 
@@ -147,8 +160,8 @@ template <int NN>
 double state_impl(const CorotatedElement &e, const ElementCoords &x, ElementVector *f,
                   ElementMatrix *T) {
   using Kin = Kinematics<NN>;
-  const Kin k(e, x);
-  const typename Kin::Matd K = e.K;
+  const Kin k(e, x, T != nullptr);
+  const Eigen::Map<const typename Kin::Matd> K(e.K.data()); // row-major, packed: no copy
   const typename Kin::Vecd u = k.displacement();
   const typename Kin::Vecd g = K * u;
   const double energy = 0.5 * u.dot(g);
@@ -158,9 +171,11 @@ double state_impl(const CorotatedElement &e, const ElementCoords &x, ElementVect
   if (f) *f = k.global(ft);
   if (T) {
     // dg/dd = K (I - 1 Nc^T + Y Omega) = K + K Y Omega (K annihilates translations).
+    // Coefficient-based products: Eigen's blocked GEMM path costs more than it saves at 12.
     typename Kin::Matd dg = K;
-    dg.noalias() += (K * k.Y) * k.Omega;
-    *T = k.global(k.tangent(g, ft, c, dg), true);
+    const typename Kin::Matd3 KY = K.lazyProduct(k.Y);
+    dg.noalias() += KY.lazyProduct(k.Omega);
+    k.global(k.tangent(g, ft, c, dg), true, *T);
   }
   return energy;
 }
@@ -172,7 +187,7 @@ double damping_impl(const CorotatedElement &e, const ElementCoords &x, const Ele
   using Kin = Kinematics<NN>;
   using Matd = typename Kin::Matd;
   using Mat3d = typename Kin::Mat3d;
-  const Kin k(e, x);
+  const Kin k(e, x, Cv || Cx);
   // d_a = R^T v_a; the element spin rate w = G^-1 sum_b h_b x d_b; u~'_a = d_a - d_bar + y_a x w.
   typename Kin::Vecd d;
   Vec3 dbar = Vec3::Zero(), s = Vec3::Zero();
@@ -186,7 +201,7 @@ double damping_impl(const CorotatedElement &e, const ElementCoords &x, const Ele
   for (int a = 0; a < NN; ++a)
     ud.template segment<3>(3 * a) =
         d.template segment<3>(3 * a) - dbar + k.y.row(a).transpose().cross(w);
-  const Matd K = e.K;
+  const Eigen::Map<const Matd> K(e.K.data());
   const typename Kin::Vecd g = beta * (K * ud);
   const double power = ud.dot(g);
   if (!f && !Cv && !Cx) return power;
@@ -196,10 +211,13 @@ double damping_impl(const CorotatedElement &e, const ElementCoords &x, const Ele
   if (Cv) {
     // df/dv = R_blk B~^T (beta K) B~ R_blk^T, B~ = I - 1 Nc^T + Y Omega; 1^T K = 0.
     Matd KB = K;
-    KB.noalias() += (K * k.Y) * k.Omega;
+    const typename Kin::Matd3 KY = K.lazyProduct(k.Y);
+    KB.noalias() += KY.lazyProduct(k.Omega);
     Matd C = KB;
-    C.noalias() += k.Omega.transpose() * (k.Y.transpose() * KB);
-    *Cv = k.global(beta * C, true);
+    const Mat3d YKB = k.Y.transpose().lazyProduct(KB);
+    C.noalias() += k.Omega.transpose().lazyProduct(YKB);
+    C *= beta;
+    k.global(C, true, *Cv);
   }
   if (Cx) {
     // du~'/dd at fixed v, with theta = Omega d the variation of R (section 8.1):
@@ -228,8 +246,8 @@ double damping_impl(const CorotatedElement &e, const ElementCoords &x, const Ele
       for (int b = 0; b < NN; ++b)
         rows.template middleCols<3>(3 * b) += wx * (k.Nc(b) - (a == b ? 1.0 : 0.0));
     }
-    const Matd dg = beta * (K * D);
-    *Cx = k.global(k.tangent(g, ft, c, dg), false);
+    const Matd dg = beta * K.lazyProduct(D);
+    k.global(k.tangent(g, ft, c, dg), false, *Cx);
   }
   return power;
 }
