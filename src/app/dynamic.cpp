@@ -196,7 +196,8 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
   } else {
     print0(ctx.comm(),
            "mechanism: %zu ACF bodies on the distributed backend (one PETSc system over %d "
-           "rank(s); Newton solver: options prefix mech_, MUMPS LU by default)\n",
+           "rank(s); Newton solver: options prefix mech_, MUMPS LU by default, KLU on one "
+           "rank)\n",
            scene.acf.size(), ctx.size());
     run = std::make_unique<DistributedBackend>(scene, par, newton);
   }

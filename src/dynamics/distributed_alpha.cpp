@@ -94,11 +94,18 @@ struct AcfLayout {
 namespace {
 
 /// Factorizes the KSP's operator (if it changed); false if the factorization failed (a zero
-/// pivot, MUMPS out of workspace).
+/// pivot, MUMPS out of workspace, a singular matrix for KLU). PCSetUp is called here, not left to
+/// the next KSPSolve (KSPSetUp does not set the PC up again for a refilled operator), so that a
+/// failure is seen here and -log_view shows the factorizations apart from the solves. KLU reports
+/// a singular matrix as a PETSc error: it is returned as a failure, not thrown.
 bool factorized(KSP ksp) {
   FX_PETSC(KSPSetUp(ksp));
   PC pc;
   FX_PETSC(KSPGetPC(ksp, &pc));
+  FX_PETSC(PetscPushErrorHandler(PetscReturnErrorHandler, nullptr));
+  const PetscErrorCode setup = PCSetUp(pc);
+  FX_PETSC(PetscPopErrorHandler());
+  if (setup != 0) return false;
   PCFailedReason failed;
   FX_PETSC(PCGetFailedReason(pc, &failed));
   return failed == PC_NOERROR;
@@ -342,6 +349,16 @@ DistributedAlpha::DistributedAlpha(std::vector<const bodies::AcfBody *> bodies,
   insert_default_petsc_options("-mech_mat_mumps_icntl_14 200",
                                "the distributed backend's default MUMPS workspace relaxation");
   ksp_ = create_direct_solver(A_, Factorization::LU, "mech_");
+  // On one rank KLU (SuiteSparse's LU for circuit-sized sparse matrices) unless the options
+  // choose a solver: at the sizes where one rank is used its solves cost a fifth of MUMPS's,
+  // whose fixed cost per call dominates below ~10^4 unknowns (docs/benchmarks.md, "ACF steps").
+  if (size == 1) {
+    PetscBool chosen = PETSC_FALSE;
+    FX_PETSC(PetscOptionsHasName(nullptr, "mech_", "-pc_factor_mat_solver_type", &chosen));
+    PC pc;
+    FX_PETSC(KSPGetPC(ksp_, &pc));
+    if (!chosen) FX_PETSC(PCFactorSetMatSolverType(pc, MATSOLVERKLU));
+  }
 }
 
 DistributedAlpha::~DistributedAlpha() {
