@@ -197,7 +197,7 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
     print0(ctx.comm(),
            "mechanism: %zu ACF bodies on the distributed backend (one PETSc system over %d "
            "rank(s); Newton solver: options prefix mech_, MUMPS LU by default, KLU on one "
-           "rank)\n",
+           "rank up to 2000 unknowns)\n",
            scene.acf.size(), ctx.size());
     run = std::make_unique<DistributedBackend>(scene, par, newton);
   }

@@ -93,6 +93,9 @@ struct AcfLayout {
 
 namespace {
 
+/// Newton systems of at most this many unknowns use KLU on one rank (the constructor).
+constexpr PetscInt kKluLimit = 2000;
+
 /// Factorizes the KSP's operator (if it changed); false if the factorization failed (a zero
 /// pivot, MUMPS out of workspace, a singular matrix for KLU). PCSetUp is called here, not left to
 /// the next KSPSolve (KSPSetUp does not set the PC up again for a refilled operator), so that a
@@ -349,10 +352,11 @@ DistributedAlpha::DistributedAlpha(std::vector<const bodies::AcfBody *> bodies,
   insert_default_petsc_options("-mech_mat_mumps_icntl_14 200",
                                "the distributed backend's default MUMPS workspace relaxation");
   ksp_ = create_direct_solver(A_, Factorization::LU, "mech_");
-  // On one rank KLU (SuiteSparse's LU for circuit-sized sparse matrices) unless the options
-  // choose a solver: at the sizes where one rank is used its solves cost a fifth of MUMPS's,
-  // whose fixed cost per call dominates below ~10^4 unknowns (docs/benchmarks.md, "ACF steps").
-  if (size == 1) {
+  // On one rank and for small systems KLU (SuiteSparse's LU for circuit-sized sparse matrices)
+  // unless the options choose a solver: there its solves cost a fifth of MUMPS's, whose fixed
+  // cost per call dominates; without BLAS its factorization falls behind MUMPS's already at a
+  // 2.8k-DOF Tet10 beam (docs/benchmarks.md, "ACF steps").
+  if (size == 1 && L.global <= kKluLimit) {
     PetscBool chosen = PETSC_FALSE;
     FX_PETSC(PetscOptionsHasName(nullptr, "mech_", "-pc_factor_mat_solver_type", &chosen));
     PC pc;
