@@ -99,16 +99,24 @@ constexpr PetscInt kKluLimit = 2000;
 /// Factorizes the KSP's operator (if it changed); false if the factorization failed (a zero
 /// pivot, MUMPS out of workspace, a singular matrix for KLU). PCSetUp is called here, not left to
 /// the next KSPSolve (KSPSetUp does not set the PC up again for a refilled operator), so that a
-/// failure is seen here and -log_view shows the factorizations apart from the solves. KLU reports
-/// a singular matrix as a PETSc error: it is returned as a failure, not thrown.
+/// failure is seen here and -log_view shows the factorizations apart from the solves. KLU (one
+/// rank only) reports a singular matrix as a PETSc error: on one rank that is returned as a
+/// failure, not thrown; on more ranks an error still throws (and aborts every rank) rather than
+/// leave the others waiting in a collective.
 bool factorized(KSP ksp) {
   FX_PETSC(KSPSetUp(ksp));
   PC pc;
   FX_PETSC(KSPGetPC(ksp, &pc));
-  FX_PETSC(PetscPushErrorHandler(PetscReturnErrorHandler, nullptr));
-  const PetscErrorCode setup = PCSetUp(pc);
-  FX_PETSC(PetscPopErrorHandler());
-  if (setup != 0) return false;
+  MPI_Comm comm;
+  FX_PETSC(PetscObjectGetComm(reinterpret_cast<PetscObject>(ksp), &comm));
+  if (comm_size(comm) == 1) {
+    FX_PETSC(PetscPushErrorHandler(PetscReturnErrorHandler, nullptr));
+    const PetscErrorCode setup = PCSetUp(pc);
+    FX_PETSC(PetscPopErrorHandler());
+    if (setup != 0) return false;
+  } else {
+    FX_PETSC(PCSetUp(pc));
+  }
   PCFailedReason failed;
   FX_PETSC(PCGetFailedReason(pc, &failed));
   return failed == PC_NOERROR;
