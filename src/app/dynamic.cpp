@@ -70,6 +70,11 @@ public:
   virtual bodies::Vec3 sensor(const dynamics::BoundSensor &s) const = 0;
   /// Owned node positions of case body b and the elastic displacement field (empty: none).
   virtual std::vector<double> positions(std::size_t b, std::vector<double> &elastic) const = 0;
+  /// What the consistent start did to the given velocities.
+  const dynamics::StartReport &start() const { return start_; }
+
+protected:
+  dynamics::StartReport start_;
 };
 
 /// Rigid and FFRF bodies: GeneralizedAlpha on the replicated mechanism.
@@ -78,7 +83,7 @@ public:
   DenseBackend(const dynamics::Scene &scene, dynamics::AlphaParameters par,
                dynamics::NewtonSettings newton)
       : scene_(scene), ga_(scene.mechanism, par, newton),
-        state_(ga_.initial_state(scene.q0, scene.v0, 0.0)) {}
+        state_(ga_.initial_state(scene.q0, scene.v0, 0.0, &start_)) {}
   bool advance(double h, double t, dynamics::StepInfo &info) override {
     if (!ga_.advance(state_, h, next_, info)) return false;
     next_.t = t;
@@ -118,7 +123,7 @@ public:
         VecDestroy(&v);
       }
     } destroy{x0, v0}; // also when the initial state throws
-    state_ = da_.initial_state(x0, v0, 0.0);
+    state_ = da_.initial_state(x0, v0, 0.0, &start_);
     small_ = da_.small_state(state_);
   }
   bool advance(double h, double t, dynamics::StepInfo &info) override {
@@ -199,6 +204,22 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
            "rank(s); Newton solver: options prefix mech_, MUMPS LU by default)\n",
            scene.acf.size(), ctx.size());
     run = std::make_unique<DistributedBackend>(scene, par, newton);
+  }
+  {
+    const dynamics::StartReport &st = run->start();
+    print0(ctx.comm(),
+           "initial velocities: the rigid-body velocities made consistent with the joints and "
+           "drivers; kinetic energy %.9g J given -> %.9g J (%+.6g J)\n",
+           st.kinetic_given, st.kinetic, st.kinetic - st.kinetic_given);
+    if (st.elastic_corrected)
+      print0(ctx.comm(),
+             "initial velocities: warning: rigid-body velocities alone cannot satisfy the joints "
+             "(residual %.3e): the elastic velocities were corrected too, with the least change "
+             "of kinetic energy\n",
+             st.rigid_residual);
+    s["initial_kinetic_energy"]["given"] = st.kinetic_given;
+    s["initial_kinetic_energy"]["start"] = st.kinetic;
+    s["initial_kinetic_energy"]["elastic_corrected"] = st.elastic_corrected;
   }
   const double h = c.time.step;
   const long long steps = std::llround(c.time.end / h);
