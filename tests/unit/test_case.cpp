@@ -780,11 +780,11 @@ TEST_F(CaseFiles, DynamicAnalysisRejectsStaticOnlyKeys) {
   for (const auto &e : extra) {
     const std::string key = e.substr(0, e.find(':'));
     EXPECT_CASE_ERROR(std::string(kDynamic) + e,
-                      "case.yaml:42:1: " + key + ": not supported yet in a dynamic analysis");
+                      "case.yaml:43:1: " + key + ": not supported yet in a dynamic analysis");
   }
 }
 
 TEST_F(CaseFiles, AdjointStillNotSupported) {
-  EXPECT_CASE_ERROR(std::string(kDynamic) + "adjoint: {checkpoints: 32}\n", "case.yaml:42:1:",
+  EXPECT_CASE_ERROR(std::string(kDynamic) + "adjoint: {checkpoints: 32}\n", "case.yaml:43:1:",
                     "key 'adjoint' is part of the case format but not supported yet");
 }
