@@ -57,22 +57,24 @@ long long FrameSchedule::frames() const {
 std::string FrameSchedule::describe() const {
   char buf[256];
   const long long f = frames();
+  const std::string stride =
+      stride_ == 1 ? "every step" : "every " + std::to_string(stride_) + " steps";
   if (output_.every > 0) {
-    std::snprintf(buf, sizeof buf, "%lld frames: output.every = %lld steps", f, stride_);
+    std::snprintf(buf, sizeof buf, "%lld frames: %s (output.every)", f, stride.c_str());
   } else if (output_.interval > 0) {
     if (stride_ > 0)
-      std::snprintf(buf, sizeof buf, "%lld frames: output.interval = %g s (every %lld steps%s)", f,
-                    output_.interval, stride_,
-                    interval_below_step_ ? ": the interval is shorter than time.step" : "");
+      std::snprintf(buf, sizeof buf, "%lld frames: %s (output.interval = %g s%s)", f,
+                    stride.c_str(), output_.interval,
+                    interval_below_step_ ? ", shorter than time.step" : "");
     else
       std::snprintf(buf, sizeof buf,
-                    "%lld frames: output.interval = %g s (the step nearest each multiple, %.4g "
+                    "%lld frames: the step nearest each multiple of output.interval = %g s (%.4g "
                     "steps apart on average)",
                     f, output_.interval, steps_per_frame_);
   } else {
     std::snprintf(buf, sizeof buf,
-                  "%lld frames: every %lld steps (the default without output:, about %lld per run)",
-                  f, stride_, kDefaultFrames);
+                  "%lld frames: %s (the default without output:, about %lld per run)", f,
+                  stride.c_str(), kDefaultFrames);
   }
   std::string s = buf;
   if (f > 1 && stride_ > 0 && steps_ % stride_ != 0) s += ", and the last state";

@@ -34,7 +34,7 @@ public:
   /// True if `output.interval` is shorter than the step (every step is then a frame).
   bool interval_below_step() const { return interval_below_step_; }
   /// One line for the run's progress output: the rule and the frame count, e.g.
-  /// "201 frames: every 50 steps (default: about 200 per run)".
+  /// "201 frames: every 50 steps (the default without output:, about 200 per run)".
   std::string describe() const;
 
 private:
