@@ -42,7 +42,6 @@ private:
   long long interval_step(long long k) const;
 
   long long steps_;
-  double h_;
   OutputSpec output_;
   long long stride_ = 1;       ///< every-N rule (default, every, and intervals below the step)
   double steps_per_frame_ = 0; ///< interval rule: T / h (> 1); 0 for the every-N rule
