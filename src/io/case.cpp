@@ -609,6 +609,27 @@ void read_time(const Reader &r, const YAML::Node &v, Case &c) {
   t.given = true;
 }
 
+void read_output(const Reader &r, const YAML::Node &o, bool dynamic, Case &c) {
+  r.require_map(o, "output");
+  r.check_keys(o, "output", {"every", "interval"});
+  if (o["every"] && o["interval"])
+    r.fail(r.key_node(o, "interval"),
+           "output: give either every (steps) or interval (seconds), not both");
+  if (o["every"]) {
+    c.output.every = r.integer(o["every"], "output.every");
+    if (c.output.every < 1) r.fail(o["every"], "output.every: must be >= 1");
+  }
+  if (o["interval"]) {
+    if (!dynamic)
+      r.fail(r.key_node(o, "interval"),
+             "output.interval: needs analysis: dynamic (a static case writes per design "
+             "iteration: use output.every)");
+    c.output.interval = r.number(o["interval"], "output.interval");
+    if (!(c.output.interval > 0))
+      r.fail(o["interval"], "output.interval: must be positive (seconds of simulated time)");
+  }
+}
+
 void read_sensors(const Reader &r, const YAML::Node &node, Case &c) {
   r.require_sequence(node, "sensors");
   for (std::size_t i = 0; i < node.size(); ++i) {
@@ -803,15 +824,7 @@ Case load_case(const std::string &directory) {
   if (root["line_loads"])
     read_tractions(r, root["line_loads"], c, "line_loads", "curve", c.line_loads);
   if (root["sensors"]) read_sensors(r, root["sensors"], c);
-  if (root["output"]) {
-    const YAML::Node &o = root["output"];
-    r.require_map(o, "output");
-    r.check_keys(o, "output", {"every"});
-    if (o["every"]) {
-      c.output_every = r.integer(o["every"], "output.every");
-      if (c.output_every < 1) r.fail(o["every"], "output.every: must be >= 1");
-    }
-  }
+  if (root["output"]) read_output(r, root["output"], dynamic, c);
   if (root["solver"]) c.solver = r.string(root["solver"], "solver");
   if (root["design"]) read_design(r, root["design"], c);
   if (root["objective"]) c.objective = read_response(r, root["objective"], "objective", false, c);

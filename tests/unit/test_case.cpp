@@ -362,9 +362,40 @@ TEST_F(CaseFiles, DynamicCaseParsesFieldByField) {
   EXPECT_EQ(c.sensors[0].quantity, "position");
   EXPECT_EQ(c.sensors[1].quantity, "rotation_angle");
   EXPECT_EQ(c.sensors[2].quantity, "displacement");
-  EXPECT_EQ(c.output_every, 10);
+  EXPECT_EQ(c.output.every, 10);
+  EXPECT_EQ(c.output.interval, 0.0);
   EXPECT_TRUE(c.supports.empty());
   EXPECT_FALSE(c.design.has_value());
+}
+
+TEST_F(CaseFiles, OutputIntervalParsesAndOutputIsOptional) {
+  write(dynamic_with("output: {every: 10}", "output: {interval: 2.5e-3}"));
+  auto c = load_case(dir_.string());
+  EXPECT_EQ(c.output.every, 0);
+  EXPECT_DOUBLE_EQ(c.output.interval, 2.5e-3);
+  EXPECT_TRUE(c.output.given());
+  write(dynamic_with("output: {every: 10}\n", ""));
+  c = load_case(dir_.string());
+  EXPECT_FALSE(c.output.given()); // the defaults of io::FrameSchedule
+}
+
+TEST_F(CaseFiles, OutputBadValuesRejected) {
+  // Line 42 of kDynamic holds output:; "output: {" is 9 characters.
+  EXPECT_CASE_ERROR(dynamic_with("output: {every: 10}", "output: {every: 0}"),
+                    "case.yaml:42:17:", "output.every: must be >= 1");
+  EXPECT_CASE_ERROR(dynamic_with("output: {every: 10}", "output: {every: 2.5}"),
+                    "output.every: expected an integer");
+  EXPECT_CASE_ERROR(dynamic_with("output: {every: 10}", "output: {interval: -1}"),
+                    "case.yaml:42:20:", "output.interval: must be positive");
+  EXPECT_CASE_ERROR(dynamic_with("output: {every: 10}", "output: {interval: 0}"),
+                    "output.interval: must be positive");
+  EXPECT_CASE_ERROR(dynamic_with("output: {every: 10}", "output: {every: 10, interval: 0.1}"),
+                    "case.yaml:42:21:", "give either every (steps) or interval (seconds)");
+  EXPECT_CASE_ERROR(dynamic_with("output: {every: 10}", "output: {frames: 10}"),
+                    "unknown key 'output.frames' (allowed here: every, interval)");
+  // A static case's output is per design iteration: no interval of simulated time.
+  EXPECT_CASE_ERROR(std::string(kValid) + "output: {interval: 0.1}\n",
+                    "output.interval: needs analysis: dynamic");
 }
 
 TEST_F(CaseFiles, TimeRhoInfDefaultsTo08) {

@@ -121,6 +121,16 @@ struct TimeSpec {
   Location where;
 };
 
+/// `output:`: which time steps of a dynamic run are written to motion.xdmf (and, when given, at
+/// which steps energy and sensors are sampled), or which design iterations of `optimize` are
+/// written to design.xdmf. At most one of `every` and `interval`; neither: the defaults of
+/// io::FrameSchedule (dynamic) and every iteration (optimize).
+struct OutputSpec {
+  int every = 0;       ///< output.every, >= 1; 0: not given
+  double interval = 0; ///< output.interval [s] of simulated time, > 0 (dynamic only); 0: not given
+  bool given() const { return every > 0 || interval > 0; }
+};
+
 /// Dirichlet support: the listed displacement components of every node of `surface` are zero.
 struct SupportSpec {
   std::string body;
@@ -197,10 +207,10 @@ struct Case {
   std::vector<ForceSpec> forces;           ///< dynamic: loads.forces
   TimeSpec time;                           ///< dynamic
   std::string solver;                      ///< PETSc options applied before the command line's
-  int output_every = 1;
-  std::optional<DesignSpec> design;      ///< topology optimization: the design field
-  std::optional<ResponseSpec> objective; ///< topology optimization: minimized
-  std::vector<ResponseSpec> constraints; ///< topology optimization: each <= max
+  OutputSpec output;                       ///< `output:` (docs/case-format.md)
+  std::optional<DesignSpec> design;        ///< topology optimization: the design field
+  std::optional<ResponseSpec> objective;   ///< topology optimization: minimized
+  std::vector<ResponseSpec> constraints;   ///< topology optimization: each <= max
   OptimizerSpec optimizer;
 
   const MaterialSpec &material(const std::string &name) const;
