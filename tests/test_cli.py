@@ -1,8 +1,10 @@
 #!/usr/bin/python3
 """Command-line contract of flexopt: help texts, argument errors, option precedence
-(program default < case `solver:` < command line), `info` partition figures, --out."""
+(program default < case `solver:` < command line), `info` partition figures, --out, and
+`info` on the settings a body's model leaves unused."""
 import json
 import os
+import re
 import subprocess
 import sys
 import tempfile
@@ -66,6 +68,46 @@ with tempfile.TemporaryDirectory() as tmp:
     expect(os.path.exists(os.path.join(tmp, "lu", "static.xdmf")) and
            not any(f.endswith(".tmp") for f in os.listdir(os.path.join(tmp, "lu"))),
            "static.xdmf written, no temporary files left")
+
+with tempfile.TemporaryDirectory() as tmp:
+    # One word switches a body's model: cases/slider_crank_flexible with the rod's `model: ffrf`
+    # changed; info names the rod's settings that the new model does not use.
+    src = os.path.join(SOURCE, "cases", "slider_crank_flexible")
+    text = open(os.path.join(src, "case.yaml")).read()
+    text = re.sub(r"geometry: ../../meshes/", "geometry: " + os.path.join(SOURCE, "meshes") + "/", text)
+
+    def variant(name, replace):
+        """A copy of the case with each (old, new) of `replace` applied (old occurs once)."""
+        d = os.path.join(tmp, name)
+        os.makedirs(d)
+        t = text
+        for old, new in replace:
+            assert t.count(old) == 1, old
+            t = t.replace(old, new)
+        open(os.path.join(d, "case.yaml"), "w").write(t)
+        return d
+
+    expected = {"ffrf": [], "acf": ["reduction"],
+                "rigid": ["reduction", "initial.elastic_displacement", "initial.elastic_velocity"]}
+    for model, unused in expected.items():
+        d = variant(model, [("model: ffrf", "model: " + model)])
+        rc, out, err = run(["info", d, "--out", os.path.join(d, "out")], ranks=2)
+        s = json.load(open(os.path.join(d, "out", "summary.json"))) if rc == 0 else {"bodies": []}
+        rod = [b for b in s["bodies"] if b["name"] == "rod"]
+        expect(rc == 0 and rod and rod[0]["model"] == model and rod[0]["unused_settings"] == unused,
+               f"info, rod model: {model}: unused settings {unused} in summary.json")
+        notes = [line.strip() for line in out.splitlines() if "settings not used" in line]
+        expect(notes == ([f"body rod (model: {model}): settings not used by this model: "
+                          + ", ".join(k + (" (ffrf)" if k == "reduction" else " (ffrf, acf)") for k in unused)]
+                         if unused else []),
+               f"info, rod model: {model}: the unused settings printed once, under the rod: {notes}")
+    # An unused section is still checked: a typo in it is refused, the key named, on every rank.
+    d = variant("typo", [("model: ffrf", "model: acf"),
+                         ("reduction: {modes: 4, frame: chord}", "reduction: {mode: 4, frame: chord}")])
+    rc, out, err = run(["info", d, "--out", os.path.join(d, "out")], ranks=2)
+    expect(rc != 0 and "unknown key 'bodies[1].reduction.mode'" in err
+           and not os.path.exists(os.path.join(d, "out", "summary.json")),
+           "info: a typo in a section the model does not use is refused, the key named")
 
 print(f"{len(failures)} failed" if failures else "all CLI checks passed")
 sys.exit(1 if failures else 0)

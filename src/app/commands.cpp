@@ -119,7 +119,15 @@ int run_info(const Context &ctx, const Options &o, const io::Case &c, double t0)
     jb["dofs"] = 3LL * m.global_nodes;
     jb["elements_per_rank"] = rank_counts(elems);
     jb["nodes_per_rank"] = rank_counts(nodes);
-    if (c.analysis == "dynamic" && b.model == "ffrf") {
+    if (c.analysis == "dynamic") {
+      // Settings of other models that the body carries (switching `model:` would use them).
+      const std::string note = io::unused_settings_note(b);
+      if (!note.empty()) print0(ctx.comm(), "  %s\n", note.c_str());
+      io::Json unused = io::Json::array();
+      for (const std::string &key : io::unused_settings(b)) unused.push_back(key);
+      jb["unused_settings"] = unused;
+    }
+    if (c.analysis == "dynamic" && io::simulated_model(b.model) == "ffrf") {
       // The reduced size follows from the case alone: 6 static modes per interface after the
       // frame, plus the fixed-interface modes (flexopt modes --body shows the basis itself).
       const int statics = 6 * std::max(0, static_cast<int>(b.interfaces.size()) - 1);

@@ -204,6 +204,11 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
   s["analysis"] = "dynamic";
   print0(ctx.comm(), "case %s (%s), analysis: dynamic, %d rank(s)\n", c.name.c_str(),
          c.file.c_str(), ctx.size());
+  // A body may carry the settings of every model; say which ones its model leaves unused.
+  for (const io::BodySpec &b : c.bodies) {
+    const std::string note = io::unused_settings_note(b);
+    if (!note.empty()) print0(ctx.comm(), "note: %s\n", note.c_str());
+  }
   dynamics::Scene scene = dynamics::build_scene(ctx.comm(), c);
   const dynamics::Mechanism &mech = scene.mechanism;
   print0(ctx.comm(), "mechanism: %zu bodies, %d coordinates, %d constraint rows enforced of %d\n",
@@ -442,6 +447,9 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
     const dynamics::SceneBody &sb = scene.bodies[k];
     io::Json j = io::Json::object();
     j["name"] = c.bodies[k].name;
+    io::Json unused = io::Json::array();
+    for (const std::string &key : io::unused_settings(c.bodies[k])) unused.push_back(key);
+    j["unused_settings"] = unused;
     if (sb.acf >= 0) {
       j["model"] = "acf";
       j["mass"] = scene.acf[static_cast<std::size_t>(sb.acf)]->total_mass();

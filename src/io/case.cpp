@@ -29,6 +29,55 @@ const BodySpec &Case::body(const std::string &n) const {
   throw Error("no body '" + n + "' in " + file, true);
 }
 
+const std::vector<ModelSetting> &model_settings() {
+  static const std::vector<ModelSetting> settings = {
+      {"reduction", {"ffrf"}},
+      {"damping", {"ffrf", "acf"}},
+      {"initial.elastic_displacement", {"ffrf", "acf"}},
+      {"initial.elastic_velocity", {"ffrf", "acf"}},
+  };
+  return settings;
+}
+
+std::string simulated_model(const std::string &model) {
+  return model == "auto" ? "rigid" : model;
+}
+
+std::vector<std::string> settings_used_by(const std::string &model) {
+  const std::string simulated = simulated_model(model);
+  std::vector<std::string> keys;
+  for (const ModelSetting &s : model_settings())
+    if (std::find(s.models.begin(), s.models.end(), simulated) != s.models.end())
+      keys.push_back(s.key);
+  return keys;
+}
+
+std::vector<std::string> unused_settings(const BodySpec &body) {
+  const std::vector<std::string> used = settings_used_by(body.model);
+  std::vector<std::string> unused;
+  for (const ModelSetting &s : model_settings())
+    if (std::find(body.settings.begin(), body.settings.end(), s.key) != body.settings.end() &&
+        std::find(used.begin(), used.end(), s.key) == used.end())
+      unused.push_back(s.key);
+  return unused;
+}
+
+std::string unused_settings_note(const BodySpec &body) {
+  std::string list;
+  for (const std::string &key : unused_settings(body)) {
+    std::string models;
+    for (const ModelSetting &s : model_settings())
+      if (s.key == key)
+        for (const std::string &m : s.models) models += (models.empty() ? "" : ", ") + m;
+    list += (list.empty() ? "" : ", ") + key + " (" + models + ")";
+  }
+  if (list.empty()) return "";
+  std::string model = "model: " + body.model;
+  if (simulated_model(body.model) != body.model)
+    model += ", simulated as " + simulated_model(body.model);
+  return "body " + body.name + " (" + model + "): settings not used by this model: " + list;
+}
+
 namespace {
 
 /// Keys of CASE_FORMAT.md that belong to later stages (dynamic optimization): recognised so that
@@ -224,8 +273,10 @@ std::string join(const std::vector<std::string> &names, const char *none = "none
   return out.empty() ? none : out;
 }
 
-void read_initial(const Reader &r, const YAML::Node &v, const std::string &path,
-                  const std::string &model, InitialSpec &s) {
+/// Reads `bodies[].initial` into `b.initial`; the elastic fields (model settings) are recorded
+/// in `b.settings`.
+void read_initial(const Reader &r, const YAML::Node &v, const std::string &path, BodySpec &b) {
+  InitialSpec &s = b.initial;
   r.require_map(v, path);
   r.check_keys(v, path,
                {"position", "rotation", "velocity", "angular_velocity", "elastic_displacement",
@@ -244,10 +295,7 @@ void read_initial(const Reader &r, const YAML::Node &v, const std::string &path,
     s.angular_velocity = r.vector3(v["angular_velocity"], path + ".angular_velocity");
   for (const char *key : {"elastic_displacement", "elastic_velocity"}) {
     if (!v[key]) continue;
-    if (model != "ffrf" && model != "acf")
-      r.fail(r.key_node(v, key),
-             path + "." + key + ": only a flexible (ffrf or acf) body deforms (model: " + model +
-                 ")");
+    b.settings.push_back(std::string("initial.") + key);
     (std::string(key) == "elastic_velocity" ? s.elastic_velocity : s.elastic_displacement) =
         r.point_field(v[key], path + "." + key);
   }
@@ -276,13 +324,10 @@ void read_bodies(const Reader &r, const YAML::Node &node, const fs::path &dir, C
     if (v["model"]) {
       b.model = r.choice(v["model"], path + ".model", {"rigid", "ffrf", "acf", "auto"});
     }
-    if (v["reduction"] && b.model != "ffrf")
-      r.fail(r.key_node(v, "reduction"),
-             path + ".reduction: only an ffrf body takes it (model: " + b.model + ")");
-    if (v["damping"] && b.model != "ffrf" && b.model != "acf")
-      r.fail(r.key_node(v, "damping"),
-             path + ".damping: only ffrf and acf bodies take it (model: " + b.model + ")");
+    // The settings of every model are read and checked whatever `model` is (a body may carry
+    // them all; `model` picks the ones used, and unused_settings() reports the others).
     if (v["reduction"]) {
+      b.settings.push_back("reduction");
       const YAML::Node &m = v["reduction"];
       const std::string mp = path + ".reduction";
       r.require_map(m, mp);
@@ -305,6 +350,7 @@ void read_bodies(const Reader &r, const YAML::Node &node, const fs::path &dir, C
       }
     }
     if (v["damping"]) {
+      b.settings.push_back("damping");
       const YAML::Node &m = v["damping"];
       const std::string mp = path + ".damping";
       r.require_map(m, mp);
@@ -317,10 +363,12 @@ void read_bodies(const Reader &r, const YAML::Node &node, const fs::path &dir, C
         if (b.rayleigh[k] < 0)
           r.fail(ray[k], mp + ".rayleigh[" + std::to_string(k) + "]: must not be negative");
       }
-      if (b.model == "acf" && b.rayleigh[0] != 0)
+      // Only where acf uses it: the same [a, b] serves an ffrf body.
+      if (simulated_model(b.model) == "acf" && b.rayleigh[0] != 0)
         r.fail(ray[0], mp + ".rayleigh[0]: an acf body takes stiffness-proportional damping "
                             "only, [0, b]: mass-proportional damping of its absolute velocities "
-                            "would brake its rigid motion (docs/theory.md section 8.1)");
+                            "would brake its rigid motion (docs/theory.md section 8.1; an ffrf "
+                            "body takes [a, b])");
     }
     b.geometry_key = r.string(r.require(v, "geometry", path), path + ".geometry");
     b.geometry = (dir / b.geometry_key).string();
@@ -368,7 +416,7 @@ void read_bodies(const Reader &r, const YAML::Node &node, const fs::path &dir, C
         r.fail(r.key_node(v, "initial"),
                path + ".initial: needs analysis: dynamic (a static analysis does not place or "
                       "move bodies)");
-      read_initial(r, v["initial"], path + ".initial", b.model, b.initial);
+      read_initial(r, v["initial"], path + ".initial", b);
     }
     c.bodies.push_back(b);
   }

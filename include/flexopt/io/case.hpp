@@ -58,6 +58,9 @@ struct ReductionSpec {
   std::string frame = "clamped";
 };
 
+/// A body in case.yaml. It may carry the settings of every model (`reduction` for ffrf,
+/// `damping` and the initial elastic fields for ffrf and acf); `model` picks the ones used
+/// (model_settings(), unused_settings()), so that switching a body's model is one word.
 struct BodySpec {
   std::string name;
   std::string model = "auto"; ///< rigid | ffrf | acf | auto (dynamic: auto = rigid for now)
@@ -67,11 +70,41 @@ struct BodySpec {
   std::string material;
   std::vector<std::string> interfaces; ///< physical surfaces for joints and forces, unique
   InitialSpec initial;                 ///< dynamic only (identity at rest if not given)
-  ReductionSpec reduction;             ///< ffrf only
-  /// Rayleigh damping C = a M + b K of the elastic coordinates (ffrf only): [a, b].
+  ReductionSpec reduction;             ///< used by ffrf
+  /// Rayleigh damping C = a M + b K of the elastic coordinates (used by ffrf; by acf, which
+  /// takes [0, b] only): [a, b].
   std::array<double, 2> rayleigh{0, 0};
+  /// The model-dependent settings written in case.yaml (keys of model_settings(), in that
+  /// order), whichever model they serve; the others hold their defaults.
+  std::vector<std::string> settings;
   Location where;
 };
+
+/// A body setting that only some models use.
+struct ModelSetting {
+  std::string key;                 ///< below the body: "reduction", "initial.elastic_velocity"
+  std::vector<std::string> models; ///< the models (rigid, ffrf, acf) that use it
+};
+
+/// Every model-dependent body setting, in the order of docs/case-format.md: `reduction` (ffrf),
+/// `damping` (ffrf, acf), `initial.elastic_displacement` and `initial.elastic_velocity` (ffrf,
+/// acf). Every other body key is used by every model.
+const std::vector<ModelSetting> &model_settings();
+
+/// The formulation that simulates a body of `model` in a dynamic analysis: the model itself,
+/// or for `auto` the one chosen for it (this version: rigid).
+std::string simulated_model(const std::string &model);
+
+/// The keys of model_settings() that a body of `model` uses (`auto`: those of
+/// simulated_model(model)).
+std::vector<std::string> settings_used_by(const std::string &model);
+
+/// The settings `body` carries that its model does not use, in the order of model_settings().
+std::vector<std::string> unused_settings(const BodySpec &body);
+
+/// One line reporting unused_settings(body), e.g. "body rod (model: acf): settings not used by
+/// this model: reduction (ffrf)"; empty if every setting the body carries is used.
+std::string unused_settings_note(const BodySpec &body);
 
 /// A named point of the fixed frame (`ground: {interfaces: {NAME: [x, y, z]}}`); its frame is
 /// the world frame.
