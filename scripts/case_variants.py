@@ -17,7 +17,9 @@ def run_flexopt(cmd):
     proc = subprocess.run(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     if proc.returncode != 0:
         sys.stdout.write(proc.stdout)
-        sys.exit(f"failed (exit {proc.returncode}): {' '.join(cmd)}")
+        errors = [line for line in proc.stdout.splitlines() if line.startswith("flexopt: error")]
+        sys.exit(f"failed (exit {proc.returncode}): {' '.join(cmd)}" +
+                 ("\n" + errors[0] if errors else ""))
     return proc.stdout
 
 
