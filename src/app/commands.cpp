@@ -103,8 +103,9 @@ int run_info(const Context &ctx, const Options &o, const io::Case &c, double t0)
            "  mesh: %lld %s elements, %lld nodes, %lld DOFs (meshed and distributed in %.2f s)\n",
            static_cast<long long>(m.global_elements), fem::element_name(m.type),
            static_cast<long long>(m.global_nodes), 3LL * m.global_nodes, wall_time() - tb);
-    const std::int64_t limit =
-        b.mesh.max_elements > 0 ? b.mesh.max_elements : io::default_max_elements(b.mesh.order);
+    const std::int64_t limit = b.mesh.max_elements > 0
+                                   ? b.mesh.max_elements
+                                   : io::default_max_elements(b.mesh.order, est.hexahedra);
     if (geo)
       print0(ctx.comm(),
              "  estimate before meshing: %.0f %s elements, %.0f nodes (volume %.6g m^3, effective "

@@ -17,7 +17,8 @@ std::string Location::str() const {
   return file + ":" + std::to_string(line) + ":" + std::to_string(column);
 }
 
-std::int64_t default_max_elements(int order) {
+std::int64_t default_max_elements(int order, bool hexahedra) {
+  if (hexahedra) return 500000;
   return order == 2 ? 400000 : 2000000;
 }
 

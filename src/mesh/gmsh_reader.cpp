@@ -182,6 +182,15 @@ std::vector<EntityEstimate> coarse_pass(double &curve_length) {
       }
     }
     v.volume = std::abs(signed_volume);
+    // An OpenCASCADE entity has its exact volume (and the sum above can mix orientations on
+    // faces shared by two volumes after BooleanFragments); built-in entities are not known to
+    // OpenCASCADE and keep the sum.
+    try {
+      double mass = 0;
+      gmsh::model::occ::getMass(dim, tag, mass);
+      if (mass > 0) v.volume = mass;
+    } catch (...) {
+    }
     out.push_back(v);
   }
   gmsh::model::mesh::clear();

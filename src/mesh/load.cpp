@@ -21,8 +21,9 @@ std::string count_text(double n) {
 
 /// Refuses a mesh whose estimate is above the body's limit, before Gmsh meshes the volumes.
 void check_limit(const io::BodySpec &body, const MeshEstimate &est) {
-  const std::int64_t limit = body.mesh.max_elements > 0 ? body.mesh.max_elements
-                                                        : io::default_max_elements(body.mesh.order);
+  const std::int64_t limit = body.mesh.max_elements > 0
+                                 ? body.mesh.max_elements
+                                 : io::default_max_elements(body.mesh.order, est.hexahedra);
   if (est.elements <= static_cast<double>(limit)) return;
   char size[160];
   if (body.mesh.size > 0)
@@ -32,17 +33,16 @@ void check_limit(const io::BodySpec &body, const MeshEstimate &est) {
   char figures[200];
   std::snprintf(figures, sizeof figures, "volume %.4g m^3, effective element size %.3g m",
                 est.volume, est.size);
-  throw Error(body.mesh.where.str() + ": body '" + body.name + "': mesh.max_elements: " +
-                  body.geometry_key + " at " + size + " would make about " +
-                  count_text(est.elements) + " " + est.element_name() + " elements (" + figures +
-                  "), above the limit of " + count_text(static_cast<double>(limit)) +
-                  (body.mesh.max_elements > 0
-                       ? ""
-                       : " (the default for order " + std::to_string(body.mesh.order) + ")") +
-                  "; it was not meshed. Use a larger mesh.size, or raise the limit with "
-                  "`mesh: {max_elements: N}` on this body if the machine has the memory "
-                  "(docs/case-format.md, mesh size bound)",
-              true);
+  throw Error(
+      body.mesh.where.str() + ": body '" + body.name +
+          "': mesh.max_elements: " + body.geometry_key + " at " + size + " would make about " +
+          count_text(est.elements) + " " + est.element_name() + " elements (" + figures +
+          "), above the limit of " + count_text(static_cast<double>(limit)) +
+          (body.mesh.max_elements > 0 ? "" : " (the default for " + est.element_name() + ")") +
+          "; it was not meshed. Use a larger mesh.size, or raise the limit with "
+          "`mesh: {max_elements: N}` on this body if the machine has the memory "
+          "(docs/case-format.md, mesh size bound)",
+      true);
 }
 
 } // namespace
@@ -64,13 +64,6 @@ DistributedMesh load_body_mesh(MPI_Comm comm, const io::BodySpec &body,
   // Rank 0 runs Gmsh and prints directly (print0 is collective-free but the other ranks wait
   // in run_on_root's broadcast meanwhile).
   options.before_meshing = [&](const MeshEstimate &est) {
-    std::printf("mesh: body %s: meshing %s with Gmsh on rank 0 (", body.name.c_str(),
-                body.geometry_key.c_str());
-    if (body.mesh.size > 0) std::printf("size %g m, ", body.mesh.size);
-    std::printf("order %d; estimated %s %s elements, %s nodes) ...\n", body.mesh.order,
-                count_text(est.elements).c_str(), est.element_name().c_str(),
-                count_text(est.nodes).c_str());
-    std::fflush(stdout);
     try {
       check_limit(body, est);
     } catch (const Error &e) {
@@ -78,6 +71,13 @@ DistributedMesh load_body_mesh(MPI_Comm comm, const io::BodySpec &body,
       refusal = e.what();
       throw;
     }
+    std::printf("mesh: body %s: meshing %s with Gmsh on rank 0 (", body.name.c_str(),
+                body.geometry_key.c_str());
+    if (body.mesh.size > 0) std::printf("size %g m, ", body.mesh.size);
+    std::printf("order %d; estimated %s %s elements, %s nodes) ...\n", body.mesh.order,
+                count_text(est.elements).c_str(), est.element_name().c_str(),
+                count_text(est.nodes).c_str());
+    std::fflush(stdout);
   };
   options.progress = [&](const char *stage, double seconds) {
     std::printf("mesh: body %s: Gmsh still meshing the %s, %.0f s so far ...\n", body.name.c_str(),

@@ -27,13 +27,14 @@ struct Sample {
   const char *cases;
 };
 
-// Tetrahedral meshes of the cases' bodies. The factor kTetsPerCube was measured on rod.geo and
-// beam.geo; bar.geo and simeon_rod.geo are independent checks of it.
+// Tetrahedral meshes of the cases' bodies, at least 2 elements across. The factor kTetsPerCube
+// was measured on rod.geo; beam.geo, bar.geo, simeon_rod.geo and bridge.geo check it. (A body
+// one element thick is boundary-dominated and the estimate is low: link.geo at 0.05 m, its
+// section, 0.27 times the count; docs/case-format.md.)
 const Sample kTetSamples[] = {
     {"beam.geo", 0.0125, 2, 1.0 * 0.05 * 0.1, "cantilever, beam_modes"},
     {"bar.geo", 0.01, 2, 1.0 * 0.02 * 0.02, "flexible_pendulum"},
     {"simeon_rod.geo", 0.004, 2, 0.30 * 0.008 * 0.008, "slider_crank_flexible"},
-    {"link.geo", 0.05, 1, 1.0 * 0.05 * 0.05, "pendulum, double_pendulum"},
     // Two volumes, a half-cylinder channel cut out (curved faces): the volume is the exact
     // 4 x 1 x 0.5 block minus the half cylinder of radius 0.6, to the chord error of the
     // coarse surface mesh (1 % allowed: sagitta of 0.21 m chords on a 0.6 m radius, 0.3 %).
@@ -108,7 +109,7 @@ TEST(MeshEstimate, LeavesTheMeshUnchanged) {
   gmsh::model::mesh::getElements(types, tags, nodes, 3, -1);
   std::vector<std::size_t> node_tags;
   std::vector<double> coords, param;
-  gmsh::model::mesh::getNodes(node_tags, coords, param, -1, -1, true, false);
+  gmsh::model::mesh::getNodes(node_tags, coords, param, -1, -1, false, false);
   gmsh::finalize();
   ASSERT_EQ(types.size(), 1u);
   EXPECT_EQ(static_cast<std::size_t>(m.element_count()), tags[0].size());

@@ -58,9 +58,9 @@ struct MeshEstimate {
 };
 
 /// Tetrahedra per h^3 of volume in Gmsh's Delaunay meshes with Mesh.MeshSizeMax = h, measured
-/// on meshes/rod.geo and meshes/beam.geo (4.6 to 5.7 between 2 and 8 elements across the
-/// section; docs/case-format.md). A regular tetrahedron of edge h would give 6 sqrt(2) = 8.5:
-/// Gmsh's elements are larger than that on average.
+/// on meshes/rod.geo: 4.6, 4.9 and 5.7 at 20, 10 and 4 elements across its section
+/// (docs/case-format.md). A regular tetrahedron of edge h would give 6 sqrt(2) = 8.5: Gmsh's
+/// elements are larger than that on average.
 inline constexpr double kTetsPerCube = 5.2;
 
 /// Tetrahedra per vertex in the same meshes (4.7 to 5.4), for the node estimate. Order 2 adds
