@@ -199,8 +199,7 @@ std::vector<EntityEstimate> coarse_pass(double &curve_length) {
   return out;
 }
 
-/// Effective element size of each entity from the 1D mesh at the run's settings (kept: the
-/// meshing goes on from it).
+/// Effective element size of each entity from the 1D mesh at the run's settings.
 void curve_sizes(std::vector<EntityEstimate> &entities) {
   gmsh::model::mesh::generate(1);
   const auto at = node_coordinates();
@@ -251,7 +250,7 @@ void curve_sizes(std::vector<EntityEstimate> &entities) {
   }
 }
 
-/// The estimate of the model open in Gmsh; the 1D mesh stays if it was made.
+/// The estimate of the model open in Gmsh (the session is discarded afterwards).
 MeshEstimate estimate_open_model(const std::string &path, const MeshOptions &options) {
   double curve_length = 0;
   std::vector<EntityEstimate> entities = coarse_pass(curve_length);
@@ -355,24 +354,19 @@ MeshData read_gmsh(const std::string &path, const MeshOptions &options, MeshEsti
 
   MeshData mesh;
   mesh.source = path;
-  GmshSession session;
   if (ext == ".geo") {
-    MeshEstimate est;
-    try {
-      open_geo(path, options);
-      est = estimate_open_model(path, options);
-    } catch (const Error &) {
-      throw;
-    } catch (...) {
-      throw Error(gmsh_failure(path));
-    }
+    // The estimate runs in a Gmsh session of its own, so that the mesh made afterwards is
+    // exactly the one Gmsh makes of the .geo without it.
+    const MeshEstimate est = estimate_gmsh(path, options);
     if (estimate) *estimate = est;
     if (options.before_meshing) options.before_meshing(est); // may refuse: not Gmsh's failure
+  }
+  GmshSession session;
+  if (ext == ".geo") {
     try {
       ProgressTicker ticker(options.progress);
-      ticker.stage("surfaces");
-      gmsh::model::mesh::generate(2);
-      ticker.stage("volumes");
+      open_geo(path, options);
+      ticker.stage("geometry (curves, surfaces, volumes)");
       gmsh::model::mesh::generate(3);
       if (options.order == 2) {
         ticker.stage("order 2");

@@ -81,8 +81,8 @@ struct MeshOptions {
   /// the mesh (the exception passes through read_gmsh unchanged) and may print the estimate.
   std::function<void(const MeshEstimate &)> before_meshing;
   /// .geo only: called every kProgressInterval seconds while Gmsh meshes, with the stage
-  /// ("curves", "surfaces", "volumes", "order 2") and the seconds elapsed. Called from another
-  /// thread than the caller's (Gmsh itself runs on the caller's): it must only print.
+  /// ("geometry (curves, surfaces, volumes)", then "order 2") and the seconds elapsed. Called from
+  /// another thread than the caller's (Gmsh itself runs on the caller's): it must only print.
   std::function<void(const char *stage, double seconds)> progress;
 };
 
@@ -90,8 +90,8 @@ struct MeshOptions {
 inline constexpr double kProgressInterval = 10.0;
 
 /// Estimates the mesh of a .geo at the given options without meshing its volumes (it meshes
-/// the surfaces coarsely and the curves at the run's settings). Not collective. Throws
-/// flexopt::Error naming the file if Gmsh fails or the geometry has no volume.
+/// the surfaces coarsely and the curves at the run's settings, in a Gmsh session of its own). Not
+/// collective. Throws flexopt::Error naming the file if Gmsh fails or the geometry has no volume.
 MeshEstimate estimate_gmsh(const std::string &path, const MeshOptions &options);
 
 /// Reads a .msh (v4) or meshes a .geo with the Gmsh API. Not collective: call on one rank.
