@@ -17,6 +17,11 @@ std::string Location::str() const {
   return file + ":" + std::to_string(line) + ":" + std::to_string(column);
 }
 
+std::int64_t default_max_elements(int order, bool hexahedra) {
+  if (hexahedra) return 500000;
+  return order == 2 ? 400000 : 2000000;
+}
+
 const MaterialSpec &Case::material(const std::string &n) const {
   for (const auto &m : materials)
     if (m.name == n) return m;
@@ -370,6 +375,7 @@ void read_bodies(const Reader &r, const YAML::Node &node, const fs::path &dir, C
                             "would brake its rigid motion (docs/theory.md section 8.1; an ffrf "
                             "body takes [a, b])");
     }
+    b.mesh.where = b.where;
     b.geometry_key = r.string(r.require(v, "geometry", path), path + ".geometry");
     b.geometry = (dir / b.geometry_key).string();
     const std::string ext = fs::path(b.geometry).extension().string();
@@ -382,8 +388,9 @@ void read_bodies(const Reader &r, const YAML::Node &node, const fs::path &dir, C
       const YAML::Node &m = v["mesh"];
       const std::string mp = path + ".mesh";
       r.require_map(m, mp);
-      r.check_keys(m, mp, {"size", "order"});
+      r.check_keys(m, mp, {"size", "order", "max_elements"});
       b.mesh.given = true;
+      b.mesh.where = r.where(r.key_node(v, "mesh"));
       if (ext == ".msh")
         r.fail(m, mp + ": only applies to a .geo geometry; a .msh file is used as it is");
       if (m["size"]) {
@@ -394,6 +401,11 @@ void read_bodies(const Reader &r, const YAML::Node &node, const fs::path &dir, C
         b.mesh.order = r.integer(m["order"], mp + ".order");
         if (b.mesh.order != 1 && b.mesh.order != 2)
           r.fail(m["order"], mp + ".order: must be 1 (Tet4/Hex8) or 2 (Tet10)");
+      }
+      if (m["max_elements"]) {
+        b.mesh.max_elements = r.integer(m["max_elements"], mp + ".max_elements");
+        if (b.mesh.max_elements < 1)
+          r.fail(m["max_elements"], mp + ".max_elements: must be a positive integer");
       }
     }
     b.material = r.string(r.require(v, "material", path), path + ".material");

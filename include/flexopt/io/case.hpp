@@ -5,6 +5,7 @@
 /// collective flexopt::Error on every rank: `case.yaml:LINE:COL: message`. See
 /// docs/case-format.md for every key.
 #include <array>
+#include <cstdint>
 #include <optional>
 #include <string>
 #include <vector>
@@ -31,7 +32,16 @@ struct MeshSpec {
   double size = 0;    ///< target element size [m] (.geo only); 0: the .geo's own sizes
   int order = 1;      ///< 1: Tet4 (Hex8 if the .geo recombines), 2: Tet10
   bool given = false; ///< true if the `mesh:` key was present
+  /// Largest estimated element count meshed (.geo only); 0: default_max_elements().
+  std::int64_t max_elements = 0;
+  Location where; ///< of the `mesh:` key, or of the body if it has none
 };
+
+/// Default `mesh.max_elements` for the element type Gmsh will make (order 1 tetrahedra, order
+/// 2 tetrahedra, or recombined hexahedra): 2 000 000 Tet4, 400 000 Tet10, 500 000 Hex8, each
+/// about 1.5 million DOFs, what the static benchmark solves on 2 ranks within 6 GiB of this
+/// 24 GiB machine (docs/case-format.md, "Mesh size bound"; docs/benchmarks.md).
+std::int64_t default_max_elements(int order, bool hexahedra);
 
 /// Placement of a body frame at t = 0 and its velocity (`bodies[].initial`, dynamic analyses).
 /// The body's mesh coordinates are body-frame coordinates; the frame is placed at `position`
