@@ -30,7 +30,7 @@ VelocityCorrection rigid_velocity_correction(const Mechanism &mech, const Vector
     if (field_of[static_cast<std::size_t>(b)] < 0) {
       if (!(mech.body(b).mass() > 0))
         throw Error("initial conditions: body " + mech.body(b).name() +
-                    " has no mass and no body carries it: its velocity is undetermined",
+                        " has no mass and no body carries it: its velocity is undetermined",
                     true);
       own.push_back(b);
     }

@@ -740,7 +740,8 @@ std::vector<RigidField> DistributedAlpha::rigid_fields(const DistState &s) const
       PetscScalar *a;
       FX_PETSC(VecGetArray(V[static_cast<std::size_t>(c)], &a));
       for (PetscInt i = 0; i < nodes; ++i) {
-        const Vec3 d = c < 3 ? Vec3(Vec3::Unit(c)) : Vec3(Vec3::Unit(c - 3).cross(arm[static_cast<std::size_t>(i)]));
+        const Vec3 d = c < 3 ? Vec3(Vec3::Unit(c))
+                             : Vec3(Vec3::Unit(c - 3).cross(arm[static_cast<std::size_t>(i)]));
         for (int k = 0; k < 3; ++k) a[base + 3 * i + k] = d(k);
       }
       FX_PETSC(VecRestoreArray(V[static_cast<std::size_t>(c)], &a));

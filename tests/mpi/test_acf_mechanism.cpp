@@ -316,8 +316,8 @@ TEST(AcfMechanism, StartKeepsElasticVelocities) {
     A.block<3, 3>(3 * j, 0).setIdentity();
     A.block<3, 3>(3 * j, 3) = -bodies::skew(Vec3(&x[static_cast<std::size_t>(3 * j)]));
     for (int k = 0; k < 3; ++k)
-      dv(3 * j + k) = now[static_cast<std::size_t>(3 * j + k)] -
-                      given[static_cast<std::size_t>(3 * j + k)];
+      dv(3 * j + k) =
+          now[static_cast<std::size_t>(3 * j + k)] - given[static_cast<std::size_t>(3 * j + k)];
   }
   const Eigen::VectorXd y = A.colPivHouseholderQr().solve(dv);
   const double change = dv.cwiseAbs().maxCoeff();

@@ -214,8 +214,7 @@ TEST(ConsistentStart, ElasticVelocitiesAreKeptAndTheChangeIsLeast) {
   for (int b = 0; b < 2; ++b) {
     const int o = m.offset(b);
     T.block<3, 3>(o, 6 * b).setIdentity();
-    T.block<4, 3>(o + 3, 6 * b + 3) =
-        0.5 * bodies::g_matrix(s.q.segment<4>(o + 3)).transpose();
+    T.block<4, 3>(o + 3, 6 * b + 3) = 0.5 * bodies::g_matrix(s.q.segment<4>(o + 3)).transpose();
   }
   Vector r, phi;
   Matrix M, J;
