@@ -17,13 +17,16 @@ def run_flexopt(cmd):
     proc = subprocess.run(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     if proc.returncode != 0:
         sys.stdout.write(proc.stdout)
-        sys.exit(f"failed (exit {proc.returncode}): {' '.join(cmd)}")
+        errors = [line for line in proc.stdout.splitlines() if line.startswith("flexopt: error")]
+        sys.exit(f"failed (exit {proc.returncode}): {' '.join(cmd)}" +
+                 ("\n" + errors[0] if errors else ""))
     return proc.stdout
 
 
-def run_variant(flexopt, case, out, name, replace, ranks=2, end=None):
+def run_variant(flexopt, case, out, name, replace, ranks=2, end=None, output=False):
     """Runs `flexopt simulate` on CASE's case.yaml with each (old, new) of `replace` applied
-    (old must occur) and, if given, time.end set to `end`; returns the summary."""
+    (old must occur) and, if given, time.end set to `end`; returns the summary, or with
+    `output` the pair (summary, the run's printed output)."""
     text = open(os.path.join(case, "case.yaml")).read()
     text = re.sub(r"geometry: ([./]*)meshes/",
                   lambda m: "geometry: " + os.path.abspath(os.path.join(case, m.group(1), "meshes")) + "/",
@@ -38,8 +41,9 @@ def run_variant(flexopt, case, out, name, replace, ranks=2, end=None):
     os.makedirs(d, exist_ok=True)
     with open(os.path.join(d, "case.yaml"), "w") as f:
         f.write(text)
-    run_flexopt(["mpirun", "-n", str(ranks), flexopt, "simulate", d, "--out", os.path.join(d, "out")])
-    return json.load(open(os.path.join(d, "out", "summary.json")))
+    log = run_flexopt(["mpirun", "-n", str(ranks), flexopt, "simulate", d, "--out", os.path.join(d, "out")])
+    summary = json.load(open(os.path.join(d, "out", "summary.json")))
+    return (summary, log) if output else summary
 
 
 def check_arguments():

@@ -9,7 +9,7 @@ position and its elastic displacement). Then runs itself under pvpython (`--chec
 opens OUT/ffrf/out/motion.xdmf with each of ParaView's .xdmf readers (the three of
 tests/paraview_motion.py) and checks against the run's summary.json:
 
-1. the time steps are the output times, there is one block (the bar), its points are stored in
+1. the time steps are the frame times (summary.json motion.times), there is one block (the bar), its points are stored in
    double precision and it carries the 3-component point field `elastic_displacement`, zero at
    t = 0 (the bar starts undeformed);
 2. at the last step, the corner node's coordinates equal the `corner` position sensor;
@@ -99,14 +99,14 @@ def dist(a, b):
 
 def check_reader(label, reader, summary):
     from paraview import servermanager
-    times = summary["output_times"]
+    times = summary["motion"]["times"]
     sensors = summary["sensors"]
     body = summary["bodies"][0]
     nodes = body["dofs"] // 3
     reader.UpdatePipelineInformation()
     steps = list(reader.TimestepValues)
     expect(len(steps) == len(times) >= 5 and all(a == b for a, b in zip(steps, times)),
-           f"{label}: {len(steps)} time steps, {steps[0]} ... {steps[-1]} s = the output times of summary.json")
+           f"{label}: {len(steps)} time steps, {steps[0]} ... {steps[-1]} s = the frame times of summary.json")
 
     def grid_at(t):
         reader.UpdatePipeline(t)

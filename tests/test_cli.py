@@ -1,8 +1,10 @@
 #!/usr/bin/python3
 """Command-line contract of flexopt: help texts, argument errors, option precedence
-(program default < case `solver:` < command line), `info` partition figures, --out."""
+(program default < case `solver:` < command line), `info` partition figures, --out, and
+`info` on the settings a body's model leaves unused."""
 import json
 import os
+import re
 import subprocess
 import sys
 import tempfile
@@ -66,6 +68,93 @@ with tempfile.TemporaryDirectory() as tmp:
     expect(os.path.exists(os.path.join(tmp, "lu", "static.xdmf")) and
            not any(f.endswith(".tmp") for f in os.listdir(os.path.join(tmp, "lu"))),
            "static.xdmf written, no temporary files left")
+
+with tempfile.TemporaryDirectory() as tmp:
+    # One word switches a body's model: cases/slider_crank_flexible with the rod's `model: ffrf`
+    # changed; info names the rod's settings that the new model does not use.
+    src = os.path.join(SOURCE, "cases", "slider_crank_flexible")
+    text = open(os.path.join(src, "case.yaml")).read()
+    text = re.sub(r"geometry: ../../meshes/", "geometry: " + os.path.join(SOURCE, "meshes") + "/", text)
+
+    def variant(name, replace):
+        """A copy of the case with each (old, new) of `replace` applied (old occurs once)."""
+        d = os.path.join(tmp, name)
+        os.makedirs(d)
+        t = text
+        for old, new in replace:
+            assert t.count(old) == 1, old
+            t = t.replace(old, new)
+        open(os.path.join(d, "case.yaml"), "w").write(t)
+        return d
+
+    expected = {"ffrf": [], "acf": ["reduction"],
+                "rigid": ["reduction", "initial.elastic_displacement", "initial.elastic_velocity"]}
+    for model, unused in expected.items():
+        d = variant(model, [("model: ffrf", "model: " + model)])
+        rc, out, err = run(["info", d, "--out", os.path.join(d, "out")], ranks=2)
+        s = json.load(open(os.path.join(d, "out", "summary.json"))) if rc == 0 else {"bodies": []}
+        rod = [b for b in s["bodies"] if b["name"] == "rod"]
+        expect(rc == 0 and rod and rod[0]["model"] == model and rod[0]["unused_settings"] == unused,
+               f"info, rod model: {model}: unused settings {unused} in summary.json")
+        notes = [line.strip() for line in out.splitlines() if "settings not used" in line]
+        expect(notes == ([f"body rod (model: {model}): settings not used by this model: "
+                          + ", ".join(k + (" (ffrf)" if k == "reduction" else " (ffrf, acf)") for k in unused)]
+                         if unused else []),
+               f"info, rod model: {model}: the unused settings printed once, under the rod: {notes}")
+    # An unused section is still checked: a typo in it is refused, the key named, on every rank.
+    d = variant("typo", [("model: ffrf", "model: acf"),
+                         ("reduction: {modes: 4, frame: chord}", "reduction: {mode: 4, frame: chord}")])
+    rc, out, err = run(["info", d, "--out", os.path.join(d, "out")], ranks=2)
+    expect(rc != 0 and "unknown key 'bodies[1].reduction.mode'" in err
+           and not os.path.exists(os.path.join(d, "out", "summary.json")),
+           "info: a typo in a section the model does not use is refused, the key named")
+
+# A .msh file cut short anywhere is refused with one message, never read as a smaller mesh.
+# tests/msh/beam_0.1.msh: meshes/beam.geo at size 0.1, written by Gmsh 4.8 as MSH 4.1.
+MSH = os.path.join(SOURCE, "tests", "msh", "beam_0.1.msh")
+MSH_CASE = """analysis: static
+materials:
+  steel: {E: 2.1e11, nu: 0.3, density: 7850}
+bodies:
+  - {name: beam, geometry: beam.msh, material: steel}
+supports:
+  - {body: beam, surface: clamp, fix: [x, y, z]}
+"""
+with open(MSH) as f:
+    lines = f.read().splitlines(keepends=True)
+sections = {l.strip(): i for i, l in enumerate(lines) if l.startswith("$")}
+cuts = {  # name -> number of whole lines kept, then a partial line of `extra` characters
+    "in $MeshFormat": (1, 0),
+    "in $PhysicalNames": (sections["$PhysicalNames"] + 2, 0),
+    "in $Entities": ((sections["$Entities"] + sections["$EndEntities"]) // 2, 5),
+    "in $Nodes": ((sections["$Nodes"] + sections["$EndNodes"]) // 2, 0),
+    "before $EndNodes": (sections["$EndNodes"], 0),
+    "in the $Elements header": (sections["$Elements"] + 1, 4),
+    "in the volume elements": ((sections["$Elements"] + 3 * sections["$EndElements"]) // 4, 8),
+    "at a line end in the volume elements": (sections["$EndElements"] - 5, 0),
+}
+# (A file that lacks only its last line, $EndElements, holds the whole mesh, and Gmsh reads it.)
+with tempfile.TemporaryDirectory() as tmp:
+    def info_on(text, name):
+        case = os.path.join(tmp, name)
+        os.makedirs(case)
+        with open(os.path.join(case, "case.yaml"), "w") as f:
+            f.write(MSH_CASE)
+        with open(os.path.join(case, "beam.msh"), "w") as f:
+            f.write(text)
+        out_dir = os.path.join(case, "out")
+        p = subprocess.run(["mpirun", "-n", "2", FLEXOPT, "info", case, "--out", out_dir], env=ENV,
+                           stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, timeout=120)
+        errors = [l for l in p.stdout.splitlines() if l.startswith("flexopt: error")]
+        return p.returncode, errors, os.path.exists(os.path.join(out_dir, "summary.json"))
+    rc, errors, summary = info_on("".join(lines), "whole")
+    expect(rc == 0 and not errors and summary, "whole .msh file: read (the control)")
+    for k, (name, (keep, extra)) in enumerate(cuts.items()):
+        text = "".join(lines[:keep]) + lines[keep][:extra]
+        rc, errors, summary = info_on(text, f"cut{k}")
+        expect(rc != 0 and len(errors) == 1 and not summary,
+               f".msh cut {name} ({len(text)} of {len(''.join(lines))} bytes): one error, no summary"
+               + (f" [{errors[0]}]" if errors else ""))
 
 print(f"{len(failures)} failed" if failures else "all CLI checks passed")
 sys.exit(1 if failures else 0)

@@ -90,7 +90,9 @@ int run_info(const Context &ctx, const Options &o, const io::Case &c, double t0)
   io::Json bodies = io::Json::array();
   for (const auto &b : c.bodies) {
     const double tb = wall_time();
-    mesh::DistributedMesh m = mesh::load_body_mesh(ctx.comm(), b);
+    mesh::MeshEstimate est; // significant on rank 0, which prints and writes the summary
+    mesh::DistributedMesh m = mesh::load_body_mesh(ctx.comm(), b, {}, &est);
+    const bool geo = est.elements > 0;
     const auto elems = mesh::elements_per_rank(m), nodes = mesh::nodes_per_rank(m);
     const auto &mat = c.material(b.material);
     print0(ctx.comm(),
@@ -101,6 +103,15 @@ int run_info(const Context &ctx, const Options &o, const io::Case &c, double t0)
            "  mesh: %lld %s elements, %lld nodes, %lld DOFs (meshed and distributed in %.2f s)\n",
            static_cast<long long>(m.global_elements), fem::element_name(m.type),
            static_cast<long long>(m.global_nodes), 3LL * m.global_nodes, wall_time() - tb);
+    const std::int64_t limit = b.mesh.max_elements > 0
+                                   ? b.mesh.max_elements
+                                   : io::default_max_elements(b.mesh.order, est.hexahedra);
+    if (geo)
+      print0(ctx.comm(),
+             "  estimate before meshing: %.0f %s elements, %.0f nodes (volume %.6g m^3, effective "
+             "element size %.4g m; %.2f times the count); mesh.max_elements %lld\n",
+             est.elements, est.element_name().c_str(), est.nodes, est.volume, est.size,
+             est.elements / static_cast<double>(m.global_elements), static_cast<long long>(limit));
     std::string vols, surfs;
     for (const auto &kv : m.volume_groups) vols += " " + kv.first;
     for (const auto &kv : m.surfaces) surfs += " " + kv.first;
@@ -117,9 +128,27 @@ int run_info(const Context &ctx, const Options &o, const io::Case &c, double t0)
     jb["elements"] = static_cast<long long>(m.global_elements);
     jb["nodes"] = static_cast<long long>(m.global_nodes);
     jb["dofs"] = 3LL * m.global_nodes;
+    if (geo) {
+      io::Json je = io::Json::object();
+      je["elements"] = est.elements;
+      je["nodes"] = est.nodes;
+      je["element_type"] = est.element_name();
+      je["volume"] = est.volume;
+      je["size"] = est.size;
+      je["max_elements"] = static_cast<long long>(limit);
+      jb["estimate"] = je;
+    }
     jb["elements_per_rank"] = rank_counts(elems);
     jb["nodes_per_rank"] = rank_counts(nodes);
-    if (c.analysis == "dynamic" && b.model == "ffrf") {
+    if (c.analysis == "dynamic") {
+      // Settings of other models that the body carries (switching `model:` would use them).
+      const std::string note = io::unused_settings_note(b);
+      if (!note.empty()) print0(ctx.comm(), "  %s\n", note.c_str());
+      io::Json unused = io::Json::array();
+      for (const std::string &key : io::unused_settings(b)) unused.push_back(key);
+      jb["unused_settings"] = unused;
+    }
+    if (c.analysis == "dynamic" && io::simulated_model(b.model) == "ffrf") {
       // The reduced size follows from the case alone: 6 static modes per interface after the
       // frame, plus the fixed-interface modes (flexopt modes --body shows the basis itself).
       const int statics = 6 * std::max(0, static_cast<int>(b.interfaces.size()) - 1);

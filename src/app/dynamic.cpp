@@ -10,9 +10,12 @@
 #include "flexopt/core/error.hpp"
 #include "flexopt/dynamics/generalized_alpha.hpp"
 #include "flexopt/dynamics/scene.hpp"
+#include "flexopt/io/frame_schedule.hpp"
 #include "flexopt/io/motion_writer.hpp"
 
 #include <cmath>
+#include <cstdio>
+#include <filesystem>
 #include <sstream>
 
 namespace flexopt::app {
@@ -51,6 +54,29 @@ std::vector<double> body_positions(const dynamics::Scene &scene, std::size_t b,
   return x;
 }
 
+/// Size of motion.h5 above which the run warns before it starts [bytes].
+constexpr double kLargeMotionBytes = 1e9;
+
+/// True if case body b writes an elastic_displacement field with its positions: an FFRF body
+/// with modes, or an ACF body with interfaces (Backend::positions).
+bool writes_elastic(const dynamics::Scene &scene, std::size_t b) {
+  const dynamics::SceneBody &sb = scene.bodies[b];
+  if (sb.acf >= 0) return !sb.nodes.empty();
+  return scene.mechanism.size(sb.mechanism) > 7;
+}
+
+/// "12.3 MB", "1.76 GB": decimal units, as file managers show them.
+std::string human_bytes(double bytes) {
+  char buf[32];
+  if (bytes >= 1e9)
+    std::snprintf(buf, sizeof buf, "%.2f GB", bytes / 1e9);
+  else if (bytes >= 1e6)
+    std::snprintf(buf, sizeof buf, "%.1f MB", bytes / 1e6);
+  else
+    std::snprintf(buf, sizeof buf, "%.0f kB", bytes / 1e3);
+  return buf;
+}
+
 io::Json vec3_json(const bodies::Vec3 &v) {
   return io::Json(std::vector<double>{v.x(), v.y(), v.z()});
 }
@@ -70,6 +96,11 @@ public:
   virtual bodies::Vec3 sensor(const dynamics::BoundSensor &s) const = 0;
   /// Owned node positions of case body b and the elastic displacement field (empty: none).
   virtual std::vector<double> positions(std::size_t b, std::vector<double> &elastic) const = 0;
+  /// What the consistent start did to the given velocities.
+  const dynamics::StartReport &start() const { return start_; }
+
+protected:
+  dynamics::StartReport start_;
 };
 
 /// Rigid and FFRF bodies: GeneralizedAlpha on the replicated mechanism.
@@ -78,7 +109,7 @@ public:
   DenseBackend(const dynamics::Scene &scene, dynamics::AlphaParameters par,
                dynamics::NewtonSettings newton)
       : scene_(scene), ga_(scene.mechanism, par, newton),
-        state_(ga_.initial_state(scene.q0, scene.v0, 0.0)) {}
+        state_(ga_.initial_state(scene.q0, scene.v0, 0.0, &start_)) {}
   bool advance(double h, double t, dynamics::StepInfo &info) override {
     if (!ga_.advance(state_, h, next_, info)) return false;
     next_.t = t;
@@ -118,7 +149,7 @@ public:
         VecDestroy(&v);
       }
     } destroy{x0, v0}; // also when the initial state throws
-    state_ = da_.initial_state(x0, v0, 0.0);
+    state_ = da_.initial_state(x0, v0, 0.0, &start_);
     small_ = da_.small_state(state_);
   }
   bool advance(double h, double t, dynamics::StepInfo &info) override {
@@ -173,6 +204,11 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
   s["analysis"] = "dynamic";
   print0(ctx.comm(), "case %s (%s), analysis: dynamic, %d rank(s)\n", c.name.c_str(),
          c.file.c_str(), ctx.size());
+  // A body may carry the settings of every model; say which ones its model leaves unused.
+  for (const io::BodySpec &b : c.bodies) {
+    const std::string note = io::unused_settings_note(b);
+    if (!note.empty()) print0(ctx.comm(), "note: %s\n", note.c_str());
+  }
   dynamics::Scene scene = dynamics::build_scene(ctx.comm(), c);
   const dynamics::Mechanism &mech = scene.mechanism;
   print0(ctx.comm(), "mechanism: %zu bodies, %d coordinates, %d constraint rows enforced of %d\n",
@@ -201,6 +237,22 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
            scene.acf.size(), ctx.size());
     run = std::make_unique<DistributedBackend>(scene, par, newton);
   }
+  {
+    const dynamics::StartReport &st = run->start();
+    print0(ctx.comm(),
+           "initial velocities: the rigid-body velocities made consistent with the joints and "
+           "drivers; kinetic energy %.9g J given -> %.9g J (%+.6g J)\n",
+           st.kinetic_given, st.kinetic, st.kinetic - st.kinetic_given);
+    if (st.elastic_corrected)
+      print0(ctx.comm(),
+             "initial velocities: warning: rigid-body velocities alone cannot satisfy the joints "
+             "(residual %.3e): the elastic velocities were corrected too, with the least change "
+             "of kinetic energy\n",
+             st.rigid_residual);
+    s["initial_kinetic_energy"]["given"] = st.kinetic_given;
+    s["initial_kinetic_energy"]["start"] = st.kinetic;
+    s["initial_kinetic_energy"]["elastic_corrected"] = st.elastic_corrected;
+  }
   const double h = c.time.step;
   const long long steps = std::llround(c.time.end / h);
   print0(ctx.comm(),
@@ -213,9 +265,44 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
   std::vector<io::MotionBody> mb;
   for (std::size_t b = 0; b < c.bodies.size(); ++b)
     mb.push_back({c.bodies[b].name, mesh::grid_layout(scene.meshes[b])});
+  // Frames of motion.xdmf (io::FrameSchedule). Energy and sensors are small: without output:
+  // they keep every step; with it they are sampled at the frames, as the key always did.
+  const io::FrameSchedule schedule(c.output, steps, h);
+  const bool sample_every_step = !c.output.given();
+  std::vector<std::vector<std::string>> fields(c.bodies.size());
+  for (std::size_t b = 0; b < c.bodies.size(); ++b)
+    if (writes_elastic(scene, b)) fields[b] = {"elastic_displacement"};
+  const long long frames = schedule.frames();
+  const double motion_bytes = io::estimate_motion_bytes(mb, fields, frames);
+  if (schedule.interval_below_step())
+    print0(ctx.comm(),
+           "output: warning: output.interval = %g s is shorter than time.step = %g s: every step "
+           "is written\n",
+           c.output.interval, h);
+  print0(ctx.comm(), "output: motion.xdmf: %s; about %s; energy and sensors at %s\n",
+         schedule.describe().c_str(), human_bytes(motion_bytes).c_str(),
+         sample_every_step ? "every step" : "the frames' steps");
+  if (motion_bytes > kLargeMotionBytes) {
+    // The estimate is linear in the frame count: what fits in kLargeMotionBytes?
+    const double fixed = io::estimate_motion_bytes(mb, fields, 0);
+    const double per_frame = io::estimate_motion_bytes(mb, fields, 1) - fixed;
+    const double fit = std::floor((kLargeMotionBytes - fixed) / per_frame);
+    std::string hint = "write fewer frames with output: {every: N} (steps) or output: {interval: "
+                       "SECONDS} in case.yaml";
+    // every N writes at most steps / N + 2 frames (the first and the last state).
+    if (fit >= 3 && steps > 0)
+      hint += ", e.g. output: {every: " +
+              std::to_string(
+                  static_cast<long long>(std::ceil(static_cast<double>(steps) / (fit - 2)))) +
+              "} for at most " + human_bytes(kLargeMotionBytes);
+    else
+      hint += " (each frame alone takes " + human_bytes(per_frame) + ")";
+    print0(ctx.comm(), "output: warning: motion.h5 will take about %s (%lld frames of %s); %s\n",
+           human_bytes(motion_bytes).c_str(), frames, human_bytes(per_frame).c_str(), hint.c_str());
+  }
   io::MotionWriter writer(mb, dir, "motion");
 
-  std::vector<double> out_t, energy;
+  std::vector<double> out_t, frame_t, energy;
   std::vector<std::vector<bodies::Vec3>> sensor_values(scene.sensors.size());
   double max_violation = 0;
   dynamics::Vector all;
@@ -237,11 +324,14 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
     }
     return out;
   };
-  auto record = [&](double t) {
+  auto sample = [&](double t) {
     out_t.push_back(t);
     energy.push_back(run->energy());
     for (std::size_t k = 0; k < scene.sensors.size(); ++k)
       sensor_values[k].push_back(run->sensor(scene.sensors[k]));
+  };
+  auto frame = [&](double t) {
+    frame_t.push_back(t);
     writer.begin_step(t);
     std::vector<double> elastic;
     for (std::size_t b = 0; b < c.bodies.size(); ++b) {
@@ -251,7 +341,8 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
     }
   };
   monitor();
-  record(0.0);
+  sample(0.0);
+  frame(0.0);
 
   long long newton_total = 0, factorizations_total = 0;
   int newton_max = 0, halvings_max = 0;
@@ -295,7 +386,11 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
     factorizations_total += info.factorizations;
     newton_max = std::max(newton_max, info.iterations);
     halvings_max = std::max(halvings_max, info.halvings);
-    if ((n + 1) % c.output_every == 0 || n + 1 == steps) record(t_now);
+    // Frames and samples are full steps n h: a step that Newton halved is written once, at
+    // its end.
+    const bool is_frame = schedule.is_frame(n + 1);
+    if (sample_every_step || is_frame) sample(t_now);
+    if (is_frame) frame(t_now);
     const double now = wall_time();
     if (now - last_print > 2.0 || n + 1 == steps) {
       const double rate = static_cast<double>(n + 1) / std::max(now - t_start, 1e-9);
@@ -309,6 +404,13 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
   const double t_int = wall_time() - t_start;
   FX_PETSC(PetscLogStagePop());
   const std::string xdmf = writer.close();
+  // The files' sizes as the file system reports them (-1 if it cannot).
+  std::error_code h5_error, xdmf_error;
+  const auto h5_bytes =
+      std::filesystem::file_size(std::filesystem::path(dir) / "motion.h5", h5_error);
+  const auto xdmf_bytes = std::filesystem::file_size(xdmf, xdmf_error);
+  const long long motion_file_bytes =
+      h5_error || xdmf_error ? -1LL : static_cast<long long>(h5_bytes + xdmf_bytes);
 
   s["coordinates"] = mech.coordinates();
   s["constraint_rows"] = mech.constraints();
@@ -316,7 +418,16 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
   s["time_step"] = h;
   s["t_end"] = static_cast<double>(steps) * h;
   s["rho_inf"] = par.rho_inf;
-  s["output_times"] = io::Json(out_t);
+  s["output_times"] = io::Json(out_t); // the samples of energy and of the sensors
+  io::Json motion = io::Json::object();
+  motion["frames"] = static_cast<long long>(frame_t.size());
+  motion["rule"] = c.output.every > 0 ? "every" : c.output.interval > 0 ? "interval" : "default";
+  if (c.output.interval > 0) motion["interval"] = c.output.interval;
+  if (schedule.stride() > 0) motion["every"] = schedule.stride();
+  motion["times"] = io::Json(frame_t);
+  motion["estimated_bytes"] = motion_bytes;
+  motion["bytes"] = motion_file_bytes;
+  s["motion"] = motion;
   s["energy"] = io::Json(energy);
   s["constraint_violation_max"] = max_violation;
   s["newton_iterations_total"] = newton_total;
@@ -342,6 +453,9 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
     const dynamics::SceneBody &sb = scene.bodies[k];
     io::Json j = io::Json::object();
     j["name"] = c.bodies[k].name;
+    io::Json unused = io::Json::array();
+    for (const std::string &key : io::unused_settings(c.bodies[k])) unused.push_back(key);
+    j["unused_settings"] = unused;
     if (sb.acf >= 0) {
       j["model"] = "acf";
       j["mass"] = scene.acf[static_cast<std::size_t>(sb.acf)]->total_mass();
@@ -374,8 +488,10 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
          steps, t_int, static_cast<double>(steps) / std::max(t_int, 1e-9), newton_total, newton_max,
          factorizations_total, max_violation, energy.front(), energy.back());
   detail::write_summary(ctx, dir, s, t0);
-  print0(ctx.comm(), "wrote %s (open in ParaView and press play) and %s/summary.json\n",
-         xdmf.c_str(), dir.c_str());
+  print0(ctx.comm(),
+         "wrote %s (%zu frames, %s; open in ParaView and press play) and %s/summary.json\n",
+         xdmf.c_str(), frame_t.size(), human_bytes(static_cast<double>(motion_file_bytes)).c_str(),
+         dir.c_str());
   return 0;
 }
 

@@ -7,6 +7,7 @@
 #include "flexopt/dynamics/newton_loop.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <utility>
 
@@ -452,13 +453,17 @@ State DistributedAlpha::small_state(const DistState &s) const {
 }
 
 std::vector<double> DistributedAlpha::owned_positions(const DistState &s, std::size_t body) const {
+  return owned_values(s.q, body);
+}
+
+std::vector<double> DistributedAlpha::owned_values(Vec v, std::size_t body) const {
   const PetscInt n = 3 * bodies_[body]->mesh().owned_nodes;
   std::vector<double> x(static_cast<std::size_t>(n));
   const PetscScalar *a;
-  FX_PETSC(VecGetArrayRead(s.q, &a));
+  FX_PETSC(VecGetArrayRead(v, &a));
   std::copy(a + (layout_->offset[body] - layout_->start),
             a + (layout_->offset[body] - layout_->start) + n, x.begin());
-  FX_PETSC(VecRestoreArrayRead(s.q, &a));
+  FX_PETSC(VecRestoreArrayRead(v, &a));
   return x;
 }
 
@@ -582,7 +587,7 @@ double DistributedAlpha::add_constraints(const DistState &next, double bp, doubl
   return global;
 }
 
-DistState DistributedAlpha::initial_state(Vec q0, Vec v0, double t0) const {
+DistState DistributedAlpha::initial_state(Vec q0, Vec v0, double t0, StartReport *report) const {
   const detail::AcfLayout &L = *layout_;
   const bool root = comm_rank(comm_) == 0;
   DistState s;
@@ -644,23 +649,47 @@ DistState DistributedAlpha::initial_state(Vec q0, Vec v0, double t0) const {
                       KSPConvergedReasons[reason] + ")",
                   true);
   };
-  // Velocities: the smallest change in kinetic energy onto Phi_q v + Phi_t = 0.
-  FX_PETSC(MatMult(A_, s.v, w_)); // multiplier rows: Phi_q v
-  FX_PETSC(VecPointwiseMult(r_, w_, lmask_));
-  FX_PETSC(VecScale(r_, -1.0));
-  Vector phi_t, phi_tt, phi_qt_v;
-  if (root && small_) {
-    small_->constraint_time_terms(sm.q, sm.v, t0, phi_t, phi_tt, phi_qt_v);
-    const Vector m_phi_t = -phi_t;
-    const auto ir = range(L.small_row0, L.small_m);
-    FX_PETSC(VecSetValues(r_, L.small_m, ir.data(), m_phi_t.data(), ADD_VALUES));
+  // Velocities: the rigid-body velocities corrected onto Phi_q v + Phi_t = 0 with the least
+  // change of kinetic energy, the elastic ones kept (section 6.4).
+  StartReport rep;
+  rep.kinetic_given = kinetic_energy(s);
+  const double given = velocity_violation(s, sm);
+  if (small_) {
+    const std::vector<RigidField> fields = rigid_fields(s);
+    const VelocityCorrection c = rigid_velocity_correction(*small_, sm.q, sm.v, t0, fields);
+    PetscScalar *v;
+    const PetscScalar *x;
+    FX_PETSC(VecGetArray(s.v, &v));
+    FX_PETSC(VecGetArrayRead(s.q, &x));
+    if (root)
+      for (int k = 0; k < L.small_n; ++k) v[L.small_coord0 - L.start + k] += c.dv(k);
+    for (std::size_t b = 0; b < bodies_.size(); ++b) {
+      const Vec3 du = c.field[b].head<3>(), dw = c.field[b].tail<3>();
+      const PetscInt base = L.offset[b] - L.start;
+      for (PetscInt i = 0; i < bodies_[b]->mesh().owned_nodes; ++i) {
+        const Vec3 xi(x[base + 3 * i], x[base + 3 * i + 1], x[base + 3 * i + 2]);
+        const Vec3 d = du + dw.cross(xi - fields[b].centre);
+        for (int k = 0; k < 3; ++k) v[base + 3 * i + k] += d(k);
+      }
+    }
+    FX_PETSC(VecRestoreArrayRead(s.q, &x));
+    FX_PETSC(VecRestoreArray(s.v, &v));
+    sm = small_state(s);
   }
-  FX_PETSC(VecAssemblyBegin(r_));
-  FX_PETSC(VecAssemblyEnd(r_));
-  solve("velocity projection");
-  FX_PETSC(VecPointwiseMult(w_, dz_, cmask_));
-  FX_PETSC(VecAXPY(s.v, 1.0, w_));
-  sm = small_state(s);
+  rep.rigid_residual = velocity_violation(s, sm);
+  if (rep.rigid_residual > kVelocityTolerance * (1 + given)) {
+    // The joints (or ties holding a surface that the given elastic velocities deform) need
+    // elastic velocities: the smallest change in kinetic energy of all velocities,
+    // S [dv; mu] = [0; -(Phi_q v + Phi_t)] (massless interface nodes change freely).
+    solve("velocity projection");
+    FX_PETSC(VecPointwiseMult(w_, dz_, cmask_));
+    FX_PETSC(VecAXPY(s.v, 1.0, w_));
+    sm = small_state(s);
+    rep.elastic_corrected = true;
+  }
+  rep.kinetic = kinetic_energy(s);
+  if (report) *report = rep;
+  Vector phi_t, phi_tt, phi_qt_v;
   // Accelerations and multipliers: [M Phi_q^T; Phi_q 0] [acc; lambda] = [Q; gamma].
   internal(s.q, nullptr, s.v);           // the damping force at the projected velocities
   FX_PETSC(VecWAXPY(r_, -1.0, F_, fg_)); // f_g - f(x) - f_d(x, v) on the ACF rows, 0 elsewhere
@@ -692,6 +721,90 @@ DistState DistributedAlpha::initial_state(Vec q0, Vec v0, double t0) const {
   FX_PETSC(VecPointwiseMult(s.lambda, dz_, lmask_));
   FX_PETSC(VecCopy(s.acc, s.a));
   return s;
+}
+
+double DistributedAlpha::velocity_violation(const DistState &s, const State &small) const {
+  const detail::AcfLayout &L = *layout_;
+  FX_PETSC(MatMult(A_, s.v, w_)); // multiplier rows: Phi_q v
+  FX_PETSC(VecPointwiseMult(r_, w_, lmask_));
+  FX_PETSC(VecScale(r_, -1.0));
+  if (comm_rank(comm_) == 0 && small_) {
+    Vector phi_t, phi_tt, phi_qt_v;
+    small_->constraint_time_terms(small.q, small.v, small.t, phi_t, phi_tt, phi_qt_v);
+    const Vector m_phi_t = -phi_t;
+    const auto ir = range(L.small_row0, L.small_m);
+    FX_PETSC(VecSetValues(r_, L.small_m, ir.data(), m_phi_t.data(), ADD_VALUES));
+  }
+  FX_PETSC(VecAssemblyBegin(r_));
+  FX_PETSC(VecAssemblyEnd(r_));
+  return max_abs(r_);
+}
+
+std::vector<RigidField> DistributedAlpha::rigid_fields(const DistState &s) const {
+  const detail::AcfLayout &L = *layout_;
+  std::vector<RigidField> fields(bodies_.size());
+  const PetscScalar *x;
+  for (std::size_t b = 0; b < bodies_.size(); ++b) {
+    RigidField &f = fields[b];
+    for (const AcfInterface &i : interfaces_)
+      if (i.body == b) f.nodes.push_back(i.node_body);
+    const PetscInt base = L.offset[b] - L.start, nodes = bodies_[b]->mesh().owned_nodes;
+    double sum[4] = {0, 0, 0, static_cast<double>(nodes)}, all[4];
+    FX_PETSC(VecGetArrayRead(s.q, &x));
+    for (PetscInt i = 0; i < nodes; ++i)
+      for (int k = 0; k < 3; ++k) sum[k] += x[base + 3 * i + k];
+    FX_PETSC(VecRestoreArrayRead(s.q, &x));
+    MPI_Allreduce(sum, all, 4, MPI_DOUBLE, MPI_SUM, comm_);
+    f.centre = Vec3(all[0], all[1], all[2]) / all[3];
+    // V: unit translations and unit spins about the centre on body b's nodes; metric V^T M V.
+    std::array<Vec, 6> V{}, MV{};
+    FX_PETSC(VecGetArrayRead(s.q, &x));
+    std::vector<Vec3> arm(static_cast<std::size_t>(nodes));
+    for (PetscInt i = 0; i < nodes; ++i)
+      arm[static_cast<std::size_t>(i)] =
+          Vec3(x[base + 3 * i], x[base + 3 * i + 1], x[base + 3 * i + 2]) - f.centre;
+    FX_PETSC(VecRestoreArrayRead(s.q, &x));
+    for (int c = 0; c < 6; ++c) {
+      V[static_cast<std::size_t>(c)] = create_vector();
+      MV[static_cast<std::size_t>(c)] = create_vector();
+      PetscScalar *a;
+      FX_PETSC(VecGetArray(V[static_cast<std::size_t>(c)], &a));
+      for (PetscInt i = 0; i < nodes; ++i) {
+        const Vec3 d = c < 3 ? Vec3(Vec3::Unit(c))
+                             : Vec3(Vec3::Unit(c - 3).cross(arm[static_cast<std::size_t>(i)]));
+        for (int k = 0; k < 3; ++k) a[base + 3 * i + k] = d(k);
+      }
+      FX_PETSC(VecRestoreArray(V[static_cast<std::size_t>(c)], &a));
+      FX_PETSC(MatMult(M_, V[static_cast<std::size_t>(c)], MV[static_cast<std::size_t>(c)]));
+    }
+    for (int c = 0; c < 6; ++c) {
+      PetscScalar dots[6];
+      FX_PETSC(VecMDot(V[static_cast<std::size_t>(c)], 6, MV.data(), dots));
+      for (int d = 0; d < 6; ++d) f.metric(c, d) = dots[d];
+    }
+    f.metric = 0.5 * (f.metric + f.metric.transpose()).eval();
+    for (int c = 0; c < 6; ++c) {
+      FX_PETSC(VecDestroy(&V[static_cast<std::size_t>(c)]));
+      FX_PETSC(VecDestroy(&MV[static_cast<std::size_t>(c)]));
+    }
+  }
+  return fields;
+}
+
+double DistributedAlpha::kinetic_energy(const DistState &s) const {
+  double acf;
+  FX_PETSC(MatMult(M_, s.v, r_));
+  FX_PETSC(VecDot(s.v, r_, &acf));
+  double small = 0;
+  if (small_) {
+    const State sm = small_state(s);
+    Vector r;
+    Matrix M;
+    const int n = small_->coordinates();
+    small_->dynamics(sm.q, sm.v, Vector::Zero(n), s.t, r, nullptr, nullptr, &M);
+    small = sm.v.dot(M * sm.v);
+  }
+  return 0.5 * (acf + small);
 }
 
 double DistributedAlpha::tie_violation(const DistState &s) const {

@@ -1,6 +1,7 @@
 #include "flexopt/dynamics/generalized_alpha.hpp"
 
 #include "flexopt/core/error.hpp"
+#include "flexopt/dynamics/consistent_start.hpp"
 #include "flexopt/dynamics/newton_loop.hpp"
 
 #include <Eigen/LU>
@@ -154,17 +155,8 @@ GeneralizedAlpha::GeneralizedAlpha(const Mechanism &mechanism, AlphaParameters p
     }
 }
 
-namespace {
-
-/// Minimum-norm solution x of J x = b (J full row rank), x = J^T (J J^T)^-1 b.
-Vector min_norm(const Matrix &J, const Vector &b) {
-  const Matrix JJt = J * J.transpose();
-  return J.transpose() * JJt.partialPivLu().solve(b);
-}
-
-} // namespace
-
-State GeneralizedAlpha::initial_state(const Vector &q0, const Vector &v0, double t0) const {
+State GeneralizedAlpha::initial_state(const Vector &q0, const Vector &v0, double t0,
+                                      StartReport *report) const {
   const int n = mech_.coordinates(), m = mech_.constraints();
   State s;
   s.t = t0;
@@ -180,7 +172,8 @@ State GeneralizedAlpha::initial_state(const Vector &q0, const Vector &v0, double
   for (; it < 50; ++it) {
     mech_.constraint(s.q, t0, phi, &J);
     if (m == 0 || phi.cwiseAbs().maxCoeff() <= tol) break;
-    s.q -= min_norm(J, phi);
+    const Matrix JJt = J * J.transpose();
+    s.q -= J.transpose() * JJt.partialPivLu().solve(phi);
   }
   Vector all;
   mech_.all_constraint_values(s.q, t0, all);
@@ -197,18 +190,37 @@ State GeneralizedAlpha::initial_state(const Vector &q0, const Vector &v0, double
                     std::to_string(it) +
                     " position corrections these constraints remain violated:" + bad.str(),
                 true);
-  // Velocities: smallest correction onto Phi_q v + Phi_t = 0.
-  s.v = v0;
+  // Velocities: the rigid-body velocities corrected onto Phi_q v + Phi_t = 0 with the least
+  // change of kinetic energy, the elastic ones kept (section 6.4).
+  Vector r;
+  Matrix M;
+  mech_.dynamics(s.q, v0, Vector::Zero(n), t0, r, nullptr, nullptr, &M);
+  StartReport rep;
+  rep.kinetic_given = 0.5 * v0.dot(M * v0);
+  const VelocityCorrection rigid = rigid_velocity_correction(mech_, s.q, v0, t0);
+  s.v = v0 + rigid.dv;
+  rep.rigid_residual = rigid.residual;
   mech_.constraint(s.q, t0, phi, &J);
   Vector phi_t, phi_tt, phi_qt_v;
-  mech_.constraint_time_terms(s.q, s.v, t0, phi_t, phi_tt, phi_qt_v);
-  if (m > 0) s.v -= min_norm(J, J * s.v + phi_t);
+  if (m > 0 && rigid.residual > kVelocityTolerance * (1 + rigid.scale)) {
+    // The joints prescribe elastic velocities: the smallest change in kinetic energy of all
+    // velocities, [M J^T; J 0] [dv; mu] = [0; -(J v + Phi_t)].
+    mech_.constraint_time_terms(s.q, s.v, t0, phi_t, phi_tt, phi_qt_v);
+    Matrix S = Matrix::Zero(n + m, n + m);
+    S.topLeftCorner(n, n) = M;
+    S.topRightCorner(n, m) = J.transpose();
+    S.bottomLeftCorner(m, n) = J;
+    Vector rhs = Vector::Zero(n + m);
+    rhs.tail(m) = -(J * s.v + phi_t);
+    s.v += S.partialPivLu().solve(rhs).head(n);
+    rep.elastic_corrected = true;
+  }
+  rep.kinetic = 0.5 * s.v.dot(M * s.v);
+  if (report) *report = rep;
   mech_.constraint_time_terms(s.q, s.v, t0, phi_t, phi_tt, phi_qt_v);
   // Accelerations and multipliers: [M J^T; J 0] [acc; lambda] = [-r0; -(J v)_q v - 2 Phi_qt v -
   // Phi_tt].
-  Vector r;
-  Matrix M;
-  mech_.dynamics(s.q, s.v, Vector::Zero(n), t0, r, nullptr, nullptr, &M);
+  mech_.dynamics(s.q, s.v, Vector::Zero(n), t0, r, nullptr, nullptr, nullptr);
   Matrix A = Matrix::Zero(n + m, n + m);
   A.topLeftCorner(n, n) = M;
   A.topRightCorner(n, m) = J.transpose();

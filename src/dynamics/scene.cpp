@@ -181,7 +181,8 @@ Scene build_scene(MPI_Comm comm, const io::Case &c) {
     const auto &mat = c.material(spec.material);
     SceneBody &sb = scene.bodies[b];
     sb.mechanism = static_cast<int>(mech.bodies.size());
-    if (spec.model == "acf") {
+    const std::string model = io::simulated_model(spec.model);
+    if (model == "acf") {
       scene.meshes.push_back(mesh::load_body_mesh(comm, spec));
       const mesh::DistributedMesh &m = scene.meshes.back();
       sb.mechanism = -1;
@@ -221,7 +222,7 @@ Scene build_scene(MPI_Comm comm, const io::Case &c) {
              spec.name.c_str(), scene.acf.back()->total_mass(),
              static_cast<long long>(m.global_nodes), 3LL * m.global_nodes,
              static_cast<long long>(m.global_elements), names.empty() ? "none" : names.c_str());
-    } else if (spec.model == "ffrf") {
+    } else if (model == "ffrf") {
       if (spec.interfaces.empty())
         throw Error(spec.where.str() + ": body '" + spec.name +
                         "' (model: ffrf) lists no interfaces; its floating frame is clamped at "

@@ -17,6 +17,11 @@ std::string Location::str() const {
   return file + ":" + std::to_string(line) + ":" + std::to_string(column);
 }
 
+std::int64_t default_max_elements(int order, bool hexahedra) {
+  if (hexahedra) return 500000;
+  return order == 2 ? 400000 : 2000000;
+}
+
 const MaterialSpec &Case::material(const std::string &n) const {
   for (const auto &m : materials)
     if (m.name == n) return m;
@@ -27,6 +32,55 @@ const BodySpec &Case::body(const std::string &n) const {
   for (const auto &b : bodies)
     if (b.name == n) return b;
   throw Error("no body '" + n + "' in " + file, true);
+}
+
+const std::vector<ModelSetting> &model_settings() {
+  static const std::vector<ModelSetting> settings = {
+      {"reduction", {"ffrf"}},
+      {"damping", {"ffrf", "acf"}},
+      {"initial.elastic_displacement", {"ffrf", "acf"}},
+      {"initial.elastic_velocity", {"ffrf", "acf"}},
+  };
+  return settings;
+}
+
+std::string simulated_model(const std::string &model) {
+  return model == "auto" ? "rigid" : model;
+}
+
+std::vector<std::string> settings_used_by(const std::string &model) {
+  const std::string simulated = simulated_model(model);
+  std::vector<std::string> keys;
+  for (const ModelSetting &s : model_settings())
+    if (std::find(s.models.begin(), s.models.end(), simulated) != s.models.end())
+      keys.push_back(s.key);
+  return keys;
+}
+
+std::vector<std::string> unused_settings(const BodySpec &body) {
+  const std::vector<std::string> used = settings_used_by(body.model);
+  std::vector<std::string> unused;
+  for (const ModelSetting &s : model_settings())
+    if (std::find(body.settings.begin(), body.settings.end(), s.key) != body.settings.end() &&
+        std::find(used.begin(), used.end(), s.key) == used.end())
+      unused.push_back(s.key);
+  return unused;
+}
+
+std::string unused_settings_note(const BodySpec &body) {
+  std::string list;
+  for (const std::string &key : unused_settings(body)) {
+    std::string models;
+    for (const ModelSetting &s : model_settings())
+      if (s.key == key)
+        for (const std::string &m : s.models) models += (models.empty() ? "" : ", ") + m;
+    list += (list.empty() ? "" : ", ") + key + " (" + models + ")";
+  }
+  if (list.empty()) return "";
+  std::string model = "model: " + body.model;
+  if (simulated_model(body.model) != body.model)
+    model += ", simulated as " + simulated_model(body.model);
+  return "body " + body.name + " (" + model + "): settings not used by this model: " + list;
 }
 
 namespace {
@@ -224,8 +278,10 @@ std::string join(const std::vector<std::string> &names, const char *none = "none
   return out.empty() ? none : out;
 }
 
-void read_initial(const Reader &r, const YAML::Node &v, const std::string &path,
-                  const std::string &model, InitialSpec &s) {
+/// Reads `bodies[].initial` into `b.initial`; the elastic fields (model settings) are recorded
+/// in `b.settings`.
+void read_initial(const Reader &r, const YAML::Node &v, const std::string &path, BodySpec &b) {
+  InitialSpec &s = b.initial;
   r.require_map(v, path);
   r.check_keys(v, path,
                {"position", "rotation", "velocity", "angular_velocity", "elastic_displacement",
@@ -244,10 +300,7 @@ void read_initial(const Reader &r, const YAML::Node &v, const std::string &path,
     s.angular_velocity = r.vector3(v["angular_velocity"], path + ".angular_velocity");
   for (const char *key : {"elastic_displacement", "elastic_velocity"}) {
     if (!v[key]) continue;
-    if (model != "ffrf" && model != "acf")
-      r.fail(r.key_node(v, key),
-             path + "." + key + ": only a flexible (ffrf or acf) body deforms (model: " + model +
-                 ")");
+    b.settings.push_back(std::string("initial.") + key);
     (std::string(key) == "elastic_velocity" ? s.elastic_velocity : s.elastic_displacement) =
         r.point_field(v[key], path + "." + key);
   }
@@ -276,13 +329,10 @@ void read_bodies(const Reader &r, const YAML::Node &node, const fs::path &dir, C
     if (v["model"]) {
       b.model = r.choice(v["model"], path + ".model", {"rigid", "ffrf", "acf", "auto"});
     }
-    if (v["reduction"] && b.model != "ffrf")
-      r.fail(r.key_node(v, "reduction"),
-             path + ".reduction: only an ffrf body takes it (model: " + b.model + ")");
-    if (v["damping"] && b.model != "ffrf" && b.model != "acf")
-      r.fail(r.key_node(v, "damping"),
-             path + ".damping: only ffrf and acf bodies take it (model: " + b.model + ")");
+    // The settings of every model are read and checked whatever `model` is (a body may carry
+    // them all; `model` picks the ones used, and unused_settings() reports the others).
     if (v["reduction"]) {
+      b.settings.push_back("reduction");
       const YAML::Node &m = v["reduction"];
       const std::string mp = path + ".reduction";
       r.require_map(m, mp);
@@ -305,6 +355,7 @@ void read_bodies(const Reader &r, const YAML::Node &node, const fs::path &dir, C
       }
     }
     if (v["damping"]) {
+      b.settings.push_back("damping");
       const YAML::Node &m = v["damping"];
       const std::string mp = path + ".damping";
       r.require_map(m, mp);
@@ -317,11 +368,14 @@ void read_bodies(const Reader &r, const YAML::Node &node, const fs::path &dir, C
         if (b.rayleigh[k] < 0)
           r.fail(ray[k], mp + ".rayleigh[" + std::to_string(k) + "]: must not be negative");
       }
-      if (b.model == "acf" && b.rayleigh[0] != 0)
+      // Only where acf uses it: the same [a, b] serves an ffrf body.
+      if (simulated_model(b.model) == "acf" && b.rayleigh[0] != 0)
         r.fail(ray[0], mp + ".rayleigh[0]: an acf body takes stiffness-proportional damping "
                             "only, [0, b]: mass-proportional damping of its absolute velocities "
-                            "would brake its rigid motion (docs/theory.md section 8.1)");
+                            "would brake its rigid motion (docs/theory.md section 8.1; an ffrf "
+                            "body takes [a, b])");
     }
+    b.mesh.where = b.where;
     b.geometry_key = r.string(r.require(v, "geometry", path), path + ".geometry");
     b.geometry = (dir / b.geometry_key).string();
     const std::string ext = fs::path(b.geometry).extension().string();
@@ -334,8 +388,9 @@ void read_bodies(const Reader &r, const YAML::Node &node, const fs::path &dir, C
       const YAML::Node &m = v["mesh"];
       const std::string mp = path + ".mesh";
       r.require_map(m, mp);
-      r.check_keys(m, mp, {"size", "order"});
+      r.check_keys(m, mp, {"size", "order", "max_elements"});
       b.mesh.given = true;
+      b.mesh.where = r.where(r.key_node(v, "mesh"));
       if (ext == ".msh")
         r.fail(m, mp + ": only applies to a .geo geometry; a .msh file is used as it is");
       if (m["size"]) {
@@ -346,6 +401,11 @@ void read_bodies(const Reader &r, const YAML::Node &node, const fs::path &dir, C
         b.mesh.order = r.integer(m["order"], mp + ".order");
         if (b.mesh.order != 1 && b.mesh.order != 2)
           r.fail(m["order"], mp + ".order: must be 1 (Tet4/Hex8) or 2 (Tet10)");
+      }
+      if (m["max_elements"]) {
+        b.mesh.max_elements = r.integer(m["max_elements"], mp + ".max_elements");
+        if (b.mesh.max_elements < 1)
+          r.fail(m["max_elements"], mp + ".max_elements: must be a positive integer");
       }
     }
     b.material = r.string(r.require(v, "material", path), path + ".material");
@@ -368,7 +428,7 @@ void read_bodies(const Reader &r, const YAML::Node &node, const fs::path &dir, C
         r.fail(r.key_node(v, "initial"),
                path + ".initial: needs analysis: dynamic (a static analysis does not place or "
                       "move bodies)");
-      read_initial(r, v["initial"], path + ".initial", b.model, b.initial);
+      read_initial(r, v["initial"], path + ".initial", b);
     }
     c.bodies.push_back(b);
   }
@@ -609,6 +669,27 @@ void read_time(const Reader &r, const YAML::Node &v, Case &c) {
   t.given = true;
 }
 
+void read_output(const Reader &r, const YAML::Node &o, bool dynamic, Case &c) {
+  r.require_map(o, "output");
+  r.check_keys(o, "output", {"every", "interval"});
+  if (o["every"] && o["interval"])
+    r.fail(r.key_node(o, "interval"),
+           "output: give either every (steps) or interval (seconds), not both");
+  if (o["every"]) {
+    c.output.every = r.integer(o["every"], "output.every");
+    if (c.output.every < 1) r.fail(o["every"], "output.every: must be >= 1");
+  }
+  if (o["interval"]) {
+    if (!dynamic)
+      r.fail(r.key_node(o, "interval"),
+             "output.interval: needs analysis: dynamic (a static case writes per design "
+             "iteration: use output.every)");
+    c.output.interval = r.number(o["interval"], "output.interval");
+    if (!(c.output.interval > 0))
+      r.fail(o["interval"], "output.interval: must be positive (seconds of simulated time)");
+  }
+}
+
 void read_sensors(const Reader &r, const YAML::Node &node, Case &c) {
   r.require_sequence(node, "sensors");
   for (std::size_t i = 0; i < node.size(); ++i) {
@@ -803,15 +884,7 @@ Case load_case(const std::string &directory) {
   if (root["line_loads"])
     read_tractions(r, root["line_loads"], c, "line_loads", "curve", c.line_loads);
   if (root["sensors"]) read_sensors(r, root["sensors"], c);
-  if (root["output"]) {
-    const YAML::Node &o = root["output"];
-    r.require_map(o, "output");
-    r.check_keys(o, "output", {"every"});
-    if (o["every"]) {
-      c.output_every = r.integer(o["every"], "output.every");
-      if (c.output_every < 1) r.fail(o["every"], "output.every: must be >= 1");
-    }
-  }
+  if (root["output"]) read_output(r, root["output"], dynamic, c);
   if (root["solver"]) c.solver = r.string(root["solver"], "solver");
   if (root["design"]) read_design(r, root["design"], c);
   if (root["objective"]) c.objective = read_response(r, root["objective"], "objective", false, c);

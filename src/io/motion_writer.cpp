@@ -408,4 +408,53 @@ std::string MotionWriter::close() {
   return m.xdmf_final;
 }
 
+namespace {
+
+/// HDF5 metadata per step and body: the group /<body>/step_K (object header, its link in the
+/// body group's symbol table with B-tree and name heap) [bytes, measured: docs/output.md].
+constexpr double kH5GroupBytes = 1145;
+/// HDF5 metadata once per file: superblock, root group, /time [bytes, measured].
+constexpr double kH5FileBytes = 2048;
+/// HDF5 metadata per dataset (object header with dataspace, datatype and layout messages; its
+/// link in the step group) [bytes, measured].
+constexpr double kH5DatasetBytes = 280;
+/// The fixed characters of xdmf_text() per step (spatial collection, Time), per step and body
+/// (Grid, Topology, Geometry) and per node field (Attribute); the names and numbers they hold
+/// are added to them. A time printed with %.17g takes up to about 20 characters.
+constexpr double kXdmfStepChars = 112 + 20, kXdmfBodyChars = 417, kXdmfFieldChars = 195;
+
+double digits(long long v) {
+  return static_cast<double>(std::to_string(v).size());
+}
+
+} // namespace
+
+double estimate_motion_bytes(const std::vector<MotionBody> &bodies,
+                             const std::vector<std::vector<std::string>> &node_vectors,
+                             long long frames) {
+  const double h5 = 9;             // "motion.h5"
+  const double k = digits(frames); // step number K, at most this many digits
+  double once = kH5FileBytes, per_frame = 8 + kXdmfStepChars + k; // /time and the step's XDMF text
+  for (std::size_t b = 0; b < bodies.size(); ++b) {
+    const GridLayout &g = bodies[b].layout;
+    const auto nodes = static_cast<double>(g.global_nodes);
+    const double name = static_cast<double>(bodies[b].name.size());
+    const double nn = digits(g.global_nodes);
+    // The reference mesh: coordinates (float64) and cell nodes (int64).
+    once += kH5GroupBytes + 24 * nodes +
+            8 * static_cast<double>(g.global_cells) * g.nodes_per_cell + 2 * kH5DatasetBytes;
+    // Positions: float64 x, y, z per node, and its grid in the XDMF text.
+    per_frame += kH5GroupBytes + 24 * nodes + kH5DatasetBytes;
+    per_frame += kXdmfBodyChars + 3 * name + 2 * h5 + 2 * digits(g.global_cells) +
+                 digits(g.nodes_per_cell) + nn + static_cast<double>(g.topology_type.size()) + k;
+    if (b >= node_vectors.size()) continue;
+    for (const std::string &field : node_vectors[b]) {
+      const auto f = static_cast<double>(field.size());
+      per_frame += 24 * nodes + kH5DatasetBytes;
+      per_frame += kXdmfFieldChars + 2 * f + name + h5 + nn + k;
+    }
+  }
+  return once + static_cast<double>(frames) * per_frame;
+}
+
 } // namespace flexopt::io

@@ -8,6 +8,7 @@
 #include "flexopt/optimize/mma.hpp"
 #include "flexopt/optimize/topology_problem.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <sstream>
@@ -184,7 +185,7 @@ OptimizationResult run_optimization(MPI_Comm comm, const io::Case &c, const std:
       throw Error("optimize: iteration " + std::to_string(k) + ": the objective is not finite",
                   true);
     if (k == 1) objective_scale = std::abs(e.objective) > 0 ? 10.0 / std::abs(e.objective) : 1.0;
-    const bool write = (k - 1) % c.output_every == 0;
+    const bool write = (k - 1) % std::max(c.output.every, 1) == 0; // default: every one
     if (write) write_densities(writer, *problem, k - 1);
 
     FX_PETSC(VecCopy(e.d_objective, df0));

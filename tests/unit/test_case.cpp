@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <fstream>
 #include <gtest/gtest.h>
+#include <map>
 
 namespace fs = std::filesystem;
 using flexopt::Error;
@@ -362,9 +363,40 @@ TEST_F(CaseFiles, DynamicCaseParsesFieldByField) {
   EXPECT_EQ(c.sensors[0].quantity, "position");
   EXPECT_EQ(c.sensors[1].quantity, "rotation_angle");
   EXPECT_EQ(c.sensors[2].quantity, "displacement");
-  EXPECT_EQ(c.output_every, 10);
+  EXPECT_EQ(c.output.every, 10);
+  EXPECT_EQ(c.output.interval, 0.0);
   EXPECT_TRUE(c.supports.empty());
   EXPECT_FALSE(c.design.has_value());
+}
+
+TEST_F(CaseFiles, OutputIntervalParsesAndOutputIsOptional) {
+  write(dynamic_with("output: {every: 10}", "output: {interval: 2.5e-3}"));
+  auto c = load_case(dir_.string());
+  EXPECT_EQ(c.output.every, 0);
+  EXPECT_DOUBLE_EQ(c.output.interval, 2.5e-3);
+  EXPECT_TRUE(c.output.given());
+  write(dynamic_with("output: {every: 10}\n", ""));
+  c = load_case(dir_.string());
+  EXPECT_FALSE(c.output.given()); // the defaults of io::FrameSchedule
+}
+
+TEST_F(CaseFiles, OutputBadValuesRejected) {
+  // Line 42 of kDynamic holds output:; "output: {" is 9 characters.
+  EXPECT_CASE_ERROR(dynamic_with("output: {every: 10}", "output: {every: 0}"),
+                    "case.yaml:42:17:", "output.every: must be >= 1");
+  EXPECT_CASE_ERROR(dynamic_with("output: {every: 10}", "output: {every: 2.5}"),
+                    "output.every: expected an integer");
+  EXPECT_CASE_ERROR(dynamic_with("output: {every: 10}", "output: {interval: -1}"),
+                    "case.yaml:42:20:", "output.interval: must be positive");
+  EXPECT_CASE_ERROR(dynamic_with("output: {every: 10}", "output: {interval: 0}"),
+                    "output.interval: must be positive");
+  EXPECT_CASE_ERROR(dynamic_with("output: {every: 10}", "output: {every: 10, interval: 0.1}"),
+                    "case.yaml:42:21:", "give either every (steps) or interval (seconds)");
+  EXPECT_CASE_ERROR(dynamic_with("output: {every: 10}", "output: {frames: 10}"),
+                    "unknown key 'output.frames' (allowed here: every, interval)");
+  // A static case's output is per design iteration: no interval of simulated time.
+  EXPECT_CASE_ERROR(std::string(kValid) + "output: {interval: 0.1}\n",
+                    "output.interval: needs analysis: dynamic");
 }
 
 TEST_F(CaseFiles, TimeRhoInfDefaultsTo08) {
@@ -442,9 +474,6 @@ TEST_F(CaseFiles, FfrfReductionAndDamping) {
 }
 
 TEST_F(CaseFiles, ReductionAndDampingErrors) {
-  EXPECT_CASE_ERROR(dynamic_with("    interfaces: [pin_a, pin_b]\n",
-                                 "    interfaces: [pin_a, pin_b]\n    reduction: {modes: 8}\n"),
-                    "case.yaml:14:", "bodies[1].reduction: only an ffrf body takes it");
   const std::string ffrf = "    interfaces: [pin_a, pin_b]\n    model: ffrf\n";
   EXPECT_CASE_ERROR(
       dynamic_with("    interfaces: [pin_a, pin_b]\n", ffrf + "    reduction: {modes: -1}\n"),
@@ -495,11 +524,6 @@ TEST_F(CaseFiles, FfrfInitialElasticFields) {
 }
 
 TEST_F(CaseFiles, InitialElasticFieldErrors) {
-  const std::string field = "      velocity: [1, 2, 3]\n      elastic_velocity: [0, \"x\", 0]\n";
-  // A rigid body does not deform.
-  EXPECT_CASE_ERROR(
-      dynamic_with("      velocity: [1, 2, 3]\n", field), "case.yaml:18:",
-      "bodies[1].initial.elastic_velocity: only a flexible (ffrf or acf) body deforms");
   auto ffrf_with = [&](const std::string &to) {
     std::string y = dynamic_with("      velocity: [1, 2, 3]\n", to);
     y.replace(y.find("    interfaces: [pin_a, pin_b]\n"), 31,
@@ -514,17 +538,121 @@ TEST_F(CaseFiles, InitialElasticFieldErrors) {
       "bodies[1].initial.elastic_displacement[1]: cannot parse \"t*x\": unknown name \"t\"");
 }
 
-TEST_F(CaseFiles, AcfBodiesTakeNoReductionAndStiffnessDampingOnly) {
-  EXPECT_CASE_ERROR(dynamic_with("model: rigid", "model: acf\n    reduction: {modes: 4}"),
-                    "case.yaml:7:", "bodies[0].reduction: only an ffrf body takes it (model: acf)");
+TEST_F(CaseFiles, AcfBodiesTakeStiffnessDampingOnly) {
   EXPECT_CASE_ERROR(
       dynamic_with("model: rigid", "model: acf\n    damping: {rayleigh: [0.5, 1.0e-4]}"),
       "case.yaml:7:", "bodies[0].damping.rayleigh[0]: an acf body takes stiffness-proportional");
-  EXPECT_CASE_ERROR(
-      dynamic_with("model: rigid", "model: rigid\n    damping: {rayleigh: [0, 1.0e-4]}"),
-      "case.yaml:7:", "bodies[0].damping: only ffrf and acf bodies take it (model: rigid)");
   write(dynamic_with("model: rigid", "model: acf\n    damping: {rayleigh: [0, 1.0e-4]}"));
   EXPECT_DOUBLE_EQ(load_case(dir_.string()).bodies[0].rayleigh[1], 1.0e-4);
+}
+
+// A body carries the settings of every model; `model:` picks the ones used.
+
+TEST(ModelSettings, WhichModelUsesWhat) {
+  using flexopt::io::settings_used_by;
+  using V = std::vector<std::string>;
+  EXPECT_EQ(settings_used_by("rigid"), V{});
+  EXPECT_EQ(settings_used_by("ffrf"), (V{"reduction", "damping", "initial.elastic_displacement",
+                                         "initial.elastic_velocity"}));
+  EXPECT_EQ(settings_used_by("acf"),
+            (V{"damping", "initial.elastic_displacement", "initial.elastic_velocity"}));
+  EXPECT_EQ(flexopt::io::simulated_model("auto"), "rigid"); // this version
+  EXPECT_EQ(settings_used_by("auto"), settings_used_by("rigid"));
+}
+
+namespace {
+
+/// kDynamic with the rod (bodies[1], line 10) carrying the settings of every model and `model`
+/// set to `model`: reduction on line 15, damping on 16, elastic_velocity on 21.
+std::string rod_with_every_setting(const std::string &model, const std::string &reduction,
+                                   const std::string &damping) {
+  std::string y =
+      dynamic_with("    interfaces: [pin_a, pin_b]\n",
+                   "    interfaces: [pin_a, pin_b]\n    model: " + model +
+                       "\n    reduction: " + reduction + "\n    damping: " + damping + "\n");
+  y.replace(y.find("      velocity: [1, 2, 3]\n"), 26,
+            "      velocity: [1, 2, 3]\n      elastic_velocity: [0, \"0.4*sin(_pi*x/0.3)\", 0]\n");
+  return y;
+}
+
+} // namespace
+
+TEST_F(CaseFiles, OneWordSwitchesTheModel) {
+  using V = std::vector<std::string>;
+  const std::map<std::string, V> unused = {
+      {"rigid", {"reduction", "damping", "initial.elastic_velocity"}},
+      {"auto", {"reduction", "damping", "initial.elastic_velocity"}},
+      {"ffrf", {}},
+      {"acf", {"reduction"}}};
+  for (const auto &[model, expected] : unused) {
+    SCOPED_TRACE("model: " + model);
+    write(rod_with_every_setting(model, "{modes: 8, frame: chord}", "{rayleigh: [0, 2.0e-4]}"));
+    const flexopt::io::Case c = load_case(dir_.string());
+    const auto &rod = c.bodies[1];
+    EXPECT_EQ(rod.model, model);
+    // Every setting is parsed whatever the model, so that switching back uses it.
+    EXPECT_EQ(rod.reduction.modes, 8);
+    EXPECT_EQ(rod.reduction.frame, "chord");
+    EXPECT_DOUBLE_EQ(rod.rayleigh[1], 2.0e-4);
+    EXPECT_EQ(rod.initial.elastic_velocity[1], "0.4*sin(_pi*x/0.3)");
+    EXPECT_EQ(rod.settings, (V{"reduction", "damping", "initial.elastic_velocity"}));
+    EXPECT_EQ(flexopt::io::unused_settings(rod), expected);
+    // The other bodies carry no model settings.
+    EXPECT_TRUE(flexopt::io::unused_settings(c.bodies[0]).empty());
+    EXPECT_EQ(flexopt::io::unused_settings_note(c.bodies[0]), "");
+  }
+  write(rod_with_every_setting("acf", "{modes: 8}", "{rayleigh: [0, 2.0e-4]}"));
+  EXPECT_EQ(flexopt::io::unused_settings_note(load_case(dir_.string()).bodies[1]),
+            "body rod (model: acf): settings not used by this model: reduction (ffrf)");
+  write(rod_with_every_setting("rigid", "{modes: 8}", "{rayleigh: [0, 2.0e-4]}"));
+  EXPECT_EQ(flexopt::io::unused_settings_note(load_case(dir_.string()).bodies[1]),
+            "body rod (model: rigid): settings not used by this model: reduction (ffrf), damping "
+            "(ffrf, acf), initial.elastic_velocity (ffrf, acf)");
+  write(rod_with_every_setting("auto", "{modes: 8}", "{rayleigh: [0, 2.0e-4]}"));
+  EXPECT_EQ(flexopt::io::unused_settings_note(load_case(dir_.string()).bodies[1]),
+            "body rod (model: auto, simulated as rigid): settings not used by this model: "
+            "reduction (ffrf), damping (ffrf, acf), initial.elastic_velocity (ffrf, acf)");
+}
+
+TEST_F(CaseFiles, UnusedSettingsAreStillChecked) {
+  const std::string ok_damping = "{rayleigh: [0, 2.0e-4]}";
+  for (const std::string model : {"rigid", "acf"}) {
+    SCOPED_TRACE("model: " + model);
+    // A typo in a section the model does not use is refused, the key named.
+    EXPECT_CASE_ERROR(rod_with_every_setting(model, "{nodes: 8}", ok_damping),
+                      "case.yaml:15:", "unknown key 'bodies[1].reduction.nodes'");
+    EXPECT_CASE_ERROR(rod_with_every_setting(model, "{modes: -1}", ok_damping),
+                      "case.yaml:15:", "bodies[1].reduction.modes: the number of fixed-interface");
+    EXPECT_CASE_ERROR(rod_with_every_setting(model, "{frame: pinned}", ok_damping),
+                      "case.yaml:15:", "bodies[1].reduction.frame: 'pinned' is not one of");
+    EXPECT_CASE_ERROR(
+        rod_with_every_setting(model, "{geometric_stiffening: true, frame: chord}", ok_damping),
+        "case.yaml:15:", "bodies[1].reduction.frame: chord does not combine with");
+    EXPECT_CASE_ERROR(rod_with_every_setting(model, "{modes: 4}", "{rayleigh: [0, -1]}"),
+                      "case.yaml:16:", "bodies[1].damping.rayleigh[1]: must not be negative");
+    EXPECT_CASE_ERROR(rod_with_every_setting(model, "{modes: 4}", "{raleigh: [0, 1]}"),
+                      "case.yaml:16:", "unknown key 'bodies[1].damping.raleigh'");
+    std::string y = rod_with_every_setting(model, "{modes: 4}", ok_damping);
+    y.replace(y.find("\"0.4*sin(_pi*x/0.3)\""), 20, "\"t*x\"");
+    EXPECT_CASE_ERROR(
+        y, "case.yaml:21:", "bodies[1].initial.elastic_velocity[1]: cannot parse \"t*x\"");
+  }
+  // chord needs two interfaces whatever the model (the body has one).
+  std::string y = rod_with_every_setting("acf", "{frame: chord}", ok_damping);
+  y.replace(y.find("    interfaces: [pin_a, pin_b]\n"), 31, "    interfaces: [pin_a]\n");
+  EXPECT_CASE_ERROR(y, "bodies[1].reduction.frame: chord needs two interfaces");
+}
+
+TEST_F(CaseFiles, MassProportionalDampingIsAnErrorOnlyWhereAcfWouldUseIt) {
+  const std::string damping = "{rayleigh: [0.5, 2.0e-4]}";
+  EXPECT_CASE_ERROR(rod_with_every_setting("acf", "{modes: 4}", damping), "case.yaml:16:",
+                    "bodies[1].damping.rayleigh[0]: an acf body takes stiffness-proportional");
+  write(rod_with_every_setting("ffrf", "{modes: 4}", damping));
+  EXPECT_DOUBLE_EQ(load_case(dir_.string()).bodies[1].rayleigh[0], 0.5); // used by ffrf
+  write(rod_with_every_setting("rigid", "{modes: 4}", damping));
+  const auto rigid = load_case(dir_.string()).bodies[1];
+  EXPECT_DOUBLE_EQ(rigid.rayleigh[0], 0.5); // carried, unused
+  EXPECT_EQ(flexopt::io::unused_settings(rigid).at(1), "damping");
 }
 
 TEST_F(CaseFiles, StaticAnalysisIgnoresModel) {

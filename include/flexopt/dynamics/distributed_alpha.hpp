@@ -14,6 +14,7 @@
 /// (rank 0) the small part's enforced constraint rows. All state vectors have this layout: q, v,
 /// a, acc are zero on the multiplier entries, lambda on the coordinate entries.
 #include "flexopt/bodies/acf_body.hpp"
+#include "flexopt/dynamics/consistent_start.hpp"
 #include "flexopt/dynamics/generalized_alpha.hpp"
 #include "flexopt/dynamics/ties.hpp"
 #include "flexopt/fem/probe.hpp"
@@ -81,18 +82,25 @@ public:
   State small_state(const DistState &s) const;
   /// World positions of the owned nodes of ACF body b (3 per node, node-major). Not collective.
   std::vector<double> owned_positions(const DistState &s, std::size_t body) const;
+  /// The entries of a vector of this layout at the owned nodes of ACF body b (3 per node,
+  /// node-major). Not collective.
+  std::vector<double> owned_values(Vec v, std::size_t body) const;
   /// The position at a located point of ACF body b (FE interpolation), on every rank.
   /// Collective.
   Vec3 point_position(const DistState &s, std::size_t body, const fem::PointLocation &p) const;
 
   /// The consistent state at t0 from placed positions q0 and velocities v0 (this layout,
   /// multiplier entries ignored): the positions must satisfy every enforced constraint (ties
-  /// and the small part's rows, to 1e-9 of the scene's size); the velocities are projected onto
-  /// Phi_q v + Phi_t = 0 (the smallest change in kinetic energy); acc and lambda solve the
-  /// acceleration-level equations [M Phi_q^T; Phi_q 0] [acc; lambda] = [Q; gamma]; a = acc.
+  /// and the small part's rows, to 1e-9 of the scene's size); the velocities are corrected onto
+  /// Phi_q v + Phi_t = 0 by the rigid-body velocities of every body (the frames of rigid and
+  /// FFRF bodies, the six rigid velocity fields of each ACF body) with the least change of
+  /// kinetic energy, the elastic velocities kept (rigid_velocity_correction); should the joints
+  /// need elastic velocities, the mass-weighted projection of all velocities follows. acc and
+  /// lambda solve the acceleration-level equations [M Phi_q^T; Phi_q 0] [acc; lambda] =
+  /// [Q; gamma]; a = acc. What the correction did goes into `report` (if non-null).
   /// Collective; throws a collective flexopt::Error naming the violated constraints, an
   /// inverted element or a singular system.
-  DistState initial_state(Vec q0, Vec v0, double t0) const;
+  DistState initial_state(Vec q0, Vec v0, double t0, StartReport *report = nullptr) const;
   /// Advances s by h to `next`, halving the step (recursively, up to max_halvings) when Newton
   /// fails. Returns false (and fills `info`) if even the smallest substep fails. Collective.
   bool advance(const DistState &s, double h, DistState &next, StepInfo &info) const;
@@ -111,6 +119,8 @@ public:
   /// Kinetic energy 1/2 v^T M v, elastic energy and the potential of gravity -f_g . x of the
   /// ACF bodies. Collective.
   void energies(const DistState &s, double &kinetic, double &elastic, double &potential) const;
+  /// Kinetic energy of the ACF bodies and of the small part, 1/2 v^T M v. Collective.
+  double kinetic_energy(const DistState &s) const;
   /// The whole mechanism's energy: the ACF bodies' plus the small part's (Mechanism::energy).
   /// Collective.
   double energy(const DistState &s) const;
@@ -132,6 +142,12 @@ public:
   PetscInt global_size() const;
 
 private:
+  /// The six rigid velocity fields of every ACF body at the positions of s (for the consistent
+  /// start): metric V^T M V about the mean node position, and its interface nodes. Collective.
+  std::vector<RigidField> rigid_fields(const DistState &s) const;
+  /// r_ := -(Phi_q v + Phi_t) on the multiplier entries (ties and the small part's rows), 0
+  /// elsewhere, with the matrix [M Phi_q^T; Phi_q 0] in A_; returns max |r_|. Collective.
+  double velocity_violation(const DistState &s, const State &small) const;
   bool step_once(const DistState &s, double h, DistState &next, StepInfo &info) const;
   /// Energy and force (and tangent) of all ACF bodies at positions x into F_ (and T); with
   /// velocities v, the damping force of the damped bodies is added (and their Jacobians,

@@ -65,6 +65,17 @@ struct NewtonSettings {
   double reuse_contraction = 0.1;
 };
 
+/// What the consistent start did to the given velocities (docs/theory.md section 6.4): the
+/// kinetic energy of the placed velocities (after the position projection) and after the
+/// correction, and whether the joints needed a change of elastic velocities too.
+struct StartReport {
+  double kinetic_given = 0, kinetic = 0;
+  /// The rigid-body velocity correction left Phi_q v + Phi_t at `rigid_residual`, above the
+  /// tolerance: a mass-weighted correction of all velocities followed.
+  bool elastic_corrected = false;
+  double rigid_residual = 0;
+};
+
 /// What one step did, for progress output and failure messages.
 struct StepInfo {
   int iterations = 0;     ///< Newton iterations (all attempts)
@@ -83,10 +94,15 @@ public:
   const AlphaParameters &parameters() const { return par_; }
 
   /// The consistent state at t0 from placed coordinates q0 and velocities v0: q projected
-  /// onto Phi(q, t0) = 0 and v onto Phi_q v + Phi_t = 0 (smallest changes), then acc and
-  /// lambda from the acceleration-level equations, a = acc. Throws a collective flexopt::Error
-  /// naming the violated rows when the projection fails or leaves a redundant row violated.
-  State initial_state(const Vector &q0, const Vector &v0, double t0) const;
+  /// onto Phi(q, t0) = 0 (smallest change); the rigid-body velocities corrected onto
+  /// Phi_q v + Phi_t = 0 with the least change of kinetic energy, the elastic ones kept
+  /// (rigid_velocity_correction; should the joints need elastic velocities, a mass-weighted
+  /// correction of all velocities follows); then acc and lambda from the acceleration-level
+  /// equations, a = acc. What the correction did goes into `report` (if non-null). Throws a
+  /// collective flexopt::Error naming the violated rows when the projection fails or leaves a
+  /// redundant row violated.
+  State initial_state(const Vector &q0, const Vector &v0, double t0,
+                      StartReport *report = nullptr) const;
 
   /// Advances s by h to `next`, halving the step (recursively, up to max_halvings) when Newton
   /// fails. Returns false (and fills `info`) if even the smallest substep fails.

@@ -5,6 +5,7 @@
 /// collective flexopt::Error on every rank: `case.yaml:LINE:COL: message`. See
 /// docs/case-format.md for every key.
 #include <array>
+#include <cstdint>
 #include <optional>
 #include <string>
 #include <vector>
@@ -31,7 +32,16 @@ struct MeshSpec {
   double size = 0;    ///< target element size [m] (.geo only); 0: the .geo's own sizes
   int order = 1;      ///< 1: Tet4 (Hex8 if the .geo recombines), 2: Tet10
   bool given = false; ///< true if the `mesh:` key was present
+  /// Largest estimated element count meshed (.geo only); 0: default_max_elements().
+  std::int64_t max_elements = 0;
+  Location where; ///< of the `mesh:` key, or of the body if it has none
 };
+
+/// Default `mesh.max_elements` for the element type Gmsh will make (order 1 tetrahedra, order
+/// 2 tetrahedra, or recombined hexahedra): 2 000 000 Tet4, 400 000 Tet10, 500 000 Hex8, each
+/// about 1.5 million DOFs, what the static benchmark solves on 2 ranks within 6 GiB of this
+/// 24 GiB machine (docs/case-format.md, "Mesh size bound"; docs/benchmarks.md).
+std::int64_t default_max_elements(int order, bool hexahedra);
 
 /// Placement of a body frame at t = 0 and its velocity (`bodies[].initial`, dynamic analyses).
 /// The body's mesh coordinates are body-frame coordinates; the frame is placed at `position`
@@ -58,6 +68,9 @@ struct ReductionSpec {
   std::string frame = "clamped";
 };
 
+/// A body in case.yaml. It may carry the settings of every model (`reduction` for ffrf,
+/// `damping` and the initial elastic fields for ffrf and acf); `model` picks the ones used
+/// (model_settings(), unused_settings()), so that switching a body's model is one word.
 struct BodySpec {
   std::string name;
   std::string model = "auto"; ///< rigid | ffrf | acf | auto (dynamic: auto = rigid for now)
@@ -67,11 +80,41 @@ struct BodySpec {
   std::string material;
   std::vector<std::string> interfaces; ///< physical surfaces for joints and forces, unique
   InitialSpec initial;                 ///< dynamic only (identity at rest if not given)
-  ReductionSpec reduction;             ///< ffrf only
-  /// Rayleigh damping C = a M + b K of the elastic coordinates (ffrf only): [a, b].
+  ReductionSpec reduction;             ///< used by ffrf
+  /// Rayleigh damping C = a M + b K of the elastic coordinates (used by ffrf; by acf, which
+  /// takes [0, b] only): [a, b].
   std::array<double, 2> rayleigh{0, 0};
+  /// The model-dependent settings written in case.yaml (keys of model_settings(), in that
+  /// order), whichever model they serve; the others hold their defaults.
+  std::vector<std::string> settings;
   Location where;
 };
+
+/// A body setting that only some models use.
+struct ModelSetting {
+  std::string key;                 ///< below the body: "reduction", "initial.elastic_velocity"
+  std::vector<std::string> models; ///< the models (rigid, ffrf, acf) that use it
+};
+
+/// Every model-dependent body setting, in the order of docs/case-format.md: `reduction` (ffrf),
+/// `damping` (ffrf, acf), `initial.elastic_displacement` and `initial.elastic_velocity` (ffrf,
+/// acf). Every other body key is used by every model.
+const std::vector<ModelSetting> &model_settings();
+
+/// The formulation that simulates a body of `model` in a dynamic analysis: the model itself,
+/// or for `auto` the one chosen for it (this version: rigid).
+std::string simulated_model(const std::string &model);
+
+/// The keys of model_settings() that a body of `model` uses (`auto`: those of
+/// simulated_model(model)).
+std::vector<std::string> settings_used_by(const std::string &model);
+
+/// The settings `body` carries that its model does not use, in the order of model_settings().
+std::vector<std::string> unused_settings(const BodySpec &body);
+
+/// One line reporting unused_settings(body), e.g. "body rod (model: acf): settings not used by
+/// this model: reduction (ffrf)"; empty if every setting the body carries is used.
+std::string unused_settings_note(const BodySpec &body);
 
 /// A named point of the fixed frame (`ground: {interfaces: {NAME: [x, y, z]}}`); its frame is
 /// the world frame.
@@ -119,6 +162,16 @@ struct TimeSpec {
   double newton_reuse = 0.1;
   bool given = false;
   Location where;
+};
+
+/// `output:`: which time steps of a dynamic run are written to motion.xdmf (and, when given, at
+/// which steps energy and sensors are sampled), or which design iterations of `optimize` are
+/// written to design.xdmf. At most one of `every` and `interval`; neither: the defaults of
+/// io::FrameSchedule (dynamic) and every iteration (optimize).
+struct OutputSpec {
+  int every = 0;       ///< output.every, >= 1; 0: not given
+  double interval = 0; ///< output.interval [s] of simulated time, > 0 (dynamic only); 0: not given
+  bool given() const { return every > 0 || interval > 0; }
 };
 
 /// Dirichlet support: the listed displacement components of every node of `surface` are zero.
@@ -197,10 +250,10 @@ struct Case {
   std::vector<ForceSpec> forces;           ///< dynamic: loads.forces
   TimeSpec time;                           ///< dynamic
   std::string solver;                      ///< PETSc options applied before the command line's
-  int output_every = 1;
-  std::optional<DesignSpec> design;      ///< topology optimization: the design field
-  std::optional<ResponseSpec> objective; ///< topology optimization: minimized
-  std::vector<ResponseSpec> constraints; ///< topology optimization: each <= max
+  OutputSpec output;                       ///< `output:` (docs/case-format.md)
+  std::optional<DesignSpec> design;        ///< topology optimization: the design field
+  std::optional<ResponseSpec> objective;   ///< topology optimization: minimized
+  std::vector<ResponseSpec> constraints;   ///< topology optimization: each <= max
   OptimizerSpec optimizer;
 
   const MaterialSpec &material(const std::string &name) const;
