@@ -46,6 +46,18 @@ def run_variant(flexopt, case, out, name, replace, ranks=2, end=None, output=Fal
     return (summary, log) if output else summary
 
 
+def chord_deflection(summary, ends=("end_a", "end_b"), mid="mid"):
+    """Per sample, the signed distance of the position sensor `mid` from the line through the
+    position sensors `ends` in the x-y plane: ((b - a) x (m - a))_z / |b - a|, negated (a rod's
+    mid-point deflection from its chord, positive to the right of a -> b)."""
+    s = summary["sensors"]
+    out = []
+    for a, b, m in zip(*(s[n]["value"] for n in (ends[0], ends[1], mid))):
+        dx, dy = b[0] - a[0], b[1] - a[1]
+        out.append(-((m[0] - a[0]) * dy - (m[1] - a[1]) * dx) / (dx * dx + dy * dy) ** 0.5)
+    return out
+
+
 def check_arguments():
     """The command line of the check scripts that run case variants: --flexopt BIN --out DIR."""
     import argparse

@@ -15,8 +15,8 @@ import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "tests"))
-from case_variants import run_variant  # noqa: E402
-from check_slider_crank_start import CASE, MODELS, REVOLUTE, chord_deflection  # noqa: E402
+from case_variants import chord_deflection, run_variant  # noqa: E402
+from check_slider_crank_start import CASE, MODELS, REVOLUTE  # noqa: E402
 
 
 def main():

@@ -23,7 +23,7 @@ import os
 import sys
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "scripts"))
-from case_variants import check_arguments, finish, run_variant  # noqa: E402
+from case_variants import check_arguments, chord_deflection, finish, run_variant  # noqa: E402
 
 CASE = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "cases",
                     "slider_crank_flexible")
@@ -33,16 +33,6 @@ Q1_BEAM, AMP_BEAM = 2.32441e-4, 1.56120e-3
 # The rod's reduction: stays in the case; an acf rod leaves it unused.
 ACF = [("model: ffrf", "model: acf"),
        ("mesh: {size: 0.004, order: 2}", "mesh: {size: 0.008, order: 2}")]
-
-
-def chord_deflection(summary):
-    """The mid-point's signed distance from the chord through the rod's ends, per sample."""
-    s = summary["sensors"]
-    out = []
-    for a, b, m in zip(*(s[n]["value"] for n in ("end_a", "end_b", "mid"))):
-        dx, dy = b[0] - a[0], b[1] - a[1]
-        out.append(-((m[0] - a[0]) * dy - (m[1] - a[1]) * dx) / (dx * dx + dy * dy) ** 0.5)
-    return out
 
 
 def slow_scene(w):

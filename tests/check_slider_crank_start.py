@@ -35,7 +35,7 @@ import os
 import sys
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "scripts"))
-from case_variants import finish, run_variant  # noqa: E402
+from case_variants import chord_deflection, finish, run_variant  # noqa: E402
 
 CASE = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "cases",
                     "slider_crank_start")
@@ -48,16 +48,6 @@ MODELS = {"rigid": [("model: ffrf", "model: rigid")],
           "ffrf": [],
           "acf": [("model: ffrf", "model: acf")]}
 CHORD = [("reduction: {modes: 6}", "reduction: {modes: 6, frame: chord}")]
-
-
-def chord_deflection(summary):
-    """The mid-point's signed distance from the chord through the rod's ends, per sample."""
-    s = summary["sensors"]
-    out = []
-    for a, b, m in zip(*(s[n]["value"] for n in ("end_a", "end_b", "mid"))):
-        dx, dy = b[0] - a[0], b[1] - a[1]
-        out.append(-((m[0] - a[0]) * dy - (m[1] - a[1]) * dx) / (dx * dx + dy * dy) ** 0.5)
-    return out
 
 
 def main():
