@@ -201,18 +201,21 @@ State GeneralizedAlpha::initial_state(const Vector &q0, const Vector &v0, double
   s.v = v0 + rigid.dv;
   rep.rigid_residual = rigid.residual;
   mech_.constraint(s.q, t0, phi, &J);
+  // One factorization of [M J^T; J 0] serves the fallback velocity correction and the
+  // accelerations (q and so M and J are fixed from here on).
+  Matrix A = Matrix::Zero(n + m, n + m);
+  A.topLeftCorner(n, n) = M;
+  A.topRightCorner(n, m) = J.transpose();
+  A.bottomLeftCorner(m, n) = J;
+  const Eigen::PartialPivLU<Matrix> lu(A);
   Vector phi_t, phi_tt, phi_qt_v;
   if (m > 0 && rigid.residual > kVelocityTolerance * (1 + rigid.scale)) {
     // The joints prescribe elastic velocities: the smallest change in kinetic energy of all
     // velocities, [M J^T; J 0] [dv; mu] = [0; -(J v + Phi_t)].
     mech_.constraint_time_terms(s.q, s.v, t0, phi_t, phi_tt, phi_qt_v);
-    Matrix S = Matrix::Zero(n + m, n + m);
-    S.topLeftCorner(n, n) = M;
-    S.topRightCorner(n, m) = J.transpose();
-    S.bottomLeftCorner(m, n) = J;
     Vector rhs = Vector::Zero(n + m);
     rhs.tail(m) = -(J * s.v + phi_t);
-    s.v += S.partialPivLu().solve(rhs).head(n);
+    s.v += lu.solve(rhs).head(n);
     rep.elastic_corrected = true;
   }
   rep.kinetic = 0.5 * s.v.dot(M * s.v);
@@ -221,14 +224,10 @@ State GeneralizedAlpha::initial_state(const Vector &q0, const Vector &v0, double
   // Accelerations and multipliers: [M J^T; J 0] [acc; lambda] = [-r0; -(J v)_q v - 2 Phi_qt v -
   // Phi_tt].
   mech_.dynamics(s.q, s.v, Vector::Zero(n), t0, r, nullptr, nullptr, nullptr);
-  Matrix A = Matrix::Zero(n + m, n + m);
-  A.topLeftCorner(n, n) = M;
-  A.topRightCorner(n, m) = J.transpose();
-  A.bottomLeftCorner(m, n) = J;
   Vector rhs(n + m);
   rhs.head(n) = -r;
   rhs.tail(m) = -mech_.constraint_convective(s.q, s.v, t0) - 2 * phi_qt_v - phi_tt;
-  const Vector x = A.partialPivLu().solve(rhs);
+  const Vector x = lu.solve(rhs);
   if (!x.allFinite())
     throw Error("initial conditions: the acceleration system is singular (a body without mass "
                 "or inertia, or a mechanism whose joints leave no consistent acceleration)",
