@@ -345,6 +345,9 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
   frame(0.0);
 
   long long newton_total = 0, factorizations_total = 0;
+  // -fx_newton_monitor: each step's Newton iterations, factorizations and increments.
+  PetscBool newton_monitor = PETSC_FALSE;
+  FX_PETSC(PetscOptionsGetBool(nullptr, nullptr, "-fx_newton_monitor", &newton_monitor, nullptr));
   int newton_max = 0, halvings_max = 0;
   // The time steps are their own -log_view stage (the set-up, meshing and initial state apart).
   PetscLogStage stage;
@@ -382,6 +385,15 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
                       "dead point or aligned links), not a structural redundancy. Place the "
                       "bodies away from it.",
                   true);
+    if (newton_monitor) {
+      std::ostringstream line;
+      line << "  step " << n + 1 << ": " << info.iterations << " Newton, " << info.factorizations
+           << " factorizations; increments";
+      for (double v : info.increment) line << ' ' << v;
+      line << "; constraint residuals";
+      for (double v : info.violation) line << ' ' << v;
+      print0(ctx.comm(), "%s\n", line.str().c_str());
+    }
     newton_total += info.iterations;
     factorizations_total += info.factorizations;
     newton_max = std::max(newton_max, info.iterations);

@@ -353,6 +353,7 @@ DistributedAlpha::DistributedAlpha(std::vector<const bodies::AcfBody *> bodies,
   }
   r_ = create_vector();
   dz_ = create_vector();
+  kept_ = std::make_unique<KeptFrame>(dz_, nb);
   w_ = create_vector();
   // The operator is A_ itself: refilled in place, refactorized at the next solve after that.
   // MUMPS delays the pivots of the saddle point's zero diagonal (multipliers, massless
@@ -374,7 +375,111 @@ DistributedAlpha::DistributedAlpha(std::vector<const bodies::AcfBody *> bodies,
   }
 }
 
+struct DistributedAlpha::KeptFrame {
+  Vec q = nullptr;                    ///< the positions at which the kept matrix was assembled
+  bool rotated = false;               ///< rotation[b] is not the identity
+  std::vector<bodies::Mat3> rotation; ///< of each ACF body since then (docs/theory.md 8.2)
+  KeptFrame(Vec like, std::size_t bodies) : rotation(bodies, bodies::Mat3::Identity()) {
+    FX_PETSC(VecDuplicate(like, &q));
+    FX_PETSC(VecCopy(like, q));
+  }
+  KeptFrame(const KeptFrame &) = delete;
+  KeptFrame &operator=(const KeptFrame &) = delete;
+  ~KeptFrame() { VecDestroy(&q); }
+  void reset(Vec at) {
+    FX_PETSC(VecCopy(at, q));
+    std::fill(rotation.begin(), rotation.end(), bodies::Mat3::Identity());
+    rotated = false;
+  }
+};
+
+void DistributedAlpha::kept_rotations(Vec q) const {
+  const detail::AcfLayout &L = *layout_;
+  KeptFrame &a = *kept_;
+  const PetscScalar *x, *x0;
+  FX_PETSC(VecGetArrayRead(q, &x));
+  FX_PETSC(VecGetArrayRead(a.q, &x0));
+  // Per body the centroids and the 3x3 sum of (x - c)(x0 - c0)^T = sum x x0^T - n c c0^T, from
+  // sums of x, x0 and x x0^T over the owned nodes.
+  const std::size_t nb = bodies_.size();
+  std::vector<double> sums(nb * 16, 0.0), all(nb * 16);
+  for (std::size_t b = 0; b < nb; ++b) {
+    double *m = &sums[16 * b];
+    const PetscInt base = L.offset[b] - L.start;
+    for (PetscInt i = 0; i < bodies_[b]->mesh().owned_nodes; ++i) {
+      const PetscScalar *xi = x + base + 3 * i, *yi = x0 + base + 3 * i;
+      for (int r = 0; r < 3; ++r) {
+        m[9 + r] += xi[r];
+        m[12 + r] += yi[r];
+        for (int c = 0; c < 3; ++c) m[3 * r + c] += xi[r] * yi[c];
+      }
+      m[15] += 1;
+    }
+  }
+  FX_PETSC(VecRestoreArrayRead(q, &x));
+  FX_PETSC(VecRestoreArrayRead(a.q, &x0));
+  MPI_Allreduce(sums.data(), all.data(), static_cast<int>(sums.size()), MPI_DOUBLE, MPI_SUM, comm_);
+  a.rotated = false;
+  for (std::size_t b = 0; b < nb; ++b) {
+    const double *m = &all[16 * b];
+    const Vec3 c(m[9], m[10], m[11]), c0(m[12], m[13], m[14]);
+    bodies::Mat3 H;
+    for (int r = 0; r < 3; ++r)
+      for (int k = 0; k < 3; ++k) H(r, k) = m[3 * r + k];
+    H -= c * c0.transpose() / m[15];
+    // The rotation nearest to H (Kabsch): U V^T with the sign of det fixed.
+    const Eigen::JacobiSVD<bodies::Mat3> svd(H, Eigen::ComputeFullU | Eigen::ComputeFullV);
+    bodies::Mat3 D = bodies::Mat3::Identity();
+    D(2, 2) = (svd.matrixU() * svd.matrixV().transpose()).determinant() < 0 ? -1.0 : 1.0;
+    a.rotation[b] = svd.matrixU() * D * svd.matrixV().transpose();
+    if (!a.rotation[b].isIdentity(0)) a.rotated = true;
+  }
+}
+
+void DistributedAlpha::rotate_kept(Vec v, bool transpose) const {
+  const detail::AcfLayout &L = *layout_;
+  const KeptFrame &a = *kept_;
+  PetscScalar *x;
+  FX_PETSC(VecGetArray(v, &x));
+  auto turn = [&](PetscScalar *y, const bodies::Mat3 &R) {
+    const Vec3 w =
+        transpose ? Vec3(R.transpose() * Vec3(y[0], y[1], y[2])) : Vec3(R * Vec3(y[0], y[1], y[2]));
+    y[0] = w(0), y[1] = w(1), y[2] = w(2);
+  };
+  for (std::size_t b = 0; b < bodies_.size(); ++b) {
+    const PetscInt base = L.offset[b] - L.start;
+    for (PetscInt i = 0; i < bodies_[b]->mesh().owned_nodes; ++i)
+      turn(x + base + 3 * i, a.rotation[b]);
+  }
+  for (std::size_t i = 0; i < L.ties.size(); ++i) {
+    const TieSet &t = L.ties[i];
+    const bodies::Mat3 &R = a.rotation[interfaces_[i].body];
+    for (std::size_t j = 0; j < t.s.size(); ++j)
+      turn(x + t.row0 - L.start + static_cast<PetscInt>(3 * j), R);
+    // The interface node: r turns with R, the Euler parameters by the quaternion product
+    // p -> q p (R(q p) = R(q) R(p)), linear in p: L(q) = [q0, -qv^T; qv, q0 I + [qv]x].
+    const PetscInt o = L.small_coord0 + small_->offset(interfaces_[i].node_body);
+    if (o >= L.start && o + 7 <= L.start + L.local) {
+      turn(x + o - L.start, R);
+      const Eigen::Quaterniond qr(R);
+      Eigen::Matrix4d Lq;
+      const Vec3 qv(qr.x(), qr.y(), qr.z());
+      Lq(0, 0) = qr.w();
+      Lq.block<1, 3>(0, 1) = -qv.transpose();
+      Lq.block<3, 1>(1, 0) = qv;
+      Lq.block<3, 3>(1, 1) = qr.w() * bodies::Mat3::Identity() + bodies::skew(qv);
+      PetscScalar *y = x + o - L.start + 3;
+      const Eigen::Vector4d w =
+          transpose ? Eigen::Vector4d(Lq.transpose() * Eigen::Vector4d(y[0], y[1], y[2], y[3]))
+                    : Eigen::Vector4d(Lq * Eigen::Vector4d(y[0], y[1], y[2], y[3]));
+      for (int k = 0; k < 4; ++k) y[k] = w(k);
+    }
+  }
+  FX_PETSC(VecRestoreArray(v, &x));
+}
+
 DistributedAlpha::~DistributedAlpha() {
+  kept_.reset();
   KSPDestroy(&ksp_);
   MatDestroy(&A_);
   MatDestroy(&M_);
@@ -946,6 +1051,11 @@ bool DistributedAlpha::step_once(const DistState &s, double h, DistState &next,
     double h;
     double violation = 0; ///< max |Phi| at the last right-hand side
     void predict() {      // acc1 = acc0, lambda1 = lambda0
+      predict_state();
+      // A kept matrix is applied in the bodies' present orientation (co-rotated kept matrix).
+      if (da.factored_ && da.settings_.corotate_kept) da.kept_rotations(next.q);
+    }
+    void predict_state() {
       const double am = da.par_.alpha_m, g = da.par_.gamma, b = da.par_.beta;
       next.t = s.t + h;
       FX_PETSC(VecCopy(s.acc, next.acc));
@@ -965,6 +1075,7 @@ bool DistributedAlpha::step_once(const DistState &s, double h, DistState &next,
       return da.factored_ && da.bp_ == k.bp && da.gp_ == k.gp;
     }
     bool factorize(const NewtonScaling &k) {
+      da.kept_->reset(next.q);
       da.factored_ = false;
       if (!da.assemble(next, k, true, violation) || !factorized(da.ksp_)) return false;
       da.factored_ = true;
@@ -975,7 +1086,10 @@ bool DistributedAlpha::step_once(const DistState &s, double h, DistState &next,
     bool rhs(const NewtonScaling &k) { return da.assemble(next, k, false, violation); }
     bool solve_update(const NewtonScaling &k, double &increment, double &phi) {
       phi = violation;
+      const bool turn = da.kept_->rotated;
+      if (turn) da.rotate_kept(da.r_, true); // into the frame of the kept matrix
       FX_PETSC(KSPSolve(da.ksp_, da.r_, da.dz_));
+      if (turn) da.rotate_kept(da.dz_, false);
       KSPConvergedReason reason;
       FX_PETSC(KSPGetConvergedReason(da.ksp_, &reason));
       if (reason < 0) return false;

@@ -184,6 +184,13 @@ private:
   mutable Mat A_ = nullptr;                                            ///< the iteration matrix
   mutable KSP ksp_ = nullptr;
   mutable bool factored_ = false;
+  struct KeptFrame; ///< where the kept matrix was assembled, the bodies' rotations since
+  std::unique_ptr<KeptFrame> kept_;
+  /// Each ACF body's rotation from the positions of the kept matrix to q (collective).
+  void kept_rotations(Vec q) const;
+  /// v := T v (or T^T v): the ACF nodes' and ties' blocks turned by their body's rotation, the
+  /// interface nodes' coordinates with them (not collective).
+  void rotate_kept(Vec v, bool transpose) const;
   mutable double bp_ = 0, gp_ = 0;
 };
 

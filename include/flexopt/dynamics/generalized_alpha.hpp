@@ -63,6 +63,9 @@ struct NewtonSettings {
   /// while the observed contraction theta stays at or below this; a larger theta assembles and
   /// factorizes it anew at the current iterate. 0: a new matrix every iteration (Newton).
   double reuse_contraction = 0.1;
+  /// ACF bodies: a kept matrix is applied turned by each body's rotation since it was
+  /// assembled (docs/theory.md section 8.2).
+  bool corotate_kept = true;
 };
 
 /// What the consistent start did to the given velocities (docs/theory.md section 6.4): the

@@ -72,11 +72,22 @@ bool newton_loop(Backend &b, const NewtonSettings &settings, const NewtonScaling
     // iteration on the matrix of its own iterate (Newton proper) what remains is about inc^2,
     // so `tolerance` suffices; on a kept matrix the iteration converges only linearly and must
     // get down to `kept_tolerance` to leave the solution as accurate as Newton's.
-    const double rest = inc_prev > 0 && theta < 1 ? theta / (1 - theta) * inc
-                                                  : std::numeric_limits<double>::infinity();
+    // On a kept matrix the contraction of two increments can understate that of the error:
+    // the error may lie mostly in components that contract fast, the slower ones hidden
+    // below them. The matrix is kept only while it contracts by at most `reuse`, so that (up to
+    // 1/2) bounds the slower components' rate.
+    const double theta_est = kept ? std::max(theta, std::min(reuse, 0.5)) : theta;
+    const double rest = inc_prev > 0 && theta_est < 1 ? theta_est / (1 - theta_est) * inc
+                                                      : std::numeric_limits<double>::infinity();
     const double tol = kept ? settings.kept_tolerance : settings.tolerance;
     if (inc <= tol || rest <= tol) return true;
     if (reuse <= 0 || (kept && theta > reuse)) refresh = true;
+    // A kept matrix that contracts, but too slowly to reach the tolerance within the
+    // iterations left (about log(tol / rest) / log(theta_est) more), is replaced too.
+    if (kept && !refresh && inc_prev > 0 && rest > tol && theta_est > 0) {
+      const double needed = std::log(tol / rest) / std::log(theta_est);
+      if (it + 1 + needed >= settings.max_iterations) refresh = true;
+    }
     inc_prev = inc;
   }
   b.drop_matrix();
