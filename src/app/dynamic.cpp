@@ -261,6 +261,18 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
          "%g\n",
          par.rho_inf, par.alpha_m, par.alpha_f, par.gamma, par.beta, steps, h,
          static_cast<double>(steps) * h, newton.reuse_contraction);
+  // rho_inf = 1 is the trapezoidal rule: it damps nothing, and on the index-3 equations of a
+  // flexible mechanism the step can grow unstably (cases/slider_crank_start/README.md).
+  if (par.rho_inf >= 1)
+    for (const auto &b : c.bodies)
+      if (io::simulated_model(b.model) != "rigid") {
+        print0(ctx.comm(),
+               "time: warning: rho_inf = 1 (no numerical dissipation) with the flexible body "
+               "'%s': generalized-alpha on the index-3 equations of a flexible mechanism can grow "
+               "unstably at rho_inf = 1 (docs/theory.md 6.4); rho_inf <= 0.99 damps it\n",
+               b.name.c_str());
+        break;
+      }
 
   std::vector<io::MotionBody> mb;
   for (std::size_t b = 0; b < c.bodies.size(); ++b)
