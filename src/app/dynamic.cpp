@@ -226,6 +226,10 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
   const auto par = dynamics::AlphaParameters::from_rho_inf(c.time.rho_inf);
   dynamics::NewtonSettings newton;
   newton.reuse_contraction = c.time.newton_reuse;
+  // -fx_kept_turned 0: ACF kept matrices applied as assembled (for comparisons; docs/solvers.md).
+  PetscBool turned = PETSC_TRUE;
+  FX_PETSC(PetscOptionsGetBool(nullptr, nullptr, "-fx_kept_turned", &turned, nullptr));
+  newton.corotate_kept = turned == PETSC_TRUE;
   std::unique_ptr<Backend> run;
   if (scene.acf.empty()) {
     run = std::make_unique<DenseBackend>(scene, par, newton);

@@ -348,6 +348,7 @@ void read_bodies(const Reader &r, const YAML::Node &node, const fs::path &dir, C
             r.boolean(m["geometric_stiffening"], mp + ".geometric_stiffening");
       if (m["frame"]) {
         b.reduction.frame = r.choice(m["frame"], mp + ".frame", {"clamped", "chord"});
+        b.reduction.frame_given = true;
         if (b.reduction.frame == "chord" && b.reduction.geometric_stiffening)
           r.fail(m["frame"], mp + ".frame: chord does not combine with geometric_stiffening (the "
                                   "centrifugal preload is the stress of the body clamped at its "
@@ -420,6 +421,10 @@ void read_bodies(const Reader &r, const YAML::Node &node, const fs::path &dir, C
           r.fail(v["interfaces"][k],
                  path + ".interfaces: '" + b.interfaces[k] + "' is listed twice");
     }
+    // The default frame: the chord for a link between joints (docs/case-format.md).
+    if (!b.reduction.frame_given)
+      b.reduction.frame =
+          b.interfaces.size() >= 2 && !b.reduction.geometric_stiffening ? "chord" : "clamped";
     if (b.reduction.frame == "chord" && b.interfaces.size() < 2)
       r.fail(v["reduction"]["frame"], path + ".reduction.frame: chord needs two interfaces (the "
                                              "frame axis runs from the first to the second)");

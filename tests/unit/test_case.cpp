@@ -504,8 +504,16 @@ TEST_F(CaseFiles, ReductionFrame) {
   const std::string ffrf = "    interfaces: [pin_a, pin_b]\n    model: ffrf\n";
   write(dynamic_with("    interfaces: [pin_a, pin_b]\n", ffrf + "    reduction: {frame: chord}\n"));
   EXPECT_EQ(load_case(dir_.string()).bodies[1].reduction.frame, "chord");
+  // The default: the chord for a link with two interfaces, clamped with geometric stiffening
+  // (or one interface: the FFRF test scenes with one interface run in the clamped frame);
+  // clamped when written.
   write(dynamic_with("    interfaces: [pin_a, pin_b]\n", ffrf));
-  EXPECT_EQ(load_case(dir_.string()).bodies[1].reduction.frame, "clamped"); // the default
+  EXPECT_EQ(load_case(dir_.string()).bodies[1].reduction.frame, "chord");
+  write(dynamic_with("    interfaces: [pin_a, pin_b]\n",
+                     ffrf + "    reduction: {geometric_stiffening: true}\n"));
+  EXPECT_EQ(load_case(dir_.string()).bodies[1].reduction.frame, "clamped");
+  write(dynamic_with("    interfaces: [pin_a, pin_b]\n", ffrf + "    reduction: {frame: clamped}\n"));
+  EXPECT_EQ(load_case(dir_.string()).bodies[1].reduction.frame, "clamped");
 }
 
 TEST_F(CaseFiles, FfrfInitialElasticFields) {

@@ -64,8 +64,11 @@ struct ReductionSpec {
   int modes = 4; ///< fixed-interface eigenmodes (plus 6 static modes per interface after the first)
   bool geometric_stiffening = false; ///< centrifugal geometric stiffness (section 7.5)
   /// Where the floating frame sits: "clamped" (interface 0 clamped) or "chord" (origin at
-  /// interface 0, axis through interface 1; reduce::FrameCondition).
+  /// interface 0, axis through interface 1; reduce::FrameCondition). Not written in case.yaml:
+  /// chord for a body with two or more interfaces and no geometric stiffening (a link between
+  /// joints), clamped otherwise; `frame_given` tells which.
   std::string frame = "clamped";
+  bool frame_given = false;
 };
 
 /// A body in case.yaml. It may carry the settings of every model (`reduction` for ffrf,
