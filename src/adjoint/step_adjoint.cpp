@@ -49,4 +49,26 @@ Vector previous_coupling(const dynamics::AlphaParameters &par, double h, int n, 
   return out;
 }
 
+std::vector<Vector> backward_sweep(const dynamics::GeneralizedAlpha &ga,
+                                   const std::vector<dynamics::State> &states, double h,
+                                   const std::vector<Vector> &dpsi) {
+  const std::size_t N = states.size() - 1;
+  if (states.empty() || dpsi.size() != states.size())
+    throw Error("backward_sweep: one partial per state is needed");
+  const int n = static_cast<int>(states.front().q.size());
+  const int m = static_cast<int>(states.front().lambda.size());
+  const dynamics::AlphaParameters &par = ga.parameters();
+  std::vector<Vector> mu(N + 1);
+  Vector carry = Vector::Zero(4 * n + m); // (dR_(k+1)/ds_k)^T mu_(k+1)
+  for (std::size_t k = N; k >= 1; --k) {
+    Vector R;
+    Matrix D;
+    ga.residual(states[k], states[k - 1], h, R, &D, nullptr);
+    mu[k] = step_adjoint(D, par, h, n, m, -dpsi[k] - carry);
+    carry = previous_coupling(par, h, n, m, mu[k]);
+  }
+  mu[0] = -dpsi[0] - carry;
+  return mu;
+}
+
 } // namespace flexopt::adjoint

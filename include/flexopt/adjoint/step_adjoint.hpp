@@ -6,6 +6,8 @@
 /// include this module; it supplies the Jacobians (dynamics::GeneralizedAlpha::residual).
 #include "flexopt/dynamics/generalized_alpha.hpp"
 
+#include <vector>
+
 namespace flexopt::adjoint {
 
 using dynamics::Matrix;
@@ -23,5 +25,14 @@ Vector step_adjoint(const Matrix &dR_dnext, const dynamics::AlphaParameters &par
 /// 9), without forming the Jacobian.
 Vector previous_coupling(const dynamics::AlphaParameters &par, double h, int n, int m,
                          const Vector &mu);
+
+/// The backward sweep of section 9 on the dense backend: from the states s_0 ... s_N of a
+/// forward run with steps of h (each converged, R(s_n, s_(n-1)) = 0) and the partials
+/// dpsi[n] = (dPsi/ds_n)^T (packed like State::pack), the multipliers mu_1 ... mu_N of the step
+/// residuals and mu_0 = -(dPsi/ds_0)^T - (dR_1/ds_0)^T mu_1, returned as mu[0] ... mu[N].
+/// Treating s_0 as free, dPsi/ds_0 = -mu_0^T.
+std::vector<Vector> backward_sweep(const dynamics::GeneralizedAlpha &ga,
+                                   const std::vector<dynamics::State> &states, double h,
+                                   const std::vector<Vector> &dpsi);
 
 } // namespace flexopt::adjoint
