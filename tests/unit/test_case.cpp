@@ -512,7 +512,8 @@ TEST_F(CaseFiles, ReductionFrame) {
   write(dynamic_with("    interfaces: [pin_a, pin_b]\n",
                      ffrf + "    reduction: {geometric_stiffening: true}\n"));
   EXPECT_EQ(load_case(dir_.string()).bodies[1].reduction.frame, "clamped");
-  write(dynamic_with("    interfaces: [pin_a, pin_b]\n", ffrf + "    reduction: {frame: clamped}\n"));
+  write(
+      dynamic_with("    interfaces: [pin_a, pin_b]\n", ffrf + "    reduction: {frame: clamped}\n"));
   EXPECT_EQ(load_case(dir_.string()).bodies[1].reduction.frame, "clamped");
 }
 
