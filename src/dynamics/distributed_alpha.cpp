@@ -379,7 +379,11 @@ struct DistributedAlpha::KeptFrame {
   Vec q = nullptr;                    ///< the positions at which the kept matrix was assembled
   bool rotated = false;               ///< rotation[b] is not the identity
   std::vector<bodies::Mat3> rotation; ///< of each ACF body since then (docs/theory.md 8.2)
-  KeptFrame(Vec like, std::size_t bodies) : rotation(bodies, bodies::Mat3::Identity()) {
+  /// The same rotation acting on Euler parameters, p -> q p: L(q) = [q0, -qv^T; qv, q0 I + [qv]x]
+  std::vector<Eigen::Matrix4d> quaternion;
+  KeptFrame(Vec like, std::size_t bodies)
+      : rotation(bodies, bodies::Mat3::Identity()),
+        quaternion(bodies, Eigen::Matrix4d::Identity()) {
     FX_PETSC(VecDuplicate(like, &q));
     FX_PETSC(VecCopy(like, q));
   }
@@ -389,6 +393,7 @@ struct DistributedAlpha::KeptFrame {
   void reset(Vec at) {
     FX_PETSC(VecCopy(at, q));
     std::fill(rotation.begin(), rotation.end(), bodies::Mat3::Identity());
+    std::fill(quaternion.begin(), quaternion.end(), Eigen::Matrix4d::Identity());
     rotated = false;
   }
 };
@@ -432,6 +437,13 @@ void DistributedAlpha::kept_rotations(Vec q) const {
     bodies::Mat3 D = bodies::Mat3::Identity();
     D(2, 2) = (svd.matrixU() * svd.matrixV().transpose()).determinant() < 0 ? -1.0 : 1.0;
     a.rotation[b] = svd.matrixU() * D * svd.matrixV().transpose();
+    const Eigen::Quaterniond qr(a.rotation[b]);
+    const Vec3 qv(qr.x(), qr.y(), qr.z());
+    Eigen::Matrix4d &Lq = a.quaternion[b];
+    Lq(0, 0) = qr.w();
+    Lq.block<1, 3>(0, 1) = -qv.transpose();
+    Lq.block<3, 1>(1, 0) = qv;
+    Lq.block<3, 3>(1, 1) = qr.w() * bodies::Mat3::Identity() + bodies::skew(qv);
     if (!a.rotation[b].isIdentity(0)) a.rotated = true;
   }
 }
@@ -457,17 +469,11 @@ void DistributedAlpha::rotate_kept(Vec v, bool transpose) const {
     for (std::size_t j = 0; j < t.s.size(); ++j)
       turn(x + t.row0 - L.start + static_cast<PetscInt>(3 * j), R);
     // The interface node: r turns with R, the Euler parameters by the quaternion product
-    // p -> q p (R(q p) = R(q) R(p)), linear in p: L(q) = [q0, -qv^T; qv, q0 I + [qv]x].
+    // p -> q p (R(q p) = R(q) R(p)).
     const PetscInt o = L.small_coord0 + small_->offset(interfaces_[i].node_body);
     if (o >= L.start && o + 7 <= L.start + L.local) {
       turn(x + o - L.start, R);
-      const Eigen::Quaterniond qr(R);
-      Eigen::Matrix4d Lq;
-      const Vec3 qv(qr.x(), qr.y(), qr.z());
-      Lq(0, 0) = qr.w();
-      Lq.block<1, 3>(0, 1) = -qv.transpose();
-      Lq.block<3, 1>(1, 0) = qv;
-      Lq.block<3, 3>(1, 1) = qr.w() * bodies::Mat3::Identity() + bodies::skew(qv);
+      const Eigen::Matrix4d &Lq = a.quaternion[interfaces_[i].body];
       PetscScalar *y = x + o - L.start + 3;
       const Eigen::Vector4d w =
           transpose ? Eigen::Vector4d(Lq.transpose() * Eigen::Vector4d(y[0], y[1], y[2], y[3]))
