@@ -496,7 +496,7 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
     j["model"] = b->model();
     j["mass"] = b->mass();
     if (const auto *rigid = dynamic_cast<const bodies::RigidBody *>(b.get())) {
-      j["center"] = vec3_json(rigid->center());
+      j["center"] = vec3_json(rigid->center_of_mass());
       j["inertia"] =
           io::Json(std::vector<double>(rigid->inertia().data(), rigid->inertia().data() + 9));
     } else {

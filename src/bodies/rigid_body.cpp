@@ -69,8 +69,53 @@ SurfaceCentroid surface_centroid(const mesh::MeshData &mesh, const std::string &
   return out;
 }
 
+MassParameters to_parameters(const MassProperties &p) {
+  MassParameters t;
+  const Mat3 &J = p.inertia;
+  t << p.mass, p.first, J(0, 0), J(1, 1), J(2, 2), J(0, 1), J(1, 2), J(0, 2);
+  return t;
+}
+
+MassProperties from_parameters(const MassParameters &t, const Vec3 &reference) {
+  MassProperties p;
+  p.mass = t(0);
+  p.first = t.segment<3>(1);
+  p.center = reference;
+  p.inertia << t(4), t(7), t(9), t(7), t(5), t(8), t(9), t(8), t(6);
+  return p;
+}
+
+MassParameters element_mass_parameters(fem::ElementType type, const fem::ElementCoords &X,
+                                       double density, const Vec3 &reference) {
+  const int npe = fem::nodes_per_element(type);
+  const fem::ElementMatrix Me = fem::element_mass(type, X, density);
+  double m = 0;
+  Vec3 first = Vec3::Zero();
+  Mat3 second = Mat3::Zero();
+  for (int a = 0; a < npe; ++a) {
+    const Vec3 Xa = X.row(a).transpose() - reference;
+    for (int b = 0; b < npe; ++b) {
+      const double mab = Me(3 * a, 3 * b);
+      const Vec3 Xb = X.row(b).transpose() - reference;
+      m += mab;
+      first += mab * Xb;
+      second += mab * Xa * Xb.transpose();
+    }
+  }
+  MassProperties p;
+  p.mass = m;
+  p.first = first;
+  const Mat3 S = 0.5 * (second + second.transpose());
+  p.inertia = S.trace() * Mat3::Identity() - S;
+  return to_parameters(p);
+}
+
 RigidBody::RigidBody(std::string name, const MassProperties &props)
-    : Body(std::move(name)), props_(props) {}
+    : Body(std::move(name)), props_(props), offset_(props.first != Vec3::Zero()) {}
+
+Vec3 RigidBody::center_of_mass() const {
+  return props_.mass > 0 ? Vec3(props_.center + props_.first / props_.mass) : props_.center;
+}
 
 void RigidBody::inertial_force(const Vec7 &q, const Vec7 &v, const Vec7 &a, Vec7 *f, Mat7 *df_dq,
                                Mat7 *df_dv, Mat7 *mass_matrix) const {
@@ -100,11 +145,41 @@ void RigidBody::inertial_force(const Vec7 &q, const Vec7 &v, const Vec7 &a, Vec7
     mass_matrix->topLeftCorner<3, 3>() = props_.mass * Mat3::Identity();
     mass_matrix->bottomRightCorner<4, 4>() = Mp;
   }
+  if (!offset_) return;
+  // The first moment S about the reference point (docs/theory.md section 9.1):
+  //   f_r += A u, u = alpha x S + omega x (omega x S);  f_p += 2 Gbar^T (S x A^T a_r).
+  const Vec3 &S = props_.first;
+  const Mat3 A = rotation(p), Sx = skew(S);
+  const Vec3 omega = 2 * G * vp, alpha = 2 * G * ap;
+  const Vec3 u = alpha.cross(S) + omega.cross(omega.cross(S));
+  const Vec3 ar = a.head<3>();
+  const Vec3 w = S.cross(A.transpose() * ar);
+  // H = d(omega x (omega x S))/d omega.
+  const Mat3 H =
+      omega.dot(S) * Mat3::Identity() + omega * S.transpose() - 2 * S * omega.transpose();
+  if (f) {
+    f->head<3>() += A * u;
+    f->tail<4>() += 2 * G.transpose() * w;
+  }
+  if (df_dq) {
+    df_dq->block<3, 4>(0, 3) += rotate_jacobian(p, u) + A * (2 * Sx * gbar_matrix(ap) - 2 * H * Gv);
+    df_dq->bottomRightCorner<4, 4>() +=
+        2 * gbar_transpose_matrix(w) + 2 * G.transpose() * Sx * rotate_transpose_jacobian(p, ar);
+  }
+  if (df_dv) df_dv->block<3, 4>(0, 3) += 2 * A * H * G;
+  if (mass_matrix) {
+    const Eigen::Matrix<double, 3, 4> Mrp = -2 * A * Sx * G;
+    mass_matrix->block<3, 4>(0, 3) += Mrp;
+    mass_matrix->block<4, 3>(3, 0) += Mrp.transpose();
+  }
 }
 
 double RigidBody::kinetic_energy(const Vec7 &q, const Vec7 &v) const {
   const Vec3 w = 2 * gbar_matrix(q.tail<4>()) * v.tail<4>();
-  return 0.5 * props_.mass * v.head<3>().squaredNorm() + 0.5 * w.dot(props_.inertia * w);
+  double T = 0.5 * props_.mass * v.head<3>().squaredNorm() + 0.5 * w.dot(props_.inertia * w);
+  if (offset_) // r' . (A S)' (section 9.1)
+    T += v.head<3>().dot(rotate_jacobian(q.tail<4>(), props_.first) * v.tail<4>());
+  return T;
 }
 
 void RigidBody::residual(const ConstVectorRef &q, const ConstVectorRef &v, const ConstVectorRef &a,
@@ -115,6 +190,17 @@ void RigidBody::residual(const ConstVectorRef &q, const ConstVectorRef &v, const
   inertial_force(q, v, a, &f, K ? &k : nullptr, C ? &c : nullptr, M ? &m : nullptr);
   res = f;
   res.head<3>() -= props_.mass * gravity;
+  if (offset_) {
+    // The potential -g . (A S) on the rotation: -2 Gbar^T (S x A^T g) (section 9.1).
+    const Vec4 p = q.tail<4>();
+    const Mat34 G = gbar_matrix(p);
+    const Vec3 w = props_.first.cross(rotation(p).transpose() * gravity);
+    res.tail<4>() -= 2 * G.transpose() * w;
+    if (K)
+      k.bottomRightCorner<4, 4>() -=
+          2 * gbar_transpose_matrix(w) +
+          2 * G.transpose() * skew(props_.first) * rotate_transpose_jacobian(p, gravity);
+  }
   if (K) *K = k;
   if (C) *C = c;
   if (M) *M = m;
@@ -122,7 +208,25 @@ void RigidBody::residual(const ConstVectorRef &q, const ConstVectorRef &v, const
 
 double RigidBody::energy(const ConstVectorRef &q, const ConstVectorRef &v,
                          const Vec3 &gravity) const {
-  return kinetic_energy(q, v) - props_.mass * gravity.dot(q.head<3>());
+  double V = -props_.mass * gravity.dot(q.head<3>());
+  if (offset_) V -= gravity.dot(rotation(q.tail<4>()) * props_.first);
+  return kinetic_energy(q, v) + V;
+}
+
+Eigen::Matrix<double, 7, 10> RigidBody::parameter_jacobian(const Vec7 &q, const Vec7 &v,
+                                                           const Vec7 &a,
+                                                           const Vec3 &gravity) const {
+  Eigen::Matrix<double, 7, 10> d;
+  for (int k = 0; k < 10; ++k) {
+    MassParameters e = MassParameters::Zero();
+    e(k) = 1;
+    MassProperties unit = from_parameters(e, props_.center);
+    const RigidBody b(name(), unit);
+    Vec7 r;
+    b.residual(q, v, a, gravity, r, nullptr, nullptr, nullptr);
+    d.col(k) = r;
+  }
+  return d;
 }
 
 } // namespace flexopt::bodies

@@ -168,6 +168,86 @@ TEST(RigidBody, RotationalEquationIsEulers) {
 
 namespace {
 
+/// some_body() described about a reference point o away from its centre of mass (first moment
+/// S = m (c - o), inertia J_o = J_c + m (|d|^2 I - d d^T), d = c - o).
+bodies::MassProperties offset_body(const Vec3 &o) {
+  const bodies::MassProperties c = some_body();
+  const Vec3 d = c.center - o;
+  bodies::MassProperties p;
+  p.mass = c.mass;
+  p.center = o;
+  p.first = c.mass * d;
+  p.inertia = c.inertia + c.mass * (d.squaredNorm() * Mat3::Identity() - d * d.transpose());
+  return p;
+}
+
+} // namespace
+
+// The terms of a first moment (docs/theory.md section 9.1) and the gravity potential they add:
+// every derivative of the residual against central differences.
+TEST(RigidBody, OffsetReferenceDerivatives) {
+  const bodies::RigidBody body("b", offset_body(Vec3(0.3, 0.1, -0.2)));
+  using V7 = bodies::RigidBody::Vec7;
+  V7 q, v, a;
+  q << random3(), random_p();
+  v << random3(), 0.5 * Vec4(uniform(), uniform(), uniform(), uniform());
+  a << random3(), Vec4(uniform(), uniform(), uniform(), uniform());
+  const Vec3 g(0.3, -9.81, 1.2);
+  Matrix K, C, M;
+  V7 r;
+  body.residual(q, v, a, g, r, &K, &C, &M);
+  auto res = [&](const V7 &x, const V7 &y, const V7 &z) -> Vector {
+    V7 out;
+    body.residual(x, y, z, g, out, nullptr, nullptr, nullptr);
+    return out;
+  };
+  expect_close(K, fd_jacobian([&](const Vector &x) { return res(x, v, a); }, q, 7), "K");
+  expect_close(C, fd_jacobian([&](const Vector &x) { return res(q, x, a); }, v, 7), "C");
+  expect_close(M, fd_jacobian([&](const Vector &x) { return res(q, v, x); }, a, 7), "M");
+  EXPECT_LT((M - M.transpose()).cwiseAbs().maxCoeff(), 1e-14 * M.cwiseAbs().maxCoeff());
+  // Linear and homogeneous in the ten mass parameters.
+  const Vector lin = body.parameter_jacobian(q, v, a, g) * bodies::to_parameters(body.properties());
+  EXPECT_LT((lin - r).cwiseAbs().maxCoeff(), 1e-13 * r.cwiseAbs().maxCoeff());
+}
+
+// The same body described about its centre of mass and about another point o moves the same
+// way: with r_c = r_o + A(p) d (d = c - o), the generalized forces in o's coordinates are the
+// pull-back f_o = [f_c,r; D(p, d)^T f_c,r + f_c,p], on the Euler-parameter manifold (|p| = 1,
+// p' _|_ p, p'' = 1/2 Gbar^T w' - |p'|^2 p), where only Gbar f_p is physical (the component
+// along p goes to the normalization multiplier). Energies agree too.
+TEST(RigidBody, OffsetReferenceDescribesTheSameMotion) {
+  const bodies::MassProperties pc = some_body();
+  const Vec3 o(0.3, 0.1, -0.2), d = pc.center - o;
+  const bodies::RigidBody centroidal("c", pc), offset("o", offset_body(o));
+  using V7 = bodies::RigidBody::Vec7;
+  const Vec4 p = random_p().normalized();
+  const bodies::Mat34 G = bodies::gbar_matrix(p);
+  const Vec3 w = random3(), wd = random3();
+  const Vec4 pd = 0.5 * G.transpose() * w;
+  const Vec4 pdd = 0.5 * G.transpose() * wd - pd.squaredNorm() * p;
+  const Vec3 rc = random3(), vc = random3(), ac = random3(), g(0.3, -9.81, 1.2);
+  V7 qc, vcv, acv, qo, vo, ao;
+  qc << rc, p;
+  vcv << vc, pd;
+  acv << ac, pdd;
+  qo << rc - bodies::rotation(p) * d, p;
+  vo << vc - bodies::rotate_jacobian(p, d) * pd, pd;
+  ao << ac - bodies::rotate_jacobian(p, d) * pdd - bodies::rotate_jacobian(pd, d) * pd, pdd;
+  V7 fc, fo;
+  centroidal.residual(qc, vcv, acv, g, fc, nullptr, nullptr, nullptr);
+  offset.residual(qo, vo, ao, g, fo, nullptr, nullptr, nullptr);
+  const Vec3 fr = fc.head<3>();
+  const Vec4 fp = bodies::rotate_jacobian(p, d).transpose() * fr + fc.tail<4>();
+  const double scale = fc.cwiseAbs().maxCoeff();
+  EXPECT_LT((fo.head<3>() - fr).norm(), 1e-13 * scale);
+  EXPECT_LT((G * (fo.tail<4>() - fp)).norm(), 1e-13 * scale);
+  const double ec = centroidal.energy(qc, vcv, g), eo = offset.energy(qo, vo, g);
+  EXPECT_NEAR(eo, ec, 1e-13 * std::abs(ec));
+  EXPECT_LT((offset.center_of_mass() - pc.center).norm(), 1e-15);
+}
+
+namespace {
+
 /// The coordinate offsets of a mechanism of rigid bodies (7 per body), which
 /// Mechanism::finalize() sets for equations used inside a mechanism.
 joints::Equation rigid_layout(joints::Equation e) {

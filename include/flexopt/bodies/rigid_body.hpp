@@ -3,6 +3,7 @@
 /// interface points, and the inertial terms of the equations of motion in Euler parameters
 /// (docs/theory.md section 6.2).
 #include "flexopt/bodies/body.hpp"
+#include "flexopt/fem/element.hpp"
 #include "flexopt/mesh/mesh_data.hpp"
 
 #include <string>
@@ -15,9 +16,26 @@ namespace flexopt::bodies {
 /// J_c = J_o - m (|c|^2 I - c c^T). A flexible body of the same mesh carries the same inertia.
 struct MassProperties {
   double mass = 0;
+  /// The body's reference point o (mesh coordinates): the centre of mass, unless `first` is
+  /// non-zero (a design body, docs/theory.md section 9.1).
   Vec3 center{0, 0, 0};
-  Mat3 inertia = Mat3::Zero();
+  Mat3 inertia = Mat3::Zero(); ///< about `center`, body axes
+  /// First moment of mass about `center`: sum m_i (X_i - center); zero when `center` is the
+  /// centre of mass.
+  Vec3 first{0, 0, 0};
 };
+
+/// The ten mass parameters theta = (m, S, J_xx, J_yy, J_zz, J_xy, J_yz, J_xz) of a body or an
+/// element about a reference point (docs/theory.md section 9.1), linear in the masses.
+using MassParameters = Eigen::Matrix<double, 10, 1>;
+MassParameters to_parameters(const MassProperties &p);
+/// The properties with reference point `reference` whose parameters are theta.
+MassProperties from_parameters(const MassParameters &theta, const Vec3 &reference);
+/// The parameters about `reference` of each element of `X` (one element's node coordinates per
+/// ElementCoords; all elements of type `type`) of solid density `density` [kg/m^3], as in
+/// mass_properties() element by element.
+MassParameters element_mass_parameters(fem::ElementType type, const fem::ElementCoords &X,
+                                       double density, const Vec3 &reference);
 
 /// Mass properties of a whole mesh of density `density` [kg/m^3]. Not collective (call where
 /// the MeshData lives, rank 0, and broadcast: every rank then holds bitwise the same values).
@@ -32,15 +50,15 @@ struct SurfaceCentroid {
 SurfaceCentroid surface_centroid(const mesh::MeshData &mesh, const std::string &surface);
 
 /// The inertial part of a rigid body's equations of motion, for its coordinates
-/// q = [r (centre of mass, world), p (Euler parameters)] (7 numbers), velocities v = q' and
-/// accelerations a = q'':
+/// q = [r (the reference point o, world), p (Euler parameters)] (7 numbers), velocities v = q'
+/// and accelerations a = q'':
 ///
-///   f_r = m a_r
-///   f_p = 4 Gbar(p)^T J Gbar(p) a_p + 8 Gbar(v_p)^T J Gbar(p) v_p
+///   f_r = m a_r + A(p) (alpha x S + omega x (omega x S))
+///   f_p = 4 Gbar(p)^T J Gbar(p) a_p + 8 Gbar(v_p)^T J Gbar(p) v_p + 2 Gbar^T (S x A^T a_r)
 ///
-/// with J the inertia about the centre of mass in body axes. The mass matrix
-/// M = diag(m I, 4 Gbar^T J Gbar) is singular along p; the constraint |p|^2 = 1 removes that
-/// direction (section 6.2).
+/// with J the inertia about o in body axes, S the first moment about o (zero when o is the
+/// centre of mass: section 6.2), omega = 2 Gbar v_p, alpha = 2 Gbar a_p (section 9.1). The mass
+/// matrix is singular along p; the constraint |p|^2 = 1 removes that direction.
 class RigidBody : public Body {
 public:
   static constexpr int kCoordinates = 7;
@@ -55,6 +73,9 @@ public:
   Vec3 origin() const override { return props_.center; }
   const Vec3 &center() const { return props_.center; }
   const Mat3 &inertia() const { return props_.inertia; }
+  const MassProperties &properties() const { return props_; }
+  /// The centre of mass in mesh coordinates: center() + S / m.
+  Vec3 center_of_mass() const;
 
   /// f(q, v, a) and its derivatives d f/dq, d f/dv, d f/da (= M(q)). Any output may be null.
   void inertial_force(const Vec7 &q, const Vec7 &v, const Vec7 &a, Vec7 *f, Mat7 *df_dq,
@@ -69,8 +90,14 @@ public:
   double energy(const ConstVectorRef &q, const ConstVectorRef &v,
                 const Vec3 &gravity) const override;
 
+  /// d res / d theta (7 x 10) at (q, v, a): the residual is linear and homogeneous in the mass
+  /// parameters, so column k is the residual of this body with theta = e_k (section 9.1).
+  Eigen::Matrix<double, 7, 10> parameter_jacobian(const Vec7 &q, const Vec7 &v, const Vec7 &a,
+                                                  const Vec3 &gravity) const;
+
 private:
   MassProperties props_;
+  bool offset_ = false; ///< first moment non-zero: the terms of section 9.1
 };
 
 } // namespace flexopt::bodies
