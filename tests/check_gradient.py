@@ -33,6 +33,11 @@ for t in s["taylor"]:
     if t["linear"]:
         ok = max(t["remainders"]) <= t["noise_floor"]
         print(("ok    " if ok else "FAIL  ") + f"{t['response']}: linear, remainders at round-off")
+    elif t["min_order"] is None:
+        ok = False
+        print(f"FAIL  {t['response']}: no Taylor remainders above the noise floor: order not measured")
+        failures += 1
+        continue
     else:
         ok = t["min_order"] >= 1.9
         print(("ok    " if ok else "FAIL  ") + f"{t['response']}: Taylor order {t['min_order']:.3f} >= 1.9")

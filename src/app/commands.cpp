@@ -1,11 +1,13 @@
 #include "flexopt/app/commands.hpp"
 
 #include "app_common.hpp"
+#include "flexopt/adjoint/dynamic_problem.hpp"
 #include "flexopt/core/error.hpp"
 #include "flexopt/fem/probe.hpp"
 #include "flexopt/fem/static_problem.hpp"
 #include "flexopt/io/case.hpp"
 #include "flexopt/io/json.hpp"
+#include "flexopt/io/xdmf.hpp"
 #include "flexopt/mesh/load.hpp"
 #include "flexopt/optimize/optimizer.hpp"
 #include "flexopt/optimize/topology_problem.hpp"
@@ -433,9 +435,16 @@ std::vector<double> response_values(const optimize::Evaluation &e) {
   return v;
 }
 
+/// The design problem of a case: the static SIMP problem or the dynamic one (adjoint module).
+/// Collective.
+std::unique_ptr<optimize::DesignProblem> create_design_problem(MPI_Comm comm, const io::Case &c) {
+  if (c.analysis == "dynamic") return adjoint::DynamicProblem::create(comm, c);
+  return optimize::TopologyProblem::create(comm, c);
+}
+
 int run_check_gradient(const Context &ctx, const Options &o, const io::Case &c, double t0) {
   const std::string dir = output_directory(ctx, o);
-  auto problem = optimize::TopologyProblem::create(ctx.comm(), c);
+  std::unique_ptr<optimize::DesignProblem> problem = create_design_problem(ctx.comm(), c);
   const auto &names = problem->response_names();
   const std::size_t nr = names.size();
   print0(ctx.comm(), "check-gradient: %lld design variables, %zu response(s)\n",
@@ -455,6 +464,27 @@ int run_check_gradient(const Context &ctx, const Options &o, const io::Case &c, 
   optimize::Evaluation base;
   problem->evaluate(x0, true, base);
   const std::vector<double> r0 = response_values(base);
+  // gradient.xdmf: dR/dx per element of the design body (0 outside the design region).
+  std::string gradient_file;
+  {
+    io::XdmfWriter writer(mesh::grid_layout(problem->mesh()), dir, "gradient");
+    writer.begin_step(0);
+    const auto &elements = problem->field().design_elements();
+    std::vector<double> cells(static_cast<std::size_t>(problem->mesh().local_elements()));
+    for (std::size_t i = 0; i < nr; ++i) {
+      std::fill(cells.begin(), cells.end(), 0.0);
+      const PetscScalar *g;
+      Vec gv = i == 0 ? base.d_objective : base.d_constraints[i - 1];
+      FX_PETSC(VecGetArrayRead(gv, &g));
+      for (std::size_t k = 0; k < elements.size(); ++k)
+        cells[static_cast<std::size_t>(elements[k])] = g[k];
+      FX_PETSC(VecRestoreArrayRead(gv, &g));
+      writer.cell_scalar(i == 0 ? "gradient_objective"
+                                : "gradient_constraint" + std::to_string(i - 1),
+                         cells.data());
+    }
+    gradient_file = writer.close();
+  }
   std::vector<double> slope(nr);
   for (std::size_t i = 0; i < nr; ++i)
     FX_PETSC(VecDot(i == 0 ? base.d_objective : base.d_constraints[i - 1], direction, &slope[i]));
@@ -471,17 +501,14 @@ int run_check_gradient(const Context &ctx, const Options &o, const io::Case &c, 
       remainders[i].push_back(std::abs(r[i] - r0[i] - h * slope[i]));
   }
   io::Json s = base_summary(ctx, o, c);
-  s["dofs"] = static_cast<long long>(problem->static_problem().global_dofs());
-  s["elements"] = static_cast<long long>(problem->mesh().global_elements);
-  s["design_variables"] = static_cast<long long>(problem->design_size());
-  // Remainders below kNoiseFloor |R| are round-off of the evaluation itself (the state
-  // solve is accurate to about eps * cond(K), measured ~1e-11 relative on the test cases). An
+  // Remainders below noise_floor() |R| are round-off of the evaluation itself (the problem
+  // says how large: the static state solve's eps * cond(K), the dynamic Newton tolerance). An
   // order is taken only between steps whose remainders both exceed kResolved times that floor:
   // noise of at most 1/kResolved of a remainder moves the order by at most log10(1.1) = 0.04
   // (a remainder just above the floor carries noise of its own size, and an order near 1.88
   // for a correct gradient). A response whose remainders all lie below the floor is linear
   // in the design (the volume fraction): exact.
-  constexpr double kNoiseFloor = 1e-10;
+  const double kNoiseFloor = problem->noise_floor();
   constexpr double kResolved = 10;
   io::Json taylor = io::Json::array();
   for (std::size_t i = 0; i < nr; ++i) {
@@ -494,6 +521,7 @@ int run_check_gradient(const Context &ctx, const Options &o, const io::Case &c, 
       if (remainders[i][k + 1] > kResolved * floor) min_order = std::min(min_order, orders.back());
     }
     const bool linear = remainders[i][0] <= floor;
+    const bool resolved = min_order < 1e300;
     io::Json t = io::Json::object();
     t["response"] = names[i];
     t["value"] = r0[i];
@@ -502,7 +530,8 @@ int run_check_gradient(const Context &ctx, const Options &o, const io::Case &c, 
     t["orders"] = orders;
     t["noise_floor"] = floor;
     t["linear"] = linear;
-    t["min_order"] = linear ? io::Json() : io::Json(min_order);
+    t["min_order"] = linear || !resolved ? io::Json() : io::Json(min_order);
+    t["resolved"] = linear || resolved;
     taylor.push_back(t);
     print0(ctx.comm(), "taylor %-28s value %.10g  remainders", names[i].c_str(), r0[i]);
     for (double rem : remainders[i]) print0(ctx.comm(), " %.3e", rem);
@@ -510,6 +539,9 @@ int run_check_gradient(const Context &ctx, const Options &o, const io::Case &c, 
     for (double ord : orders) print0(ctx.comm(), " %.3f", ord);
     if (linear)
       print0(ctx.comm(), "  (linear: remainders at round-off)");
+    else if (!resolved)
+      print0(ctx.comm(), "  no two remainders above %g x the noise floor: order not measured",
+             kResolved);
     else
       print0(ctx.comm(), "  min order above the noise floor %.3f", min_order);
     print0(ctx.comm(), "\n");
@@ -607,13 +639,15 @@ int run_check_gradient(const Context &ctx, const Options &o, const io::Case &c, 
   s["fd_step"] = kStep;
   s["fd_significance"] = kSignificant;
   s["max_rel_err"] = max_rel;
-  s["state_solves"] = problem->state_solves();
+  problem->describe(s);
   FX_PETSC(VecDestroy(&x0));
   FX_PETSC(VecDestroy(&x));
   FX_PETSC(VecDestroy(&direction));
   write_summary(ctx, dir, s, t0);
-  print0(ctx.comm(), "check-gradient: max relative error of the adjoint gradient %.2e; wrote %s\n",
-         max_rel, (fs::path(dir) / "summary.json").c_str());
+  print0(ctx.comm(),
+         "check-gradient: max relative error of the adjoint gradient %.2e; wrote %s (cell "
+         "arrays gradient_objective, gradient_constraint0, ...) and %s\n",
+         max_rel, gradient_file.c_str(), (fs::path(dir) / "summary.json").c_str());
   return 0;
 }
 

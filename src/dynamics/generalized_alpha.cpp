@@ -501,11 +501,22 @@ bool GeneralizedAlpha::step_once(const State &s, double h, State &next, StepInfo
   return detail::newton_loop(backend, settings_, par_.newton_scaling(h), info);
 }
 
-bool GeneralizedAlpha::advance(const State &s, double h, State &next, StepInfo &info) const {
-  return detail::advance_with_halving(s, h, next, info, settings_.max_halvings,
-                                      [this](const State &from, double dt, State &to, StepInfo &i) {
-                                        return step_once(from, dt, to, i);
-                                      });
+void GeneralizedAlpha::jacobian_blocks(const State &next, Matrix &K, Matrix &C, Matrix &M,
+                                       Matrix &J) const {
+  Vector r, phi;
+  mech_.dynamics(next.q, next.v, next.acc, next.t, r, &K, &C, &M);
+  mech_.add_constraint_hessian(next.q, next.t, next.lambda, K);
+  mech_.constraint(next.q, next.t, phi, &J);
+}
+
+bool GeneralizedAlpha::advance(const State &s, double h, State &next, StepInfo &info,
+                               std::vector<std::pair<State, double>> *substeps) const {
+  return detail::advance_with_halving(
+      s, h, next, info, settings_.max_halvings,
+      [this](const State &from, double dt, State &to, StepInfo &i) {
+        return step_once(from, dt, to, i);
+      },
+      substeps);
 }
 
 void GeneralizedAlpha::residual(const State &next, const State &prev, double h, Vector &R,
@@ -518,14 +529,13 @@ void GeneralizedAlpha::residual(const State &next, const State &prev, double h, 
   R.segment(2 * n, n) = (1 - am) * next.a + am * prev.a - (1 - af) * next.acc - af * prev.acc;
   Vector r, phi;
   Matrix K, C, M, J;
-  mech_.dynamics(next.q, next.v, next.acc, next.t, r, dR_dnext ? &K : nullptr,
-                 dR_dnext ? &C : nullptr, dR_dnext ? &M : nullptr);
+  mech_.dynamics(next.q, next.v, next.acc, next.t, r, nullptr, nullptr, nullptr);
   mech_.constraint(next.q, next.t, phi, &J);
   R.segment(3 * n, n) = r + J.transpose() * next.lambda;
   R.segment(4 * n, m) = phi;
   const Matrix I = Matrix::Identity(n, n);
   if (dR_dnext) {
-    mech_.add_constraint_hessian(next.q, next.t, next.lambda, K);
+    jacobian_blocks(next, K, C, M, J);
     Matrix &D = *dR_dnext;
     D.setZero(4 * n + m, 4 * n + m);
     D.block(0, 0, n, n) = I;

@@ -87,15 +87,13 @@ namespace {
 
 /// Keys of CASE_FORMAT.md that belong to later stages (dynamic optimization): recognised so that
 /// the message says they are not available yet rather than "unknown".
-const std::set<std::string> kNotYetSupported = {"adjoint"};
+const std::set<std::string> kNotYetSupported = {};
 
 /// Top-level keys that only a dynamic analysis takes.
 const char *const kDynamicOnly[] = {"ground", "joints", "drivers", "time"};
 
-/// Top-level keys of the static analysis and the (static) topology optimization that a dynamic
-/// analysis does not take yet.
-const char *const kStaticOnly[] = {"supports",  "tractions",   "line_loads", "design",
-                                   "objective", "constraints", "optimizer"};
+/// Top-level keys of the static analysis that a dynamic analysis does not take.
+const char *const kStaticOnly[] = {"supports", "tractions", "line_loads"};
 
 /// Validating reader over one YAML document: every failure names file, line and column.
 class Reader {
@@ -786,23 +784,88 @@ void read_design(const Reader &r, const YAML::Node &v, Case &c) {
 ResponseSpec read_response(const Reader &r, const YAML::Node &v, const std::string &path,
                            bool constraint, const Case &c) {
   r.require_map(v, path);
-  r.check_keys(v, path, {"type", "sensor", "direction", "max"});
+  r.check_keys(
+      v, path,
+      {"type", "sensor", "direction", "body", "target", "component", "measure", "ks", "max"});
   ResponseSpec s;
   s.where = r.where(v);
+  const bool dynamic = c.analysis == "dynamic";
   s.type = r.choice(r.require(v, "type", path), path + ".type",
                     {"compliance", "volume_fraction", "displacement", "strain_energy_integral",
-                     "tracking_error"});
-  if (s.type == "strain_energy_integral" || s.type == "tracking_error")
-    r.fail(v["type"], path + ".type: '" + s.type + "' needs a dynamic analysis, not supported yet");
-  if (s.type == "displacement") {
+                     "tracking_error", "sensor", "mass"});
+  if (!dynamic && (s.type == "strain_energy_integral" || s.type == "tracking_error" ||
+                   s.type == "sensor" || s.type == "mass"))
+    r.fail(v["type"], path + ".type: '" + s.type + "' is a response of a dynamic analysis");
+  if (dynamic && (s.type == "compliance" || s.type == "displacement"))
+    r.fail(v["type"], path + ".type: '" + s.type +
+                          "' is a response of a static analysis (dynamic: strain_energy_integral, "
+                          "tracking_error, sensor, volume_fraction, mass)");
+  // Which keys each type takes.
+  std::set<std::string> takes;
+  if (s.type == "displacement") takes = {"sensor", "direction"};
+  if (s.type == "tracking_error") takes = {"sensor", "target"};
+  if (s.type == "sensor") takes = {"sensor", "component", "measure", "ks"};
+  if (s.type == "strain_energy_integral" || s.type == "mass") takes = {"body"};
+  for (const char *k : {"sensor", "direction", "body", "target", "component", "measure", "ks"})
+    if (v[k] && !takes.count(k))
+      r.fail(v[k], path + "." + k + ": a '" + s.type + "' response does not take it");
+  auto find_sensor = [&]() {
     s.sensor = r.string(r.require(v, "sensor", path), path + ".sensor");
-    bool found = false;
-    for (const auto &sensor : c.sensors) found = found || sensor.name == s.sensor;
-    if (!found) r.fail(v["sensor"], path + ".sensor: no sensor named '" + s.sensor + "'");
+    for (const auto &sensor : c.sensors)
+      if (sensor.name == s.sensor) {
+        if (dynamic && sensor.quantity == "rotation_angle")
+          r.fail(v["sensor"], path + ".sensor: sensor '" + s.sensor +
+                                  "' measures rotation_angle, which a response cannot use yet "
+                                  "(position, displacement, elastic_displacement)");
+        return;
+      }
+    r.fail(v["sensor"], path + ".sensor: no sensor named '" + s.sensor + "'");
+  };
+  if (s.type == "displacement") {
+    find_sensor();
     s.direction = r.direction(r.require(v, "direction", path), path + ".direction");
-  } else {
-    for (const char *k : {"sensor", "direction"})
-      if (v[k]) r.fail(v[k], path + "." + k + ": only a displacement response takes it");
+  }
+  if (s.type == "tracking_error") {
+    find_sensor();
+    const YAML::Node &tg = r.require(v, "target", path);
+    if (!tg.IsSequence() || tg.size() != 3)
+      r.fail(tg, path + ".target: expected a list of 3 components [x, y, z], each a number or an "
+                        "expression in t");
+    for (std::size_t k = 0; k < 3; ++k) {
+      const std::string kp = path + ".target[" + std::to_string(k) + "]";
+      s.target[k] = r.expression(tg[k], kp);
+      if (c.time.given)
+        for (double t : {0.0, 0.5 * c.time.end, c.time.end}) {
+          const double y = Expression(s.target[k])(t);
+          if (!std::isfinite(y))
+            r.fail(tg[k], kp + ": '" + s.target[k] + "' is not finite at t = " + std::to_string(t) +
+                              " s (" + std::to_string(y) + ")");
+        }
+    }
+  }
+  if (s.type == "sensor") {
+    find_sensor();
+    const YAML::Node &cn = r.require(v, "component", path);
+    const std::string cs = cn.IsScalar() ? cn.Scalar() : "";
+    if (cs == "0" || cs == "x")
+      s.component = 0;
+    else if (cs == "1" || cs == "y")
+      s.component = 1;
+    else if (cs == "2" || cs == "z")
+      s.component = 2;
+    else
+      r.fail(cn, path + ".component: expected 0, 1, 2 (or x, y, z), got '" + cs + "'");
+    s.measure = r.choice(r.require(v, "measure", path), path + ".measure",
+                         {"final", "mean_square", "ks_max"});
+    if (v["ks"]) {
+      if (s.measure != "ks_max") r.fail(v["ks"], path + ".ks: only measure: ks_max takes it");
+      s.ks = r.number(v["ks"], path + ".ks");
+      if (!(s.ks > 0)) r.fail(v["ks"], path + ".ks: must be positive");
+    }
+  }
+  if (s.type == "strain_energy_integral" || s.type == "mass") {
+    s.body = r.string(r.require(v, "body", path), path + ".body");
+    if (!has_body(c, s.body)) r.fail(v["body"], path + ".body: no body named '" + s.body + "'");
   }
   if (constraint) {
     s.max = r.number(r.require(v, "max", path), path + ".max");
@@ -813,6 +876,25 @@ ResponseSpec read_response(const Reader &r, const YAML::Node &v, const std::stri
     r.fail(v["max"], path + ".max: the objective takes no bound");
   }
   return s;
+}
+
+void read_adjoint(const Reader &r, const YAML::Node &v, Case &c) {
+  const std::string path = "adjoint";
+  r.require_map(v, path);
+  r.check_keys(v, path, {"checkpoints", "storage", "basis"});
+  AdjointSpec &a = c.adjoint;
+  a.where = r.where(v);
+  if (v["checkpoints"]) {
+    const YAML::Node &n = v["checkpoints"];
+    if (!(n.IsScalar() && n.Scalar() == "all")) {
+      a.checkpoints = r.integer(n, path + ".checkpoints");
+      if (a.checkpoints < 1)
+        r.fail(n, path + ".checkpoints: must be 'all' or a number of stored states >= 1 (got " +
+                      n.Scalar() + ")");
+    }
+  }
+  if (v["storage"]) a.storage = r.choice(v["storage"], path + ".storage", {"memory", "disk"});
+  if (v["basis"]) a.basis = r.choice(v["basis"], path + ".basis", {"exact", "fixed"});
 }
 
 } // namespace
@@ -853,7 +935,7 @@ Case load_case(const std::string &directory) {
   r.check_keys(root, "",
                {"analysis", "materials", "bodies", "ground", "joints", "drivers", "loads",
                 "supports", "tractions", "line_loads", "time", "sensors", "output", "solver",
-                "design", "objective", "constraints", "optimizer"});
+                "design", "objective", "constraints", "optimizer", "adjoint"});
 
   c.analysis = r.choice(r.require(root, "analysis", ""), "analysis", {"static", "dynamic"});
   const bool dynamic = c.analysis == "dynamic";
@@ -919,6 +1001,12 @@ Case load_case(const std::string &directory) {
       if (!(c.optimizer.tolerance >= 0))
         r.fail(o["tolerance"], "optimizer.tolerance: must be >= 0");
     }
+  }
+  if (root["adjoint"]) {
+    if (!dynamic)
+      r.fail(r.key_node(root, "adjoint"),
+             "adjoint: needs analysis: dynamic (a static optimization stores no states)");
+    read_adjoint(r, root["adjoint"], c);
   }
   if ((c.objective || !c.constraints.empty() || root["optimizer"]) && !c.design)
     r.fail(root, "objective/constraints/optimizer need a design: section (the design field)");

@@ -18,18 +18,18 @@ namespace flexopt::optimize {
 namespace {
 
 /// Writes the densities of the current evaluation as one step of the design collection.
-void write_densities(io::XdmfWriter &writer, TopologyProblem &p, double step) {
+void write_densities(io::XdmfWriter &writer, const DesignField &p, double step) {
   writer.begin_step(step);
   const PetscScalar *a;
   FX_PETSC(VecGetArrayRead(p.density(), &a));
   writer.cell_scalar("density", a);
   FX_PETSC(VecRestoreArrayRead(p.density(), &a));
-  FX_PETSC(VecGetArrayRead(p.filtered_density(), &a));
+  FX_PETSC(VecGetArrayRead(p.filtered(), &a));
   writer.cell_scalar("filtered_density", a);
-  FX_PETSC(VecRestoreArrayRead(p.filtered_density(), &a));
-  FX_PETSC(VecGetArrayRead(p.physical_density(), &a));
+  FX_PETSC(VecRestoreArrayRead(p.filtered(), &a));
+  FX_PETSC(VecGetArrayRead(p.physical(), &a));
   writer.cell_scalar("physical_density", a);
-  FX_PETSC(VecRestoreArrayRead(p.physical_density(), &a));
+  FX_PETSC(VecRestoreArrayRead(p.physical(), &a));
 }
 
 /// Local values of a design-layout Vec.
@@ -112,7 +112,7 @@ OptimizationResult run_optimization(MPI_Comm comm, const io::Case &c, const std:
       "optimize: %lld design variables, %zu constraint(s), at most %d iterations, move limit %g, "
       "%s\n",
       static_cast<long long>(problem->design_size()), m, c.optimizer.max_iterations,
-      c.optimizer.move_limit, problem->filter().describe().c_str());
+      c.optimizer.move_limit, problem->field().filter().describe().c_str());
   print0(comm, "%5s %16s", "it", "objective");
   for (std::size_t i = 0; i < m; ++i)
     print0(comm, " %16s",
@@ -179,14 +179,14 @@ OptimizationResult run_optimization(MPI_Comm comm, const io::Case &c, const std:
   Evaluation e;
   for (int k = first; k <= c.optimizer.max_iterations; ++k) {
     const double t0 = wall_time();
-    if (!betas.empty()) problem->set_beta(betas[static_cast<std::size_t>(stage)]);
+    if (!betas.empty()) problem->field().set_beta(betas[static_cast<std::size_t>(stage)]);
     problem->evaluate(x, true, e);
     if (!std::isfinite(e.objective))
       throw Error("optimize: iteration " + std::to_string(k) + ": the objective is not finite",
                   true);
     if (k == 1) objective_scale = std::abs(e.objective) > 0 ? 10.0 / std::abs(e.objective) : 1.0;
     const bool write = (k - 1) % std::max(c.output.every, 1) == 0; // default: every one
-    if (write) write_densities(writer, *problem, k - 1);
+    if (write) write_densities(writer, problem->field(), k - 1);
 
     FX_PETSC(VecCopy(e.d_objective, df0));
     FX_PETSC(VecScale(df0, objective_scale));
@@ -260,8 +260,8 @@ OptimizationResult run_optimization(MPI_Comm comm, const io::Case &c, const std:
   if (!result.converged) result.stop_reason = "max_iterations reached";
   // Final state: the design after the last update.
   problem->evaluate(x, false, e);
-  write_densities(writer, *problem, result.iterations);
-  result.volume_fraction = problem->volume_fraction();
+  write_densities(writer, problem->field(), result.iterations);
+  result.volume_fraction = problem->field().volume_fraction();
   result.output = writer.close();
   run_on_root(comm, 0, [&] {
     io::write_file_atomic((std::filesystem::path(out_dir) / "history.csv").string(), history.str());

@@ -1,11 +1,13 @@
 #pragma once
 /// \file One step of the discrete adjoint of generalized-alpha (docs/theory.md section 9): the
-/// transposed solve with dR/ds_{n+1} reduced to the transposed scaled Newton matrix, and the
-/// coupling (dR_{n+1}/ds_n)^T mu to the previous state. Dense backend (replicated state
-/// vectors packed as [q, v, a, acc, lambda], dynamics::State::pack). The dynamics module does not
-/// include this module; it supplies the Jacobians (dynamics::GeneralizedAlpha::residual).
+/// transposed solve with dR/ds_{n+1} reduced to the transposed scaled Newton matrix, the
+/// coupling (dR_{n+1}/ds_n)^T mu to the previous state, and the backward sweep over a stored
+/// trajectory. Dense backend (replicated state vectors packed as [q, v, a, acc, lambda],
+/// dynamics::State::pack). The dynamics module does not include this module; it supplies the
+/// Jacobians (dynamics::GeneralizedAlpha::jacobian_blocks, residual).
 #include "flexopt/dynamics/generalized_alpha.hpp"
 
+#include <functional>
 #include <vector>
 
 namespace flexopt::adjoint {
@@ -13,24 +15,41 @@ namespace flexopt::adjoint {
 using dynamics::Matrix;
 using dynamics::Vector;
 
-/// mu with (dR/ds_{n+1})^T mu = f, from the Jacobian `dR_dnext` (size 4n + m, as
-/// GeneralizedAlpha::residual returns it at the converged s_{n+1}) of a step of size h: one LU
-/// of the transposed scaled Newton matrix [M + (g'/b') C + K/b', Phi_q^T; Phi_q, 0]^T (n + m
-/// unknowns) and back-substitution (section 9). Throws flexopt::Error if that matrix is
+/// The columns mu of (dR/ds_{n+1})^T mu = F for a step of size h, from the blocks K, C, M, J of
+/// dR/ds_{n+1} at the converged s_{n+1} (GeneralizedAlpha::jacobian_blocks): one LU of the
+/// transposed scaled Newton matrix [M + (g'/b') C + K/b', J^T; J, 0]^T (n + m unknowns) for all
+/// columns, then back-substitution (section 9). Throws flexopt::Error if that matrix is
 /// singular.
+Matrix step_adjoint(const Matrix &K, const Matrix &C, const Matrix &M, const Matrix &J,
+                    const dynamics::AlphaParameters &par, double h, const Matrix &F);
+/// The same from the full Jacobian `dR_dnext` (size 4n + m, GeneralizedAlpha::residual), for one
+/// right-hand side.
 Vector step_adjoint(const Matrix &dR_dnext, const dynamics::AlphaParameters &par, double h, int n,
                     int m, const Vector &f);
 
-/// (dR_{n+1}/ds_n)^T mu: the blocks of R_q, R_v, R_a that involve the previous state (section
-/// 9), without forming the Jacobian.
-Vector previous_coupling(const dynamics::AlphaParameters &par, double h, int n, int m,
-                         const Vector &mu);
+/// (dR_{n+1}/ds_n)^T mu, column by column: the blocks of R_q, R_v, R_a that involve the previous
+/// state (section 9), without forming the Jacobian.
+Matrix previous_coupling(const dynamics::AlphaParameters &par, double h, int n, int m,
+                         const Matrix &mu);
 
-/// The backward sweep of section 9 on the dense backend: from the states s_0 ... s_N of a
-/// forward run with steps of h (each converged, R(s_n, s_(n-1)) = 0) and the partials
-/// dpsi[n] = (dPsi/ds_n)^T (packed like State::pack), the multipliers mu_1 ... mu_N of the step
-/// residuals and mu_0 = -(dPsi/ds_0)^T - (dR_1/ds_0)^T mu_1, returned as mu[0] ... mu[N].
-/// Treating s_0 as free, dPsi/ds_0 = -mu_0^T.
+/// The states a forward run went through: states[0] the initial state, states[k] the end of
+/// step k of size h[k] (h[0] unused). Halved steps appear as their substeps (section 9.3).
+struct Trajectory {
+  std::vector<dynamics::State> states;
+  std::vector<double> h;
+  std::size_t steps() const { return states.empty() ? 0 : states.size() - 1; }
+};
+
+/// The backward sweep of section 9 for several responses at once (one column each): from the
+/// partials dpsi(k) = (dPsi/ds_k)^T (packed like State::pack, 4n + m rows; may return an empty
+/// matrix for zero), computes the multipliers mu_k of the step residuals for k = N ... 1,
+/// handing each to on_step(k, mu_k) (may be null) as soon as it is known, and returns
+/// mu_0 = -(dPsi/ds_0)^T - (dR_1/ds_0)^T mu_1. Treating s_0 as free, dPsi/ds_0 = -mu_0^T.
+Matrix backward_sweep(const dynamics::GeneralizedAlpha &ga, const Trajectory &trajectory,
+                      int responses, const std::function<Matrix(std::size_t)> &dpsi,
+                      const std::function<void(std::size_t, const Matrix &)> &on_step);
+
+/// One response on a trajectory of equal steps h: returns mu_0 ... mu_N.
 std::vector<Vector> backward_sweep(const dynamics::GeneralizedAlpha &ga,
                                    const std::vector<dynamics::State> &states, double h,
                                    const std::vector<Vector> &dpsi);

@@ -108,8 +108,11 @@ public:
                       StartReport *report = nullptr) const;
 
   /// Advances s by h to `next`, halving the step (recursively, up to max_halvings) when Newton
-  /// fails. Returns false (and fills `info`) if even the smallest substep fails.
-  bool advance(const State &s, double h, State &next, StepInfo &info) const;
+  /// fails. Returns false (and fills `info`) if even the smallest substep fails. If the step
+  /// was halved and `substeps` is non-null, each substep's end state and size are appended to
+  /// it (the adjoint runs over them; docs/theory.md section 9.3).
+  bool advance(const State &s, double h, State &next, StepInfo &info,
+               std::vector<std::pair<State, double>> *substeps = nullptr) const;
 
   /// One step of size h without halving. Returns false if Newton did not converge.
   bool step(const State &s, double h, State &next, StepInfo &info) const;
@@ -123,6 +126,11 @@ public:
   /// and its exact Jacobians with respect to s_{n+1} and s_n (each may be null).
   void residual(const State &next, const State &prev, double h, Vector &R, Matrix *dR_dnext,
                 Matrix *dR_dprev) const;
+  /// The blocks of dR/ds_{n+1} that are not multiples of the identity: dR_d/dq = K (with the
+  /// constraint Hessian contracted with lambda), dR_d/dv = C, dR_d/dacc = M, and Phi_q = J (the
+  /// transposed Newton matrix of the adjoint, docs/theory.md section 9).
+  void jacobian_blocks(const State &next, Matrix &K, Matrix &C, Matrix &M, Matrix &J) const;
+  const Mechanism &mechanism() const { return mech_; }
 
 private:
   bool step_once(const State &s, double h, State &next, StepInfo &info) const;

@@ -19,6 +19,8 @@
 #include <cmath>
 #include <functional>
 #include <limits>
+#include <utility>
+#include <vector>
 
 namespace flexopt::dynamics::detail {
 
@@ -96,19 +98,27 @@ bool newton_loop(Backend &b, const NewtonSettings &settings, const NewtonScaling
 
 /// One step of h from s to `next` by step_once(from, dt, to, info); if it fails, two half
 /// steps, each of which may halve again, down to h / 2^max_halvings. Returns (and records in
-/// info.converged) whether the step was made.
+/// info.converged) whether the step was made. If the step was halved and `path` is non-null,
+/// every substep's end state and size are appended to it in order (the last is `next`); a step
+/// made whole appends nothing.
 template <class State, class StepOnce>
 bool advance_with_halving(const State &s, double h, State &next, StepInfo &info, int max_halvings,
-                          StepOnce &&step_once) {
+                          StepOnce &&step_once,
+                          std::vector<std::pair<State, double>> *path = nullptr) {
   info.converged = step_once(s, h, next, info);
   if (info.converged) return true;
+  auto made = [&](const State &from, double dt, State &to) {
+    if (!step_once(from, dt, to, info)) return false;
+    if (path) path->emplace_back(to, dt);
+    return true;
+  };
   std::function<bool(const State &, double, State &, int)> split =
       [&](const State &from, double dt, State &to, int depth) -> bool {
     if (depth > max_halvings) return false;
     info.halvings = std::max(info.halvings, depth);
     State mid;
-    if (!step_once(from, dt, mid, info) && !split(from, 0.5 * dt, mid, depth + 1)) return false;
-    if (!step_once(mid, dt, to, info) && !split(mid, 0.5 * dt, to, depth + 1)) return false;
+    if (!made(from, dt, mid) && !split(from, 0.5 * dt, mid, depth + 1)) return false;
+    if (!made(mid, dt, to) && !split(mid, 0.5 * dt, to, depth + 1)) return false;
     return true;
   };
   info.converged = split(s, 0.5 * h, next, 1);

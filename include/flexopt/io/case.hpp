@@ -218,13 +218,30 @@ struct DesignSpec {
   Location where;
 };
 
-/// A response (objective or constraint).
+/// A response (objective or constraint). Static: compliance | volume_fraction | displacement.
+/// Dynamic (docs/theory.md section 9.3): strain_energy_integral | tracking_error | sensor |
+/// volume_fraction | mass.
 struct ResponseSpec {
-  std::string type;                         ///< compliance | volume_fraction | displacement
-  std::string sensor;                       ///< displacement: a sensor name
+  std::string type;
+  std::string sensor;                       ///< displacement, tracking_error, sensor: a sensor name
   std::array<double, 3> direction{0, 0, 0}; ///< displacement: unit direction
-  double max = 0;                           ///< constraints: upper bound
+  std::string body;                         ///< strain_energy_integral, mass: a body name
+  /// tracking_error: the target position, each component a number or an expression in t
+  /// (compiled when read, so flexopt::Expression(target[k]) does not throw).
+  std::array<std::string, 3> target;
+  int component = 0;   ///< sensor: 0, 1, 2 (x, y, z)
+  std::string measure; ///< sensor: final | mean_square | ks_max
+  double ks = 50;      ///< sensor ks_max: the aggregation parameter k [1/unit of the sensor]
+  double max = 0;      ///< constraints: upper bound
   bool has_max = false;
+  Location where;
+};
+
+/// `adjoint:` of a dynamic optimization (docs/theory.md section 9.4).
+struct AdjointSpec {
+  int checkpoints = 0;            ///< stored states; 0: all (`checkpoints: all`)
+  std::string storage = "memory"; ///< memory | disk (an HDF5 file in the output directory)
+  std::string basis = "exact";    ///< FFRF design bodies: exact | fixed
   Location where;
 };
 
@@ -258,6 +275,7 @@ struct Case {
   std::optional<ResponseSpec> objective;   ///< topology optimization: minimized
   std::vector<ResponseSpec> constraints;   ///< topology optimization: each <= max
   OptimizerSpec optimizer;
+  AdjointSpec adjoint; ///< dynamic optimization: checkpointing of the backward sweep
 
   const MaterialSpec &material(const std::string &name) const;
   const BodySpec &body(const std::string &name) const;

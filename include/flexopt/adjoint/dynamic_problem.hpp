@@ -1,0 +1,110 @@
+#pragma once
+/// \file Topology optimization responses of a dynamic analysis and their discrete-adjoint
+/// gradients (docs/theory.md section 9): the scene is built once (meshes, joints, sensors);
+/// each evaluation sets the design body's mass parameters from the densities, runs the
+/// forward generalized-alpha integration storing its states, evaluates the responses on the
+/// time grid, and runs the backward sweep with the design partials and the adjoint of the
+/// consistent initial state.
+#include "flexopt/adjoint/step_adjoint.hpp"
+#include "flexopt/bodies/rigid_body.hpp"
+#include "flexopt/dynamics/scene.hpp"
+#include "flexopt/io/case.hpp"
+#include "flexopt/optimize/design_problem.hpp"
+
+#include <functional>
+#include <memory>
+#include <mpi.h>
+#include <string>
+#include <vector>
+
+namespace flexopt::adjoint {
+
+/// d r / d theta contracted with weights: G = (d r/d theta)^T W at the mechanism state (q, v, a)
+/// (r the dynamics residual of Mechanism::dynamics, with or without gravity; theta the design
+/// parameters; W has one column per response). The adjoint of the initial state calls it for
+/// the accelerations (with gravity) and for the mass matrix of the velocity correction (v = 0,
+/// no gravity: r = M a).
+using bodies::Vec3;
+
+using ResidualPartials = std::function<Matrix(const Vector &q, const Vector &v, const Vector &a,
+                                              bool gravity, const Matrix &W)>;
+
+/// The adjoint of the consistent initial state (docs/theory.md section 9.2): from
+/// gbar = dPsi/ds_0 (packed like State::pack, one column per response; = -mu_0 of the sweep),
+/// the state s0 that GeneralizedAlpha::initial_state computed from the velocities v_given,
+/// returns dPsi/dtheta through the accelerations, multipliers and the velocity correction.
+/// Throws flexopt::Error if the start needed the elastic velocity fallback (not differentiated).
+Matrix initial_state_adjoint(const dynamics::GeneralizedAlpha &ga, const dynamics::State &s0,
+                             const Vector &v_given, const Matrix &gbar,
+                             const ResidualPartials &partials);
+
+/// A response of a dynamic analysis on the time grid (docs/theory.md section 9.3): the sensor
+/// samples y_n at the main steps give Psi and dPsi/dy_n.
+struct SampledResponse {
+  double value = 0;
+  std::vector<Vec3> dy; ///< dPsi/dy_n per main step (empty: no trajectory dependence)
+};
+/// Psi and dPsi/dy_n of a tracking_error or sensor response from the samples y (one per main
+/// step n = 0 ... N at t_n = n h). Throws a collective flexopt::Error naming the response if a
+/// target is not finite.
+SampledResponse sampled_response(const io::ResponseSpec &r, const std::vector<Vec3> &y, double h);
+
+class DynamicProblem : public optimize::DesignProblem {
+public:
+  /// Builds the scene (meshes, joints, sensors) and the design field of `c` (analysis:
+  /// dynamic, with design: and objective:). Collective; throws collective flexopt::Errors with
+  /// case.yaml:line:col for a design body whose model has no design partials yet, responses
+  /// on missing or unsuitable bodies and sensors.
+  static std::unique_ptr<DynamicProblem> create(MPI_Comm comm, const io::Case &c);
+  ~DynamicProblem() override;
+
+  optimize::DesignField &field() override { return *field_; }
+  const optimize::DesignField &field() const override { return *field_; }
+  const mesh::DistributedMesh &mesh() const override;
+  const std::vector<std::string> &response_names() const override { return names_; }
+  void evaluate(Vec x, bool gradients, optimize::Evaluation &out) override;
+  /// dofs, elements, design_variables, steps, forward_s, adjoint_s, checkpoints,
+  /// recomputed_steps, checkpoint_bytes, evaluations.
+  void describe(io::Json &summary) const override;
+  /// 1e-12: every step is solved to Newton's tolerance 1e-12 (relative increment), whose error
+  /// reaches the responses (measured remainders of the Taylor test clean to 1e-14 relative).
+  double noise_floor() const override { return 1e-12; }
+
+private:
+  DynamicProblem() = default;
+  /// Mass factor w(rho) of the mass interpolation and its derivative.
+  double mass_factor(double rho, double *derivative) const;
+  /// (d r/d theta)^T W for the design body's block of W (ResidualPartials).
+  Matrix design_partials(const Vector &q, const Vector &v, const Vector &a, bool gravity,
+                         const Matrix &W) const;
+  /// dPsi/dq of the sensor samples' weights at one state (n coordinates, one column per
+  /// trajectory response).
+  double response_value(std::size_t i) const;
+
+  io::Case case_;
+  dynamics::Scene scene_;
+  std::unique_ptr<optimize::DesignField> field_;
+  int design_body_ = -1;    ///< case body index
+  int mechanism_body_ = -1; ///< its index in the mechanism
+  bodies::Vec3 reference_{0, 0, 0};
+  std::vector<bodies::MassParameters> element_theta_; ///< per local element of the design body
+  std::vector<double> w_, dw_;                        ///< mass factors, per local element
+  bodies::MassParameters theta_ = bodies::MassParameters::Zero();
+  std::vector<const io::ResponseSpec *> specs_;
+  std::vector<int> sensor_of_; ///< per response: index in scene_.sensors (-1: none)
+  std::vector<std::string> names_;
+  dynamics::AlphaParameters par_;
+  dynamics::NewtonSettings newton_;
+  // The last evaluation.
+  Trajectory trajectory_;
+  std::vector<std::size_t> main_;          ///< trajectory index of main step n
+  std::vector<std::vector<Vec3>> samples_; ///< per response: y_n (trajectory responses)
+  std::vector<SampledResponse> sampled_;
+  Vec grad_physical_ = nullptr;
+  /// Wall times of the last evaluation with gradients (forward, backward sweep) and of all
+  /// forward runs.
+  double forward_s_ = 0, adjoint_s_ = 0, forward_total_s_ = 0;
+  long long steps_ = 0, evaluations_ = 0;
+};
+
+} // namespace flexopt::adjoint

@@ -1,0 +1,78 @@
+#pragma once
+/// \file The design field of a topology optimization on one body's mesh: the design variables
+/// (one per element of the design region), their embedding in the body (solid outside the
+/// region), the density filter and the Heaviside projection, and the pull-back of
+/// sensitivities through them (docs/theory.md sections 4 and 5). Shared by the static problem
+/// and the dynamic one (docs/theory.md section 9).
+#include "flexopt/io/case.hpp"
+#include "flexopt/mesh/distributed_mesh.hpp"
+#include "flexopt/optimize/density_filter.hpp"
+
+#include <memory>
+#include <petscvec.h>
+#include <string>
+#include <vector>
+
+namespace flexopt::optimize {
+
+class DesignField {
+public:
+  /// The design region `spec.region` of `mesh` (which must outlive the field), its filter and
+  /// projection (sharpness spec.beta.front(), or none). Collective; throws a collective
+  /// flexopt::Error naming design.region for a missing or empty region.
+  DesignField(const mesh::DistributedMesh &mesh, const io::DesignSpec &spec);
+  ~DesignField();
+  DesignField(const DesignField &) = delete;
+  DesignField &operator=(const DesignField &) = delete;
+
+  /// A vector over the design variables (caller destroys it). Collective.
+  Vec create_design_vector() const;
+  /// design.initial everywhere. Collective.
+  void initial_design(Vec x) const;
+  PetscInt design_size() const { return global_design_; }
+  /// Gmsh tag of each local design variable (stable across rank counts).
+  const std::vector<std::size_t> &design_tags() const { return design_tags_; }
+  /// Local element index of each local design variable.
+  const std::vector<PetscInt> &design_elements() const { return design_elements_; }
+  bool is_design(PetscInt e) const { return is_design_[static_cast<std::size_t>(e)] != 0; }
+
+  /// x -> the densities of all local elements (1 outside the region) -> filtered -> physical
+  /// (projected), and the projection's derivative. Collective.
+  void update(Vec x);
+  /// Element vectors of the last update (all local elements).
+  Vec density() const { return rho_; }
+  Vec filtered() const { return filtered_; }
+  Vec physical() const { return physical_; }
+  /// Projection sharpness (0: none). Set by the optimizer's continuation.
+  void set_beta(double beta) { beta_ = beta; }
+  double beta() const { return beta_; }
+  const DensityFilter &filter() const { return *filter_; }
+
+  const std::vector<double> &element_volumes() const { return volume_; }
+  double design_volume() const { return design_volume_; }
+  /// Volume fraction of the design region (physical densities). Collective.
+  double volume_fraction() const;
+  /// d(volume fraction)/d(physical density) into the element vector g.
+  void volume_fraction_gradient(Vec g) const;
+
+  /// g_x = R F^T (P' g_physical): a sensitivity with respect to the physical densities of all
+  /// local elements (element vector, overwritten) pulled back to the design variables.
+  /// Collective.
+  void pull_back(Vec g_physical, Vec g_x) const;
+
+private:
+  const mesh::DistributedMesh &mesh_;
+  io::DesignSpec spec_;
+  std::unique_ptr<DensityFilter> filter_;
+  std::vector<PetscInt> design_elements_;
+  std::vector<char> is_design_;
+  std::vector<std::size_t> design_tags_;
+  std::vector<double> volume_;
+  double design_volume_ = 0;
+  PetscInt global_design_ = 0;
+  Vec rho_ = nullptr, filtered_ = nullptr, physical_ = nullptr, work_ = nullptr;
+  double beta_ = 0;
+  std::vector<double> dprojection_;
+};
+
+} // namespace flexopt::optimize

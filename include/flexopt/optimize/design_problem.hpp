@@ -1,0 +1,56 @@
+#pragma once
+/// \file What the optimizer and `check-gradient` see of a design problem, static or dynamic:
+/// design vectors, response values and their gradients with respect to the design variables
+/// (docs/theory.md sections 5 and 9).
+#include "flexopt/io/json.hpp"
+#include "flexopt/mesh/distributed_mesh.hpp"
+#include "flexopt/optimize/design_field.hpp"
+
+#include <petscvec.h>
+#include <string>
+#include <vector>
+
+namespace flexopt::optimize {
+
+/// Values of the objective and constraints at one design, and optionally their gradients
+/// with respect to the design variables (Vecs in the design layout, owned by the caller
+/// through `DesignProblem::evaluate`).
+struct Evaluation {
+  double objective = 0;
+  std::vector<double> constraints; ///< response values (the bound is in the spec)
+  Vec d_objective = nullptr;
+  std::vector<Vec> d_constraints;
+  Evaluation() = default;
+  Evaluation(const Evaluation &) = delete;
+  Evaluation &operator=(const Evaluation &) = delete;
+  ~Evaluation();
+};
+
+class DesignProblem {
+public:
+  virtual ~DesignProblem() = default;
+  /// The design variables, their filter and projection. Mutable: the optimizer's
+  /// continuation sets the projection sharpness.
+  virtual DesignField &field() = 0;
+  virtual const DesignField &field() const = 0;
+  /// The mesh of the design body.
+  virtual const mesh::DistributedMesh &mesh() const = 0;
+  /// "objective:TYPE", "constraint0:TYPE", ...
+  virtual const std::vector<std::string> &response_names() const = 0;
+  /// Evaluates the objective and every constraint at x; with `gradients`, also their
+  /// derivatives by the adjoint method. Collective.
+  virtual void evaluate(Vec x, bool gradients, Evaluation &out) = 0;
+  /// Facts of the problem and of the evaluations so far for summary.json (sizes, solves,
+  /// timings). Collective.
+  virtual void describe(io::Json &summary) const = 0;
+  /// Relative round-off of a response evaluation, |R| times this, below which a Taylor
+  /// remainder is noise (check-gradient).
+  virtual double noise_floor() const = 0;
+
+  Vec create_design_vector() const { return field().create_design_vector(); }
+  void initial_design(Vec x) const { field().initial_design(x); }
+  PetscInt design_size() const { return field().design_size(); }
+  const std::vector<std::size_t> &design_tags() const { return field().design_tags(); }
+};
+
+} // namespace flexopt::optimize

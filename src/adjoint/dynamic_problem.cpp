@@ -1,0 +1,396 @@
+#include "flexopt/adjoint/dynamic_problem.hpp"
+
+#include "flexopt/core/context.hpp"
+#include "flexopt/core/error.hpp"
+#include "flexopt/core/expression.hpp"
+#include "flexopt/core/log.hpp"
+#include "flexopt/dynamics/consistent_start.hpp"
+
+#include <Eigen/LU>
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <sstream>
+
+namespace flexopt::adjoint {
+
+using bodies::Vec3;
+
+Matrix initial_state_adjoint(const dynamics::GeneralizedAlpha &ga, const dynamics::State &s0,
+                             const Vector &v_given, const Matrix &gbar,
+                             const ResidualPartials &partials) {
+  const dynamics::Mechanism &mech = ga.mechanism();
+  const int n = mech.coordinates(), m = mech.constraints();
+  const auto r = gbar.cols();
+  const double t0 = s0.t;
+  // Accelerations and multipliers: [M J^T; J 0] [acc; lambda] = [-r(q, v, 0); gamma(q, v)].
+  Vector res, phi;
+  Matrix K, C, M, J;
+  mech.dynamics(s0.q, s0.v, Vector::Zero(n), t0, res, nullptr, &C, &M);
+  mech.constraint(s0.q, t0, phi, &J);
+  Matrix A = Matrix::Zero(n + m, n + m);
+  A.topLeftCorner(n, n) = M;
+  A.topRightCorner(n, m) = J.transpose();
+  A.bottomLeftCorner(m, n) = J;
+  Matrix rhs(n + m, r);
+  rhs.topRows(n) = gbar.middleRows(3 * n, n) + gbar.middleRows(2 * n, n); // acc and a = acc
+  rhs.bottomRows(m) = gbar.middleRows(4 * n, m);
+  const Eigen::PartialPivLU<Matrix> lu(A.transpose());
+  const Matrix nu = lu.solve(rhs);
+  if (!nu.allFinite()) throw Error("adjoint: the initial acceleration system is singular", true);
+  const Matrix nu_acc = nu.topRows(n), nu_lambda = nu.bottomRows(m);
+  Matrix G = partials(s0.q, s0.v, s0.acc, true, -nu_acc);
+  // d gamma/dv^T nu_lambda = -2 (sum_i nu_i H_i) v - 2 Phi_qt^T nu_lambda; Phi_qt column by
+  // column from the linear map v -> Phi_qt v.
+  Matrix Phi_qt(m, n);
+  {
+    Vector phi_t, phi_tt, phi_qt_v;
+    for (int j = 0; j < n; ++j) {
+      mech.constraint_time_terms(s0.q, Vector::Unit(n, j), t0, phi_t, phi_tt, phi_qt_v);
+      Phi_qt.col(j) = phi_qt_v;
+    }
+  }
+  Matrix gv = gbar.middleRows(n, n) - C.transpose() * nu_acc - 2 * Phi_qt.transpose() * nu_lambda;
+  for (Eigen::Index c = 0; c < r; ++c) {
+    Matrix H = Matrix::Zero(n, n);
+    mech.add_constraint_hessian(s0.q, t0, Vector(nu_lambda.col(c)), H);
+    gv.col(c) -= 2 * H * s0.v;
+  }
+  // The velocity correction v0 = v_given + T y: dy = -Pi dW y, dW = T^T dM T.
+  const dynamics::VelocityCorrection vc =
+      dynamics::rigid_velocity_correction(mech, s0.q, v_given, t0);
+  if (vc.T.size() == 0) return G;
+  const Matrix U = vc.T * (vc.Pi * (vc.T.transpose() * gv));
+  const Vector ay = vc.T * vc.y;
+  G += partials(s0.q, Vector::Zero(n), ay, false, -U);
+  return G;
+}
+
+SampledResponse sampled_response(const io::ResponseSpec &r, const std::vector<Vec3> &y, double h) {
+  SampledResponse out;
+  const std::size_t N = y.size() - 1;
+  out.dy.assign(y.size(), Vec3::Zero());
+  auto weight = [&](std::size_t n) {
+    if (N == 0) return 1.0;
+    return (n == 0 || n == N ? 0.5 : 1.0) / static_cast<double>(N);
+  };
+  const int K = r.component;
+  if (r.type == "tracking_error") {
+    std::array<Expression, 3> target;
+    for (int k = 0; k < 3; ++k)
+      target[static_cast<std::size_t>(k)] = Expression(r.target[static_cast<std::size_t>(k)]);
+    for (std::size_t n = 0; n <= N; ++n) {
+      const double t = static_cast<double>(n) * h;
+      Vec3 e;
+      for (int k = 0; k < 3; ++k) {
+        const double yt = target[static_cast<std::size_t>(k)](t);
+        if (!std::isfinite(yt)) {
+          std::ostringstream msg;
+          msg << r.where.str() << ": tracking_error: target[" << k << "] = '"
+              << r.target[static_cast<std::size_t>(k)] << "' is not finite at t = " << t << " s";
+          throw Error(msg.str(), true);
+        }
+        e(k) = y[n](k) - yt;
+      }
+      out.value += weight(n) * e.squaredNorm();
+      out.dy[n] = 2 * weight(n) * e;
+    }
+    return out;
+  }
+  // type sensor
+  if (r.measure == "final") {
+    out.value = y[N](K);
+    out.dy[N](K) = 1;
+  } else if (r.measure == "mean_square") {
+    for (std::size_t n = 0; n <= N; ++n) {
+      out.value += weight(n) * y[n](K) * y[n](K);
+      out.dy[n](K) = 2 * weight(n) * y[n](K);
+    }
+  } else { // ks_max
+    double Y = -std::numeric_limits<double>::infinity();
+    for (const Vec3 &v : y) Y = std::max(Y, v(K));
+    double sum = 0;
+    std::vector<double> e(N + 1);
+    for (std::size_t n = 0; n <= N; ++n) {
+      e[n] = weight(n) * std::exp(r.ks * (y[n](K) - Y));
+      sum += e[n];
+    }
+    out.value = Y + std::log(sum) / r.ks;
+    for (std::size_t n = 0; n <= N; ++n) out.dy[n](K) = e[n] / sum;
+  }
+  return out;
+}
+
+namespace {
+
+/// dy/dq of a sensor of a rigid or FFRF body at q (3 x n, the body's columns only).
+Matrix sensor_jacobian(const dynamics::Scene &scene, const dynamics::BoundSensor &s,
+                       const Vector &q) {
+  const dynamics::Mechanism &mech = scene.mechanism;
+  const int o = mech.offset(s.body), nb = mech.size(s.body);
+  Matrix D = Matrix::Zero(3, mech.coordinates());
+  if (s.quantity == "elastic_displacement") {
+    if (nb > 7) D.block(0, o + 7, 3, nb - 7) = s.S;
+    return D;
+  }
+  D.block(0, o, 3, nb) = joints::anchor_jacobian(q.segment(o, nb), s.s, s.S);
+  return D;
+}
+
+} // namespace
+
+std::unique_ptr<DynamicProblem> DynamicProblem::create(MPI_Comm comm, const io::Case &c) {
+  if (!c.design || !c.objective)
+    throw Error(c.file + ": an optimization needs design: and objective: sections", true);
+  const io::DesignSpec &d = *c.design;
+  const io::BodySpec &body = c.body(d.body);
+  const std::string model = io::simulated_model(body.model);
+  if (model != "rigid")
+    throw Error(d.where.str() + ": design.body '" + d.body + "' is simulated as " + model +
+                    ": design sensitivities of " + model +
+                    " bodies are not built yet (this version: rigid design bodies; ACF and FFRF "
+                    "follow)",
+                true);
+  std::unique_ptr<DynamicProblem> p(new DynamicProblem());
+  p->case_ = c;
+  p->scene_ = dynamics::build_scene(comm, c);
+  if (!p->scene_.acf.empty())
+    throw Error(c.file + ": an optimization of a scene with ACF bodies is not built yet (the "
+                         "distributed backend's adjoint); simulate them as rigid or ffrf",
+                true);
+  for (std::size_t b = 0; b < c.bodies.size(); ++b)
+    if (c.bodies[b].name == d.body) p->design_body_ = static_cast<int>(b);
+  p->mechanism_body_ = p->scene_.bodies[static_cast<std::size_t>(p->design_body_)].mechanism;
+  const mesh::DistributedMesh &m = p->scene_.meshes[static_cast<std::size_t>(p->design_body_)];
+  p->field_ = std::make_unique<optimize::DesignField>(m, d);
+  p->grad_physical_ = p->field_->filter().create_element_vector();
+
+  // The design body keeps its solid centre of mass as its reference point (section 9.1).
+  const auto &solid =
+      dynamic_cast<const bodies::RigidBody &>(p->scene_.mechanism.body(p->mechanism_body_));
+  p->reference_ = solid.center();
+  const double density = c.material(body.material).density;
+  p->element_theta_.resize(static_cast<std::size_t>(m.local_elements()));
+  for (PetscInt e = 0; e < m.local_elements(); ++e)
+    p->element_theta_[static_cast<std::size_t>(e)] =
+        bodies::element_mass_parameters(m.type, m.element_coordinates(e), density, p->reference_);
+
+  p->specs_.push_back(&*p->case_.objective);
+  for (const auto &r : p->case_.constraints) p->specs_.push_back(&r);
+  p->names_.push_back("objective:" + c.objective->type);
+  for (std::size_t i = 0; i < c.constraints.size(); ++i)
+    p->names_.push_back("constraint" + std::to_string(i) + ":" + c.constraints[i].type);
+  for (const io::ResponseSpec *r : p->specs_) {
+    int sensor = -1;
+    if (!r->sensor.empty())
+      for (std::size_t k = 0; k < p->scene_.sensors.size(); ++k)
+        if (p->scene_.sensors[k].name == r->sensor) sensor = static_cast<int>(k);
+    p->sensor_of_.push_back(sensor);
+    if (r->type == "strain_energy_integral") {
+      const std::string bm = io::simulated_model(c.body(r->body).model);
+      throw Error(r->where.str() + ": strain_energy_integral of body '" + r->body +
+                      "' (simulated as " + bm +
+                      "): the strain energy response is not built yet (ACF and FFRF bodies, "
+                      "next); a rigid body has none",
+                  true);
+    }
+  }
+  p->par_ = dynamics::AlphaParameters::from_rho_inf(c.time.rho_inf);
+  p->newton_.reuse_contraction = c.time.newton_reuse;
+  p->steps_ = std::llround(c.time.end / c.time.step);
+  return p;
+}
+
+DynamicProblem::~DynamicProblem() {
+  VecDestroy(&grad_physical_);
+}
+
+const mesh::DistributedMesh &DynamicProblem::mesh() const {
+  return scene_.meshes[static_cast<std::size_t>(design_body_)];
+}
+
+double DynamicProblem::mass_factor(double rho, double *derivative) const {
+  // linear: w = rho (no floor: a rigid body's motion is invariant under a uniform scaling).
+  // pedersen: w = rho above 0.1, 1e5 rho^6 below (continuous at 0.1; Pedersen 2000).
+  if (case_.design->mass == "pedersen" && rho < 0.1) {
+    *derivative = 6e5 * std::pow(rho, 5);
+    return 1e5 * std::pow(rho, 6);
+  }
+  *derivative = 1;
+  return rho;
+}
+
+Matrix DynamicProblem::design_partials(const Vector &q, const Vector &v, const Vector &a,
+                                       bool gravity, const Matrix &W) const {
+  const dynamics::Mechanism &mech = scene_.mechanism;
+  const int o = mech.offset(mechanism_body_);
+  const auto &body = dynamic_cast<const bodies::RigidBody &>(mech.body(mechanism_body_));
+  const bodies::RigidBody::Vec7 qb = q.segment<7>(o), vb = v.segment<7>(o), ab = a.segment<7>(o);
+  const Eigen::Matrix<double, 7, 10> P =
+      body.parameter_jacobian(qb, vb, ab, gravity ? mech.gravity : Vec3::Zero());
+  return P.transpose() * W.middleRows(o, 7);
+}
+
+double DynamicProblem::response_value(std::size_t i) const {
+  const io::ResponseSpec &r = *specs_[i];
+  if (r.type == "volume_fraction") return field_->volume_fraction();
+  if (r.type == "mass") {
+    if (r.body == case_.design->body) return theta_(0);
+    for (std::size_t b = 0; b < case_.bodies.size(); ++b)
+      if (case_.bodies[b].name == r.body)
+        return scene_.mechanism.body(scene_.bodies[b].mechanism).mass();
+  }
+  return sampled_[i].value;
+}
+
+void DynamicProblem::evaluate(Vec x, bool gradients, optimize::Evaluation &out) {
+  LogScope log("FxDynamicEvaluate");
+  ++evaluations_;
+  field_->update(x);
+  const mesh::DistributedMesh &m = mesh();
+  const PetscInt ne = m.local_elements();
+  w_.assign(static_cast<std::size_t>(ne), 1.0);
+  dw_.assign(static_cast<std::size_t>(ne), 0.0);
+  {
+    const PetscScalar *ph;
+    FX_PETSC(VecGetArrayRead(field_->physical(), &ph));
+    for (PetscInt e : field_->design_elements())
+      w_[static_cast<std::size_t>(e)] =
+          mass_factor(std::max(ph[e], 0.0), &dw_[static_cast<std::size_t>(e)]);
+    FX_PETSC(VecRestoreArrayRead(field_->physical(), &ph));
+  }
+  bodies::MassParameters local = bodies::MassParameters::Zero();
+  for (PetscInt e = 0; e < ne; ++e)
+    local += w_[static_cast<std::size_t>(e)] * element_theta_[static_cast<std::size_t>(e)];
+  MPI_Allreduce(local.data(), theta_.data(), 10, MPI_DOUBLE, MPI_SUM, m.comm);
+  dynamics::Mechanism &mech = scene_.mechanism;
+  mech.bodies[static_cast<std::size_t>(mechanism_body_)] =
+      std::make_shared<bodies::RigidBody>(case_.bodies[static_cast<std::size_t>(design_body_)].name,
+                                          bodies::from_parameters(theta_, reference_));
+
+  // Forward run, every state kept (substeps of halved steps included; section 9.3).
+  const double t_forward = wall_time();
+  const dynamics::GeneralizedAlpha ga(mech, par_, newton_);
+  dynamics::StartReport start;
+  trajectory_.states.assign(1, ga.initial_state(scene_.q0, scene_.v0, 0.0, &start));
+  if (start.elastic_corrected)
+    throw Error(case_.file + ": initial velocities: the joints need a change of elastic "
+                             "velocities (section 6.4); the adjoint of that correction is not "
+                             "built: give consistent initial velocities",
+                true);
+  trajectory_.h.assign(1, 0.0);
+  main_.assign(1, 0);
+  const double h = case_.time.step;
+  std::vector<std::pair<dynamics::State, double>> substeps;
+  dynamics::State next;
+  for (long long n = 0; n < steps_; ++n) {
+    dynamics::StepInfo info;
+    substeps.clear();
+    const double t_next = static_cast<double>(n + 1) * h;
+    if (!ga.advance(trajectory_.states.back(), h, next, info, &substeps)) {
+      std::ostringstream msg;
+      msg << "integrate: Newton did not converge in step " << n + 1
+          << " (t = " << static_cast<double>(n) * h << " s -> " << t_next
+          << " s) at this design; reduce time.step or check the scene";
+      throw Error(msg.str(), true);
+    }
+    if (substeps.empty()) substeps.emplace_back(next, h);
+    for (auto &[state, dt] : substeps) {
+      trajectory_.states.push_back(std::move(state));
+      trajectory_.h.push_back(dt);
+    }
+    trajectory_.states.back().t = t_next;
+    main_.push_back(trajectory_.states.size() - 1);
+  }
+  // Sensor samples and the responses on the time grid.
+  const std::size_t nr = specs_.size();
+  samples_.assign(nr, {});
+  sampled_.assign(nr, SampledResponse{});
+  for (std::size_t i = 0; i < nr; ++i) {
+    if (sensor_of_[i] < 0) continue;
+    const dynamics::BoundSensor &s = scene_.sensors[static_cast<std::size_t>(sensor_of_[i])];
+    for (std::size_t k : main_)
+      samples_[i].push_back(dynamics::sensor_value(scene_, s, trajectory_.states[k].q));
+    sampled_[i] = sampled_response(*specs_[i], samples_[i], h);
+  }
+  const double forward = wall_time() - t_forward;
+  forward_total_s_ += forward;
+  out.constraints.assign(case_.constraints.size(), 0.0);
+  for (std::size_t i = 0; i < nr; ++i)
+    (i == 0 ? out.objective : out.constraints[i - 1]) = response_value(i);
+  if (!gradients) return;
+  forward_s_ = forward;
+
+  // Backward sweep for all trajectory responses at once (one column each).
+  const double t_adjoint = wall_time();
+  const int n = mech.coordinates(), mrows = mech.constraints();
+  const int cols = static_cast<int>(nr);
+  std::vector<std::ptrdiff_t> main_step(trajectory_.states.size(), -1);
+  for (std::size_t k = 0; k < main_.size(); ++k)
+    main_step[main_[k]] = static_cast<std::ptrdiff_t>(k);
+  auto dpsi = [&](std::size_t k) -> Matrix {
+    if (main_step[k] < 0) return {};
+    const auto step = static_cast<std::size_t>(main_step[k]);
+    Matrix P = Matrix::Zero(4 * n + mrows, cols);
+    for (std::size_t i = 0; i < nr; ++i) {
+      if (sampled_[i].dy.empty() || sampled_[i].dy[step].isZero(0)) continue;
+      const dynamics::BoundSensor &s = scene_.sensors[static_cast<std::size_t>(sensor_of_[i])];
+      P.col(static_cast<Eigen::Index>(i)).head(n) =
+          sensor_jacobian(scene_, s, trajectory_.states[k].q).transpose() * sampled_[i].dy[step];
+    }
+    return P;
+  };
+  Matrix G = Matrix::Zero(10, cols); // dPsi/dtheta
+  auto on_step = [&](std::size_t k, const Matrix &mu) {
+    const dynamics::State &s = trajectory_.states[k];
+    G += design_partials(s.q, s.v, s.acc, true, mu.middleRows(3 * n, n));
+  };
+  const Matrix mu0 = backward_sweep(ga, trajectory_, cols, dpsi, on_step);
+  G += initial_state_adjoint(ga, trajectory_.states.front(), scene_.v0, -mu0,
+                             [&](const Vector &q, const Vector &v, const Vector &a, bool gravity,
+                                 const Matrix &W) { return design_partials(q, v, a, gravity, W); });
+  adjoint_s_ = wall_time() - t_adjoint;
+
+  if (!out.d_objective) {
+    out.d_objective = create_design_vector();
+    for (std::size_t i = 0; i < case_.constraints.size(); ++i)
+      out.d_constraints.push_back(create_design_vector());
+  }
+  for (std::size_t i = 0; i < nr; ++i) {
+    const io::ResponseSpec &r = *specs_[i];
+    if (r.type == "volume_fraction") {
+      field_->volume_fraction_gradient(grad_physical_);
+    } else {
+      // dPsi/dw_e = G . theta_e (+ m_e for the design body's mass), then dw/d(physical).
+      Vector g = G.col(static_cast<Eigen::Index>(i));
+      if (r.type == "mass" && r.body == case_.design->body) g(0) += 1;
+      PetscScalar *ga_;
+      FX_PETSC(VecGetArray(grad_physical_, &ga_));
+      for (PetscInt e = 0; e < ne; ++e)
+        ga_[e] =
+            dw_[static_cast<std::size_t>(e)] * g.dot(element_theta_[static_cast<std::size_t>(e)]);
+      FX_PETSC(VecRestoreArray(grad_physical_, &ga_));
+    }
+    field_->pull_back(grad_physical_, i == 0 ? out.d_objective : out.d_constraints[i - 1]);
+  }
+}
+
+void DynamicProblem::describe(io::Json &s) const {
+  s["elements"] = static_cast<long long>(mesh().global_elements);
+  s["design_variables"] = static_cast<long long>(design_size());
+  s["coordinates"] = scene_.mechanism.coordinates();
+  s["constraint_rows"] = scene_.mechanism.constraints();
+  s["steps"] = steps_;
+  s["evaluations"] = evaluations_;
+  s["forward_s"] = forward_s_; // of the last evaluation with gradients
+  s["adjoint_s"] = adjoint_s_;
+  s["forward_total_s"] = forward_total_s_;
+  s["checkpoints"] = "all";
+  s["recomputed_steps"] = 0LL;
+  const std::size_t n = static_cast<std::size_t>(scene_.mechanism.coordinates()),
+                    mr = static_cast<std::size_t>(scene_.mechanism.constraints());
+  s["checkpoint_bytes"] =
+      static_cast<long long>(trajectory_.states.size() * (4 * n + mr + 1) * sizeof(double));
+}
+
+} // namespace flexopt::adjoint

@@ -1,0 +1,125 @@
+#include "flexopt/optimize/design_field.hpp"
+
+#include "flexopt/core/error.hpp"
+#include "flexopt/fem/assembly.hpp"
+#include "flexopt/optimize/design_problem.hpp"
+
+#include <cmath>
+
+namespace flexopt::optimize {
+
+Evaluation::~Evaluation() {
+  VecDestroy(&d_objective);
+  for (Vec &v : d_constraints) VecDestroy(&v);
+}
+
+DesignField::DesignField(const mesh::DistributedMesh &m, const io::DesignSpec &d)
+    : mesh_(m), spec_(d) {
+  const auto &region = m.volume_group(d.region, d.where.str() + ": design.region");
+  is_design_.assign(static_cast<std::size_t>(m.local_elements()), 0);
+  for (PetscInt e : region) is_design_[static_cast<std::size_t>(e)] = 1;
+  for (PetscInt e = 0; e < m.local_elements(); ++e)
+    if (is_design_[static_cast<std::size_t>(e)]) {
+      design_elements_.push_back(e);
+      design_tags_.push_back(m.element_tags[static_cast<std::size_t>(e)]);
+    }
+  PetscInt n_local = static_cast<PetscInt>(design_elements_.size());
+  MPI_Allreduce(&n_local, &global_design_, 1, MPIU_INT, MPI_SUM, m.comm);
+  if (global_design_ == 0)
+    throw Error(d.where.str() + ": design.region '" + d.region + "' has no elements", true);
+  volume_ = fem::element_volumes(m);
+  double local_volume = 0;
+  for (PetscInt e : design_elements_) local_volume += volume_[static_cast<std::size_t>(e)];
+  MPI_Allreduce(&local_volume, &design_volume_, 1, MPI_DOUBLE, MPI_SUM, m.comm);
+
+  filter_ = create_density_filter(m, d.filter_type, d.filter_radius);
+  rho_ = filter_->create_element_vector();
+  FX_PETSC(VecDuplicate(rho_, &filtered_));
+  FX_PETSC(VecDuplicate(rho_, &physical_));
+  FX_PETSC(VecDuplicate(rho_, &work_));
+  if (!d.beta.empty()) beta_ = d.beta.front();
+}
+
+DesignField::~DesignField() {
+  VecDestroy(&rho_);
+  VecDestroy(&filtered_);
+  VecDestroy(&physical_);
+  VecDestroy(&work_);
+}
+
+Vec DesignField::create_design_vector() const {
+  Vec x;
+  FX_PETSC(VecCreateMPI(mesh_.comm, static_cast<PetscInt>(design_elements_.size()), PETSC_DETERMINE,
+                        &x));
+  return x;
+}
+
+void DesignField::initial_design(Vec x) const {
+  FX_PETSC(VecSet(x, spec_.initial));
+}
+
+void DesignField::update(Vec x) {
+  FX_PETSC(VecSet(rho_, 1.0)); // elements outside the design region stay solid
+  {
+    const PetscScalar *xa;
+    PetscScalar *r;
+    FX_PETSC(VecGetArrayRead(x, &xa));
+    FX_PETSC(VecGetArray(rho_, &r));
+    for (std::size_t k = 0; k < design_elements_.size(); ++k) r[design_elements_[k]] = xa[k];
+    FX_PETSC(VecRestoreArray(rho_, &r));
+    FX_PETSC(VecRestoreArrayRead(x, &xa));
+  }
+  filter_->apply(rho_, filtered_);
+  // Heaviside projection (Wang, Lazarov & Sigmund 2011), or the identity.
+  const PetscInt n_el = mesh_.local_elements();
+  dprojection_.assign(static_cast<std::size_t>(n_el), 1.0);
+  FX_PETSC(VecCopy(filtered_, physical_));
+  if (beta_ > 0) {
+    const double eta = spec_.eta, den = std::tanh(beta_ * eta) + std::tanh(beta_ * (1.0 - eta));
+    PetscScalar *ph;
+    FX_PETSC(VecGetArray(physical_, &ph));
+    for (PetscInt e = 0; e < n_el; ++e) {
+      const double th = std::tanh(beta_ * (ph[e] - eta));
+      dprojection_[static_cast<std::size_t>(e)] = beta_ * (1.0 - th * th) / den;
+      ph[e] = (std::tanh(beta_ * eta) + th) / den;
+    }
+    FX_PETSC(VecRestoreArray(physical_, &ph));
+  }
+}
+
+double DesignField::volume_fraction() const {
+  const PetscScalar *rt;
+  FX_PETSC(VecGetArrayRead(physical_, &rt));
+  double local = 0;
+  for (PetscInt e : design_elements_) local += rt[e] * volume_[static_cast<std::size_t>(e)];
+  FX_PETSC(VecRestoreArrayRead(physical_, &rt));
+  double total = 0;
+  MPI_Allreduce(&local, &total, 1, MPI_DOUBLE, MPI_SUM, mesh_.comm);
+  return total / design_volume_;
+}
+
+void DesignField::volume_fraction_gradient(Vec g) const {
+  PetscScalar *ga;
+  FX_PETSC(VecZeroEntries(g));
+  FX_PETSC(VecGetArray(g, &ga));
+  for (PetscInt e : design_elements_) ga[e] = volume_[static_cast<std::size_t>(e)] / design_volume_;
+  FX_PETSC(VecRestoreArray(g, &ga));
+}
+
+void DesignField::pull_back(Vec g_physical, Vec g_x) const {
+  PetscScalar *g;
+  FX_PETSC(VecGetArray(g_physical, &g));
+  for (PetscInt e = 0; e < mesh_.local_elements(); ++e)
+    g[e] *= dprojection_[static_cast<std::size_t>(e)];
+  FX_PETSC(VecRestoreArray(g_physical, &g));
+  filter_->apply_transpose(g_physical, work_);
+  const PetscScalar *f;
+  PetscScalar *xa;
+  FX_PETSC(VecGetArrayRead(work_, &f));
+  FX_PETSC(VecGetArray(g_x, &xa));
+  for (std::size_t k = 0; k < design_elements_.size(); ++k) xa[k] = f[design_elements_[k]];
+  FX_PETSC(VecRestoreArray(g_x, &xa));
+  FX_PETSC(VecRestoreArrayRead(work_, &f));
+}
+
+} // namespace flexopt::optimize
