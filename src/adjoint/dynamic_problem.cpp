@@ -139,7 +139,8 @@ Matrix sensor_jacobian(const dynamics::Scene &scene, const dynamics::BoundSensor
 
 } // namespace
 
-std::unique_ptr<DynamicProblem> DynamicProblem::create(MPI_Comm comm, const io::Case &c) {
+std::unique_ptr<DynamicProblem> DynamicProblem::create(MPI_Comm comm, const io::Case &c,
+                                                       const std::string &scratch) {
   if (!c.design || !c.objective)
     throw Error(c.file + ": an optimization needs design: and objective: sections", true);
   const io::DesignSpec &d = *c.design;
@@ -153,6 +154,7 @@ std::unique_ptr<DynamicProblem> DynamicProblem::create(MPI_Comm comm, const io::
                 true);
   std::unique_ptr<DynamicProblem> p(new DynamicProblem());
   p->case_ = c;
+  p->scratch_ = scratch;
   p->scene_ = dynamics::build_scene(comm, c);
   if (!p->scene_.acf.empty())
     throw Error(c.file + ": an optimization of a scene with ACF bodies is not built yet (the "
@@ -268,51 +270,71 @@ void DynamicProblem::evaluate(Vec x, bool gradients, optimize::Evaluation &out) 
       std::make_shared<bodies::RigidBody>(case_.bodies[static_cast<std::size_t>(design_body_)].name,
                                           bodies::from_parameters(theta_, reference_));
 
-  // Forward run, every state kept (substeps of halved steps included; section 9.3).
+  // Forward run (section 9.4): the records the backward sweep needs go to the store, all of
+  // them or those of the binomial schedule's first descent; every main step's sensor samples.
   const double t_forward = wall_time();
   const dynamics::GeneralizedAlpha ga(mech, par_, newton_);
   dynamics::StartReport start;
-  trajectory_.states.assign(1, ga.initial_state(scene_.q0, scene_.v0, 0.0, &start));
+  StepRecord record{ga.initial_state(scene_.q0, scene_.v0, 0.0, &start), {}};
   if (start.elastic_corrected)
     throw Error(case_.file + ": initial velocities: the joints need a change of elastic "
                              "velocities (section 6.4); the adjoint of that correction is not "
                              "built: give consistent initial velocities",
                 true);
-  trajectory_.h.assign(1, 0.0);
-  main_.assign(1, 0);
+  const dynamics::State s0 = record.state;
+  const int checkpoints = case_.adjoint.checkpoints; // 0: all
+  std::unique_ptr<BinomialSchedule> schedule;
+  std::vector<char> keep;
+  std::unique_ptr<CheckpointStore> store;
+  if (gradients) {
+    keep.assign(static_cast<std::size_t>(steps_ + 1), checkpoints == 0 ? 1 : 0);
+    if (checkpoints > 0) {
+      schedule = std::make_unique<BinomialSchedule>(
+          steps_, static_cast<int>(std::min<long long>(checkpoints - 1, steps_)));
+      for (long long j : schedule->first_descent()) keep[static_cast<std::size_t>(j)] = 1;
+      keep.front() = keep.back() = 1;
+    }
+    int rank = 0;
+    MPI_Comm_rank(mesh().comm, &rank);
+    store = case_.adjoint.storage == "disk"
+                ? disk_store(scratch_ + "/adjoint_checkpoints." + std::to_string(rank) + ".h5")
+                : memory_store();
+    store->put(0, record);
+  }
+  const std::size_t nr = specs_.size();
+  samples_.assign(nr, {});
+  auto sample = [&](const dynamics::State &s) {
+    for (std::size_t i = 0; i < nr; ++i)
+      if (sensor_of_[i] >= 0)
+        samples_[i].push_back(dynamics::sensor_value(
+            scene_, scene_.sensors[static_cast<std::size_t>(sensor_of_[i])], s.q));
+  };
+  sample(record.state);
+  substep_sizes_.assign(static_cast<std::size_t>(steps_ + 1), {});
   const double h = case_.time.step;
-  std::vector<std::pair<dynamics::State, double>> substeps;
   dynamics::State next;
-  for (long long n = 0; n < steps_; ++n) {
+  for (long long j = 1; j <= steps_; ++j) {
     dynamics::StepInfo info;
-    substeps.clear();
-    const double t_next = static_cast<double>(n + 1) * h;
-    if (!ga.advance(trajectory_.states.back(), h, next, info, &substeps)) {
+    record.substeps.clear();
+    const double t_next = static_cast<double>(j) * h;
+    if (!ga.advance(record.state, h, next, info, &record.substeps)) {
       std::ostringstream msg;
-      msg << "integrate: Newton did not converge in step " << n + 1
-          << " (t = " << static_cast<double>(n) * h << " s -> " << t_next
+      msg << "integrate: Newton did not converge in step " << j
+          << " (t = " << static_cast<double>(j - 1) * h << " s -> " << t_next
           << " s) at this design; reduce time.step or check the scene";
       throw Error(msg.str(), true);
     }
-    if (substeps.empty()) substeps.emplace_back(next, h);
-    for (auto &[state, dt] : substeps) {
-      trajectory_.states.push_back(std::move(state));
-      trajectory_.h.push_back(dt);
-    }
-    trajectory_.states.back().t = t_next;
-    main_.push_back(trajectory_.states.size() - 1);
+    for (const auto &sub : record.substeps)
+      substep_sizes_[static_cast<std::size_t>(j)].push_back(sub.second);
+    record.state = std::move(next);
+    record.state.t = t_next;
+    sample(record.state);
+    if (gradients && keep[static_cast<std::size_t>(j)]) store->put(j, record);
   }
-  // Sensor samples and the responses on the time grid.
-  const std::size_t nr = specs_.size();
-  samples_.assign(nr, {});
+  // The responses on the time grid.
   sampled_.assign(nr, SampledResponse{});
-  for (std::size_t i = 0; i < nr; ++i) {
-    if (sensor_of_[i] < 0) continue;
-    const dynamics::BoundSensor &s = scene_.sensors[static_cast<std::size_t>(sensor_of_[i])];
-    for (std::size_t k : main_)
-      samples_[i].push_back(dynamics::sensor_value(scene_, s, trajectory_.states[k].q));
-    sampled_[i] = sampled_response(*specs_[i], samples_[i], h);
-  }
+  for (std::size_t i = 0; i < nr; ++i)
+    if (sensor_of_[i] >= 0) sampled_[i] = sampled_response(*specs_[i], samples_[i], h);
   const double forward = wall_time() - t_forward;
   forward_total_s_ += forward;
   out.constraints.assign(case_.constraints.size(), 0.0);
@@ -321,32 +343,40 @@ void DynamicProblem::evaluate(Vec x, bool gradients, optimize::Evaluation &out) 
   if (!gradients) return;
   forward_s_ = forward;
 
-  // Backward sweep for all trajectory responses at once (one column each).
+  // Backward sweep for all responses at once (one column each), main step by main step.
   const double t_adjoint = wall_time();
-  const int n = mech.coordinates(), mrows = mech.constraints();
+  const int n = mech.coordinates();
   const int cols = static_cast<int>(nr);
-  std::vector<std::ptrdiff_t> main_step(trajectory_.states.size(), -1);
-  for (std::size_t k = 0; k < main_.size(); ++k)
-    main_step[main_[k]] = static_cast<std::ptrdiff_t>(k);
-  auto dpsi = [&](std::size_t k) -> Matrix {
-    if (main_step[k] < 0) return {};
-    const auto step = static_cast<std::size_t>(main_step[k]);
-    Matrix P = Matrix::Zero(4 * n + mrows, cols);
-    for (std::size_t i = 0; i < nr; ++i) {
-      if (sampled_[i].dy.empty() || sampled_[i].dy[step].isZero(0)) continue;
-      const dynamics::BoundSensor &s = scene_.sensors[static_cast<std::size_t>(sensor_of_[i])];
-      P.col(static_cast<Eigen::Index>(i)).head(n) =
-          sensor_jacobian(scene_, s, trajectory_.states[k].q).transpose() * sampled_[i].dy[step];
-    }
-    return P;
-  };
+  BackwardSweep sweep(ga, cols);
   Matrix G = Matrix::Zero(10, cols); // dPsi/dtheta
-  auto on_step = [&](std::size_t k, const Matrix &mu) {
-    const dynamics::State &s = trajectory_.states[k];
+  auto backward = [&](const dynamics::State &s, double dt, const Matrix &dpsi) {
+    const Matrix mu = sweep.step(s, dt, dpsi);
     G += design_partials(s.q, s.v, s.acc, true, mu.middleRows(3 * n, n));
   };
-  const Matrix mu0 = backward_sweep(ga, trajectory_, cols, dpsi, on_step);
-  G += initial_state_adjoint(ga, trajectory_.states.front(), scene_.v0, -mu0,
+  auto visit = [&](long long j, const StepRecord &r) {
+    if (r.substeps.empty()) {
+      backward(r.state, h, state_partials(j, r.state));
+      return;
+    }
+    // A halved step: its substeps backwards, the responses only at its end (section 9.3).
+    for (std::size_t k = r.substeps.size(); k-- > 0;)
+      backward(k + 1 == r.substeps.size() ? r.state : r.substeps[k].first, r.substeps[k].second,
+               k + 1 == r.substeps.size() ? state_partials(j, r.state) : Matrix());
+  };
+  recomputed_ = 0;
+  if (!schedule) {
+    for (long long j = steps_; j >= 1; --j) {
+      visit(j, store->get(j));
+      store->erase(j);
+    }
+  } else {
+    recomputed_ = reverse_binomial(
+        *schedule, *store,
+        [&](const StepRecord &previous, long long j) { return recompute(ga, previous, j); }, visit);
+  }
+  checkpoint_bytes_ = store->peak_bytes();
+  const Matrix mu0 = sweep.finish(state_partials(0, s0));
+  G += initial_state_adjoint(ga, s0, scene_.v0, -mu0,
                              [&](const Vector &q, const Vector &v, const Vector &a, bool gravity,
                                  const Matrix &W) { return design_partials(q, v, a, gravity, W); });
   adjoint_s_ = wall_time() - t_adjoint;
@@ -375,6 +405,43 @@ void DynamicProblem::evaluate(Vec x, bool gradients, optimize::Evaluation &out) 
   }
 }
 
+Matrix DynamicProblem::state_partials(long long j, const dynamics::State &state) const {
+  const int n = scene_.mechanism.coordinates(), m = scene_.mechanism.constraints();
+  Matrix P;
+  for (std::size_t i = 0; i < specs_.size(); ++i) {
+    if (sampled_[i].dy.empty()) continue;
+    const Vec3 &dy = sampled_[i].dy[static_cast<std::size_t>(j)];
+    if (dy.isZero(0)) continue;
+    if (P.size() == 0) P.setZero(4 * n + m, static_cast<Eigen::Index>(specs_.size()));
+    const dynamics::BoundSensor &s = scene_.sensors[static_cast<std::size_t>(sensor_of_[i])];
+    P.col(static_cast<Eigen::Index>(i)).head(n) =
+        sensor_jacobian(scene_, s, state.q).transpose() * dy;
+  }
+  return P;
+}
+
+StepRecord DynamicProblem::recompute(const dynamics::GeneralizedAlpha &ga,
+                                     const StepRecord &previous, long long j) const {
+  // The forward run's substeps, each solved to the forward tolerance (section 9.4).
+  const double h = case_.time.step;
+  const auto &sizes = substep_sizes_[static_cast<std::size_t>(j)];
+  StepRecord r;
+  dynamics::State from = previous.state, to;
+  const std::vector<double> whole{h};
+  for (double dt : sizes.empty() ? whole : sizes) {
+    dynamics::StepInfo info;
+    if (!ga.step(from, dt, to, info))
+      throw Error("adjoint: recomputing step " + std::to_string(j) +
+                      " from a checkpoint, Newton did not converge where the forward run did",
+                  true);
+    if (!sizes.empty()) r.substeps.emplace_back(to, dt);
+    from = to;
+  }
+  r.state = std::move(to);
+  r.state.t = static_cast<double>(j) * h;
+  return r;
+}
+
 void DynamicProblem::describe(io::Json &s) const {
   s["elements"] = static_cast<long long>(mesh().global_elements);
   s["design_variables"] = static_cast<long long>(design_size());
@@ -385,12 +452,13 @@ void DynamicProblem::describe(io::Json &s) const {
   s["forward_s"] = forward_s_; // of the last evaluation with gradients
   s["adjoint_s"] = adjoint_s_;
   s["forward_total_s"] = forward_total_s_;
-  s["checkpoints"] = "all";
-  s["recomputed_steps"] = 0LL;
-  const std::size_t n = static_cast<std::size_t>(scene_.mechanism.coordinates()),
-                    mr = static_cast<std::size_t>(scene_.mechanism.constraints());
-  s["checkpoint_bytes"] =
-      static_cast<long long>(trajectory_.states.size() * (4 * n + mr + 1) * sizeof(double));
+  if (case_.adjoint.checkpoints > 0)
+    s["checkpoints"] = case_.adjoint.checkpoints;
+  else
+    s["checkpoints"] = "all";
+  s["storage"] = case_.adjoint.storage;
+  s["recomputed_steps"] = recomputed_;
+  s["checkpoint_bytes"] = checkpoint_bytes_;
 }
 
 } // namespace flexopt::adjoint

@@ -64,28 +64,34 @@ Matrix previous_coupling(const dynamics::AlphaParameters &par, double h, int n, 
   return out;
 }
 
+BackwardSweep::BackwardSweep(const dynamics::GeneralizedAlpha &ga, int responses)
+    : ga_(ga), n_(ga.mechanism().coordinates()), m_(ga.mechanism().constraints()),
+      carry_(Matrix::Zero(4 * n_ + m_, responses)) {}
+
+Matrix BackwardSweep::step(const dynamics::State &state, double h, const Matrix &dpsi) {
+  ga_.jacobian_blocks(state, K_, C_, M_, J_);
+  const Matrix mu = step_adjoint(K_, C_, M_, J_, ga_.parameters(), h,
+                                 dpsi.size() == 0 ? Matrix(-carry_) : Matrix(-dpsi - carry_));
+  carry_ = previous_coupling(ga_.parameters(), h, n_, m_, mu);
+  ++steps_;
+  return mu;
+}
+
+Matrix BackwardSweep::finish(const Matrix &dpsi0) const {
+  return dpsi0.size() == 0 ? Matrix(-carry_) : Matrix(-dpsi0 - carry_);
+}
+
 Matrix backward_sweep(const dynamics::GeneralizedAlpha &ga, const Trajectory &tr, int responses,
                       const std::function<Matrix(std::size_t)> &dpsi,
                       const std::function<void(std::size_t, const Matrix &)> &on_step) {
   if (tr.states.empty() || tr.h.size() != tr.states.size())
     throw Error("backward_sweep: one step size per state is needed");
-  const int n = static_cast<int>(tr.states.front().q.size());
-  const int m = static_cast<int>(tr.states.front().lambda.size());
-  const dynamics::AlphaParameters &par = ga.parameters();
-  auto partial = [&](std::size_t k) {
-    Matrix p = dpsi(k);
-    if (p.size() == 0) p.setZero(4 * n + m, responses);
-    return p;
-  };
-  Matrix carry = Matrix::Zero(4 * n + m, responses); // (dR_(k+1)/ds_k)^T mu_(k+1)
-  Matrix K, C, M, J;
+  BackwardSweep sweep(ga, responses);
   for (std::size_t k = tr.steps(); k >= 1; --k) {
-    ga.jacobian_blocks(tr.states[k], K, C, M, J);
-    const Matrix mu = step_adjoint(K, C, M, J, par, tr.h[k], -partial(k) - carry);
+    const Matrix mu = sweep.step(tr.states[k], tr.h[k], dpsi(k));
     if (on_step) on_step(k, mu);
-    carry = previous_coupling(par, tr.h[k], n, m, mu);
   }
-  return -partial(0) - carry;
+  return sweep.finish(dpsi(0));
 }
 
 std::vector<Vector> backward_sweep(const dynamics::GeneralizedAlpha &ga,

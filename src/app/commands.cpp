@@ -437,14 +437,15 @@ std::vector<double> response_values(const optimize::Evaluation &e) {
 
 /// The design problem of a case: the static SIMP problem or the dynamic one (adjoint module).
 /// Collective.
-std::unique_ptr<optimize::DesignProblem> create_design_problem(MPI_Comm comm, const io::Case &c) {
-  if (c.analysis == "dynamic") return adjoint::DynamicProblem::create(comm, c);
+std::unique_ptr<optimize::DesignProblem> create_design_problem(MPI_Comm comm, const io::Case &c,
+                                                               const std::string &dir) {
+  if (c.analysis == "dynamic") return adjoint::DynamicProblem::create(comm, c, dir);
   return optimize::TopologyProblem::create(comm, c);
 }
 
 int run_check_gradient(const Context &ctx, const Options &o, const io::Case &c, double t0) {
   const std::string dir = output_directory(ctx, o);
-  std::unique_ptr<optimize::DesignProblem> problem = create_design_problem(ctx.comm(), c);
+  std::unique_ptr<optimize::DesignProblem> problem = create_design_problem(ctx.comm(), c, dir);
   const auto &names = problem->response_names();
   const std::size_t nr = names.size();
   print0(ctx.comm(), "check-gradient: %lld design variables, %zu response(s)\n",

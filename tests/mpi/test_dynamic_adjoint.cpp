@@ -44,7 +44,7 @@ Vec gradient_of(const optimize::Evaluation &e, std::size_t i) {
 } // namespace
 
 TEST(DynamicAdjoint, RigidPendulumIsScaleInvariant) {
-  auto p = adjoint::DynamicProblem::create(PETSC_COMM_WORLD, pendulum());
+  auto p = adjoint::DynamicProblem::create(PETSC_COMM_WORLD, pendulum(), ".");
   Vec x = p->create_design_vector(), xc, xg;
   random_design(*p, x);
   VecDuplicate(x, &xc);
@@ -89,8 +89,8 @@ TEST(DynamicAdjoint, RigidPendulumIsScaleInvariant) {
 }
 
 TEST(DynamicAdjoint, GradientDoesNotDependOnTheRankCount) {
-  auto world = adjoint::DynamicProblem::create(PETSC_COMM_WORLD, pendulum());
-  auto one = adjoint::DynamicProblem::create(PETSC_COMM_SELF, pendulum());
+  auto world = adjoint::DynamicProblem::create(PETSC_COMM_WORLD, pendulum(), ".");
+  auto one = adjoint::DynamicProblem::create(PETSC_COMM_SELF, pendulum(), ".");
   Vec xw = world->create_design_vector(), x1 = one->create_design_vector();
   random_design(*world, xw);
   random_design(*one, x1);
@@ -117,4 +117,58 @@ TEST(DynamicAdjoint, GradientDoesNotDependOnTheRankCount) {
   }
   VecDestroy(&xw);
   VecDestroy(&x1);
+}
+
+// Checkpointing (docs/theory.md section 9.4): 4 and 16 stored states, in memory and on disk,
+// give the gradient of all states stored to 1e-10 (recomputed steps are re-solved to the
+// forward tolerance, not along the same Newton path), with the binomial schedule's count of
+// recomputed steps.
+TEST(DynamicAdjoint, CheckpointedSweepGivesTheSameGradient) {
+  io::Case c = io::load_case(FLEXOPT_SOURCE_DIR "/tests/gradient/rigid_slider_crank");
+  const std::string scratch = ::testing::TempDir();
+  auto gradient = [&](int checkpoints, const std::string &storage, long long *recomputed) {
+    c.adjoint.checkpoints = checkpoints;
+    c.adjoint.storage = storage;
+    auto p = adjoint::DynamicProblem::create(PETSC_COMM_WORLD, c, scratch);
+    Vec x = p->create_design_vector();
+    random_design(*p, x);
+    optimize::Evaluation e;
+    p->evaluate(x, true, e);
+    *recomputed = p->recomputed_steps();
+    std::vector<std::vector<double>> g;
+    for (std::size_t i = 0; i < p->response_names().size(); ++i) {
+      const PetscScalar *a;
+      PetscInt n = 0;
+      VecGetLocalSize(gradient_of(e, i), &n);
+      VecGetArrayRead(gradient_of(e, i), &a);
+      g.emplace_back(a, a + n);
+      VecRestoreArrayRead(gradient_of(e, i), &a);
+    }
+    VecDestroy(&x);
+    return g;
+  };
+  long long r_all = -1, r4 = -1, r16 = -1, r16d = -1;
+  const auto all = gradient(0, "memory", &r_all);
+  const auto g4 = gradient(4, "memory", &r4);
+  const auto g16 = gradient(16, "memory", &r16);
+  const auto g16d = gradient(16, "disk", &r16d);
+  const long long steps = std::llround(c.time.end / c.time.step);
+  EXPECT_EQ(r_all, 0);
+  EXPECT_EQ(r4, adjoint::BinomialSchedule(steps, 3).recomputed());
+  EXPECT_EQ(r16, adjoint::BinomialSchedule(steps, 15).recomputed());
+  EXPECT_EQ(r16d, r16);
+  for (std::size_t i = 0; i < all.size(); ++i) {
+    double gmax = 0, d4 = 0, d16 = 0, disk = 0;
+    for (std::size_t k = 0; k < all[i].size(); ++k) {
+      gmax = std::max(gmax, std::abs(all[i][k]));
+      d4 = std::max(d4, std::abs(g4[i][k] - all[i][k]));
+      d16 = std::max(d16, std::abs(g16[i][k] - all[i][k]));
+      disk = std::max(disk, std::abs(g16d[i][k] - g16[i][k]));
+    }
+    for (double *v : {&gmax, &d4, &d16, &disk})
+      MPI_Allreduce(MPI_IN_PLACE, v, 1, MPI_DOUBLE, MPI_MAX, PETSC_COMM_WORLD);
+    EXPECT_LE(d4, 1e-10 * gmax) << "response " << i;
+    EXPECT_LE(d16, 1e-10 * gmax) << "response " << i;
+    EXPECT_EQ(disk, 0.0) << "response " << i << ": memory and disk storage";
+  }
 }

@@ -5,6 +5,7 @@
 /// forward generalized-alpha integration storing its states, evaluates the responses on the
 /// time grid, and runs the backward sweep with the design partials and the adjoint of the
 /// consistent initial state.
+#include "flexopt/adjoint/checkpoints.hpp"
 #include "flexopt/adjoint/step_adjoint.hpp"
 #include "flexopt/bodies/rigid_body.hpp"
 #include "flexopt/dynamics/scene.hpp"
@@ -52,10 +53,12 @@ SampledResponse sampled_response(const io::ResponseSpec &r, const std::vector<Ve
 class DynamicProblem : public optimize::DesignProblem {
 public:
   /// Builds the scene (meshes, joints, sensors) and the design field of `c` (analysis:
-  /// dynamic, with design: and objective:). Collective; throws collective flexopt::Errors with
-  /// case.yaml:line:col for a design body whose model has no design partials yet, responses
-  /// on missing or unsuitable bodies and sensors.
-  static std::unique_ptr<DynamicProblem> create(MPI_Comm comm, const io::Case &c);
+  /// dynamic, with design: and objective:). `scratch` is the directory of the checkpoint file
+  /// of `adjoint: {storage: disk}` (the command's output directory). Collective; throws
+  /// collective flexopt::Errors with case.yaml:line:col for a design body whose model has no
+  /// design partials yet, responses on missing or unsuitable bodies and sensors.
+  static std::unique_ptr<DynamicProblem> create(MPI_Comm comm, const io::Case &c,
+                                                const std::string &scratch);
   ~DynamicProblem() override;
 
   optimize::DesignField &field() override { return *field_; }
@@ -69,6 +72,8 @@ public:
   /// 1e-12: every step is solved to Newton's tolerance 1e-12 (relative increment), whose error
   /// reaches the responses (measured remainders of the Taylor test clean to 1e-14 relative).
   double noise_floor() const override { return 1e-12; }
+  /// Main steps recomputed from checkpoints by the last evaluation with gradients.
+  long long recomputed_steps() const { return recomputed_; }
 
 private:
   DynamicProblem() = default;
@@ -95,11 +100,18 @@ private:
   std::vector<std::string> names_;
   dynamics::AlphaParameters par_;
   dynamics::NewtonSettings newton_;
+  /// (dPsi/ds)^T at main step j with state `state` (empty if zero), one column per response.
+  Matrix state_partials(long long j, const dynamics::State &state) const;
+  /// Main step j recomputed from the record of step j - 1 with the forward run's substeps.
+  StepRecord recompute(const dynamics::GeneralizedAlpha &ga, const StepRecord &previous,
+                       long long j) const;
+
+  std::string scratch_;
   // The last evaluation.
-  Trajectory trajectory_;
-  std::vector<std::size_t> main_;          ///< trajectory index of main step n
-  std::vector<std::vector<Vec3>> samples_; ///< per response: y_n (trajectory responses)
+  std::vector<std::vector<double>> substep_sizes_; ///< per main step: the halved step's sizes
+  std::vector<std::vector<Vec3>> samples_;         ///< per response: y_n (trajectory responses)
   std::vector<SampledResponse> sampled_;
+  long long recomputed_ = 0, checkpoint_bytes_ = 0;
   Vec grad_physical_ = nullptr;
   /// Wall times of the last evaluation with gradients (forward, backward sweep) and of all
   /// forward runs.

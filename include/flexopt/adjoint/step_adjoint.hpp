@@ -40,6 +40,27 @@ struct Trajectory {
   std::size_t steps() const { return states.empty() ? 0 : states.size() - 1; }
 };
 
+/// The backward sweep of section 9 step by step, in reverse order of the forward steps, for
+/// several responses at once (one column each): the multipliers carry the coupling to the
+/// previous state from one call to the next.
+class BackwardSweep {
+public:
+  BackwardSweep(const dynamics::GeneralizedAlpha &ga, int responses);
+  /// mu of the step of size h that ended in `state`, with dpsi = (dPsi/ds)^T at that state
+  /// (4n + m rows; an empty matrix for zero).
+  Matrix step(const dynamics::State &state, double h, const Matrix &dpsi);
+  /// mu_0 = -(dPsi/ds_0)^T - (dR_1/ds_0)^T mu_1 at the initial state.
+  Matrix finish(const Matrix &dpsi0) const;
+  long long steps() const { return steps_; }
+
+private:
+  const dynamics::GeneralizedAlpha &ga_;
+  int n_, m_;
+  Matrix carry_; ///< (dR_(k+1)/ds_k)^T mu_(k+1)
+  Matrix K_, C_, M_, J_;
+  long long steps_ = 0;
+};
+
 /// The backward sweep of section 9 for several responses at once (one column each): from the
 /// partials dpsi(k) = (dPsi/ds_k)^T (packed like State::pack, 4n + m rows; may return an empty
 /// matrix for zero), computes the multipliers mu_k of the step residuals for k = N ... 1,

@@ -1,0 +1,77 @@
+#pragma once
+/// \file Checkpointing of the forward states for the backward sweep (docs/theory.md section 9.4):
+/// the binomial reversal schedule (optimal for a given number of stored states) and the store
+/// that holds them, in memory or in an HDF5 file.
+#include "flexopt/dynamics/generalized_alpha.hpp"
+
+#include <functional>
+#include <map>
+#include <memory>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace flexopt::adjoint {
+
+/// The reversal of l steps from a stored start state with c more storage slots, by the
+/// recursion of section 9.4: advance k steps and store that state, reverse the l - k steps
+/// after it with c - 1 slots, visit it, then reverse the k - 1 steps before it with c slots;
+/// with c = 0, every state is recomputed from the start. cost(l, c) is the least number of
+/// steps that visits all l states in reverse order (each visit needs its state), and split(l,
+/// c) the k that achieves it (computed once for all l <= steps, c <= slots by dynamic
+/// programming; the optimal k is non-decreasing in l, which makes that O(steps x slots)).
+class BinomialSchedule {
+public:
+  BinomialSchedule(long long steps, int slots);
+  long long cost(long long l, int c) const;
+  long long split(long long l, int c) const;
+  long long steps() const { return steps_; }
+  int slots() const { return slots_; }
+  /// Steps of the reversal of all steps that the forward run has not made already: the
+  /// forward run stores the states of the recursion's first descent (first_descent()) and
+  /// ends at the last state, so cost(steps, slots) - steps remain.
+  long long recomputed() const { return cost(steps_, slots_) - steps_; }
+  /// The states (step indices) stored on the recursion's first descent, in increasing order.
+  std::vector<long long> first_descent() const;
+
+private:
+  long long steps_;
+  int slots_;
+  std::vector<std::vector<long long>> cost_, split_; ///< [c][l]
+};
+
+/// One main step's end state and, if Newton halved it, its substeps (end states and sizes; the
+/// last is the end state).
+struct StepRecord {
+  dynamics::State state;
+  std::vector<std::pair<dynamics::State, double>> substeps;
+};
+
+/// Where the checkpointed states live. Not collective (each rank stores its replicated copy).
+class CheckpointStore {
+public:
+  virtual ~CheckpointStore() = default;
+  virtual void put(long long index, const StepRecord &record) = 0;
+  virtual StepRecord get(long long index) const = 0;
+  virtual void erase(long long index) = 0;
+  /// Bytes of the states held now and at most so far.
+  virtual long long bytes() const = 0;
+  virtual long long peak_bytes() const = 0;
+};
+
+/// `storage: memory`.
+std::unique_ptr<CheckpointStore> memory_store();
+/// `storage: disk`: an HDF5 file `path` (created, removed with the store). Throws a
+/// flexopt::Error naming the file if it cannot be created.
+std::unique_ptr<CheckpointStore> disk_store(const std::string &path);
+
+/// Runs the backward sweep over main steps N ... 1 with the states from the store and the
+/// schedule: `advance(record, j)` recomputes main step j from the record of step j - 1 (and
+/// counts), `visit(j, record)` runs the backward steps of main step j. The store holds the
+/// records of the first descent and of step 0 and N, as the forward run left them. Returns the
+/// number of recomputed main steps.
+long long reverse_binomial(const BinomialSchedule &schedule, CheckpointStore &store,
+                           const std::function<StepRecord(const StepRecord &, long long)> &advance,
+                           const std::function<void(long long, const StepRecord &)> &visit);
+
+} // namespace flexopt::adjoint
