@@ -375,6 +375,7 @@ void DynamicProblem::evaluate(Vec x, bool gradients, optimize::Evaluation &out) 
         [&](const StepRecord &previous, long long j) { return recompute(ga, previous, j); }, visit);
   }
   checkpoint_bytes_ = store->peak_bytes();
+  adjoint_factorizations_ = sweep.factorizations();
   const Matrix mu0 = sweep.finish(state_partials(0, s0));
   G += initial_state_adjoint(ga, s0, scene_.v0, -mu0,
                              [&](const Vector &q, const Vector &v, const Vector &a, bool gravity,
@@ -458,6 +459,7 @@ void DynamicProblem::describe(io::Json &s) const {
     s["checkpoints"] = "all";
   s["storage"] = case_.adjoint.storage;
   s["recomputed_steps"] = recomputed_;
+  s["adjoint_factorizations"] = adjoint_factorizations_;
   s["checkpoint_bytes"] = checkpoint_bytes_;
 }
 

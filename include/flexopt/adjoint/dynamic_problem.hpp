@@ -112,6 +112,7 @@ private:
   std::vector<std::vector<Vec3>> samples_;         ///< per response: y_n (trajectory responses)
   std::vector<SampledResponse> sampled_;
   long long recomputed_ = 0, checkpoint_bytes_ = 0;
+  long long adjoint_factorizations_ = 0; ///< of the backward sweep
   Vec grad_physical_ = nullptr;
   /// Wall times of the last evaluation with gradients (forward, backward sweep) and of all
   /// forward runs.

@@ -7,7 +7,9 @@
 /// Jacobians (dynamics::GeneralizedAlpha::jacobian_blocks, residual).
 #include "flexopt/dynamics/generalized_alpha.hpp"
 
+#include <Eigen/LU>
 #include <functional>
+#include <memory>
 #include <vector>
 
 namespace flexopt::adjoint {
@@ -52,13 +54,15 @@ public:
   /// mu_0 = -(dPsi/ds_0)^T - (dR_1/ds_0)^T mu_1 at the initial state.
   Matrix finish(const Matrix &dpsi0) const;
   long long steps() const { return steps_; }
+  long long factorizations() const { return factorizations_; }
 
 private:
   const dynamics::GeneralizedAlpha &ga_;
   int n_, m_;
   Matrix carry_; ///< (dR_(k+1)/ds_k)^T mu_(k+1)
-  Matrix K_, C_, M_, J_;
-  long long steps_ = 0;
+  Matrix K_, C_, M_, J_, S_, F_, rhs_, z_;
+  Eigen::PartialPivLU<Matrix> lu_;
+  long long steps_ = 0, factorizations_ = 0;
 };
 
 /// The backward sweep of section 9 for several responses at once (one column each): from the
