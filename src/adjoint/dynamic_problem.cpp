@@ -460,6 +460,7 @@ void DynamicProblem::describe(io::Json &s) const {
   s["storage"] = case_.adjoint.storage;
   s["recomputed_steps"] = recomputed_;
   s["adjoint_factorizations"] = adjoint_factorizations_;
+  s["newton_reuse"] = newton_.reuse_contraction;
   s["checkpoint_bytes"] = checkpoint_bytes_;
 }
 

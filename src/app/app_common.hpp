@@ -3,6 +3,7 @@
 #include "flexopt/app/commands.hpp"
 #include "flexopt/io/case.hpp"
 #include "flexopt/io/json.hpp"
+#include "flexopt/optimize/design_problem.hpp"
 
 #include <string>
 
@@ -15,6 +16,11 @@ std::string output_directory(const Context &ctx, const Options &o);
 io::Json base_summary(const Context &ctx, const Options &o, const io::Case &c);
 /// Adds wall_s and writes summary.json atomically on rank 0. Collective.
 void write_summary(const Context &ctx, const std::string &dir, io::Json &s, double t0);
+/// `dir`/gradient.xdmf + .h5: the gradients of `e` per element of the design body (cell arrays
+/// gradient_objective, gradient_constraint0, ...; 0 outside the design region). Returns the
+/// XDMF path. Collective.
+std::string write_gradients(const optimize::DesignProblem &problem, const optimize::Evaluation &e,
+                            const std::string &dir);
 } // namespace detail
 
 /// `simulate` for `analysis: dynamic`: generalized-alpha run of the mechanism, motion.xdmf and

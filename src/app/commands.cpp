@@ -26,6 +26,27 @@ namespace flexopt::app {
 
 namespace detail {
 
+std::string write_gradients(const optimize::DesignProblem &problem, const optimize::Evaluation &e,
+                            const std::string &dir) {
+  io::XdmfWriter writer(mesh::grid_layout(problem.mesh()), dir, "gradient");
+  writer.begin_step(0);
+  const auto &elements = problem.field().design_elements();
+  std::vector<double> cells(static_cast<std::size_t>(problem.mesh().local_elements()));
+  for (std::size_t i = 0; i < problem.response_names().size(); ++i) {
+    std::fill(cells.begin(), cells.end(), 0.0);
+    const PetscScalar *g;
+    Vec gv = i == 0 ? e.d_objective : e.d_constraints[i - 1];
+    FX_PETSC(VecGetArrayRead(gv, &g));
+    for (std::size_t k = 0; k < elements.size(); ++k)
+      cells[static_cast<std::size_t>(elements[k])] = g[k];
+    FX_PETSC(VecRestoreArrayRead(gv, &g));
+    writer.cell_scalar(i == 0 ? "gradient_objective"
+                              : "gradient_constraint" + std::to_string(i - 1),
+                       cells.data());
+  }
+  return writer.close();
+}
+
 std::string output_directory(const Context &ctx, const Options &o) {
   const std::string dir = o.out.empty() ? (fs::path(o.case_dir) / "out").string() : o.out;
   run_on_root(ctx.comm(), 0, [&] {
@@ -446,6 +467,13 @@ std::unique_ptr<optimize::DesignProblem> create_design_problem(MPI_Comm comm, co
 int run_check_gradient(const Context &ctx, const Options &o, const io::Case &c, double t0) {
   const std::string dir = output_directory(ctx, o);
   std::unique_ptr<optimize::DesignProblem> problem = create_design_problem(ctx.comm(), c, dir);
+  if (auto *dynamic = dynamic_cast<adjoint::DynamicProblem *>(problem.get())) {
+    // Newton's method proper: responses smooth in the design to round-off (docs/theory.md 9.5).
+    dynamic->set_newton_reuse(0);
+    print0(ctx.comm(), "check-gradient: every time step solved by Newton's method proper "
+                       "(time.newton_reuse = 0), so that the responses are smooth in the design to "
+                       "round-off\n");
+  }
   const auto &names = problem->response_names();
   const std::size_t nr = names.size();
   print0(ctx.comm(), "check-gradient: %lld design variables, %zu response(s)\n",
@@ -465,27 +493,7 @@ int run_check_gradient(const Context &ctx, const Options &o, const io::Case &c, 
   optimize::Evaluation base;
   problem->evaluate(x0, true, base);
   const std::vector<double> r0 = response_values(base);
-  // gradient.xdmf: dR/dx per element of the design body (0 outside the design region).
-  std::string gradient_file;
-  {
-    io::XdmfWriter writer(mesh::grid_layout(problem->mesh()), dir, "gradient");
-    writer.begin_step(0);
-    const auto &elements = problem->field().design_elements();
-    std::vector<double> cells(static_cast<std::size_t>(problem->mesh().local_elements()));
-    for (std::size_t i = 0; i < nr; ++i) {
-      std::fill(cells.begin(), cells.end(), 0.0);
-      const PetscScalar *g;
-      Vec gv = i == 0 ? base.d_objective : base.d_constraints[i - 1];
-      FX_PETSC(VecGetArrayRead(gv, &g));
-      for (std::size_t k = 0; k < elements.size(); ++k)
-        cells[static_cast<std::size_t>(elements[k])] = g[k];
-      FX_PETSC(VecRestoreArrayRead(gv, &g));
-      writer.cell_scalar(i == 0 ? "gradient_objective"
-                                : "gradient_constraint" + std::to_string(i - 1),
-                         cells.data());
-    }
-    gradient_file = writer.close();
-  }
+  const std::string gradient_file = detail::write_gradients(*problem, base, dir);
   std::vector<double> slope(nr);
   for (std::size_t i = 0; i < nr; ++i)
     FX_PETSC(VecDot(i == 0 ? base.d_objective : base.d_constraints[i - 1], direction, &slope[i]));
@@ -690,6 +698,12 @@ int run(const Context &ctx, const Options &o) {
   const double t0 = wall_time();
   io::Case c = io::load_case(o.case_dir);
   if (!c.solver.empty()) insert_default_petsc_options(c.solver, c.file + ": solver");
+  if ((!o.design.empty() || o.gradient) &&
+      !(o.command == "simulate" && c.analysis == "dynamic" && c.design))
+    throw Error(std::string(o.gradient ? "--gradient" : "--design") +
+                    " applies to `flexopt simulate` of a dynamic case with a design: section; " +
+                    c.file + " is " + c.analysis + (c.design ? "" : " without design:"),
+                true);
   if (o.command == "info") return run_info(ctx, o, c, t0);
   if (o.command == "simulate")
     return c.analysis == "dynamic" ? run_dynamic(ctx, o, c, t0) : run_static(ctx, o, c, t0);

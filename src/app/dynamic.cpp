@@ -4,6 +4,7 @@
 // flexible bodies, deforming), summary.json (sensors, energy, constraint violation, Newton
 // statistics).
 #include "app_common.hpp"
+#include "flexopt/adjoint/dynamic_problem.hpp"
 #include "flexopt/bodies/ffrf_body.hpp"
 #include "flexopt/bodies/rigid_body.hpp"
 #include "flexopt/core/context.hpp"
@@ -12,6 +13,7 @@
 #include "flexopt/dynamics/scene.hpp"
 #include "flexopt/io/frame_schedule.hpp"
 #include "flexopt/io/motion_writer.hpp"
+#include "flexopt/io/restart.hpp"
 
 #include <cmath>
 #include <cstdio>
@@ -209,7 +211,65 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
     const std::string note = io::unused_settings_note(b);
     if (!note.empty()) print0(ctx.comm(), "note: %s\n", note.c_str());
   }
-  dynamics::Scene scene = dynamics::build_scene(ctx.comm(), c);
+  // With a design: the design body's densities (design.initial or --design FILE), every
+  // response, and with --gradient their adjoint gradients (docs/theory.md section 9); the
+  // motion below is that of this design.
+  std::unique_ptr<adjoint::DynamicProblem> design;
+  dynamics::Scene built;
+  if (c.design) {
+    design = adjoint::DynamicProblem::create(ctx.comm(), c, dir);
+    Vec x = design->create_design_vector();
+    if (o.design.empty()) {
+      design->initial_design(x);
+    } else {
+      const std::vector<std::uint64_t> tags(design->design_tags().begin(),
+                                            design->design_tags().end());
+      const io::RestartData r = io::read_restart(ctx.comm(), o.design, tags);
+      const auto it = r.fields.find("x");
+      if (it == r.fields.end())
+        throw Error(o.design + ": no design field 'x' (--design takes the restart.h5 of a run)",
+                    true);
+      PetscScalar *a;
+      FX_PETSC(VecGetArray(x, &a));
+      std::copy(it->second.begin(), it->second.end(), a);
+      FX_PETSC(VecRestoreArray(x, &a));
+      // The projection sharpness of the run's continuation stage (meta: iteration, objective
+      // scale, constraints, stage, ...).
+      const auto meta = r.arrays.find("meta");
+      if (meta != r.arrays.end() && meta->second.size() > 3 && !c.design->beta.empty()) {
+        const auto stage =
+            std::min(static_cast<std::size_t>(meta->second[3]), c.design->beta.size() - 1);
+        design->field().set_beta(c.design->beta[stage]);
+      }
+      print0(ctx.comm(), "design: the densities of %s\n", o.design.c_str());
+    }
+    optimize::Evaluation e;
+    design->evaluate(x, o.gradient, e);
+    FX_PETSC(VecDestroy(&x));
+    io::Json responses = io::Json::object();
+    const auto &names = design->response_names();
+    for (std::size_t i = 0; i < names.size(); ++i) {
+      const double v = i == 0 ? e.objective : e.constraints[i - 1];
+      const std::string key = i == 0 ? "objective" : "constraint" + std::to_string(i - 1);
+      responses[key] = v;
+      print0(ctx.comm(), "response %-12s %-28s %.10g\n", key.c_str(), names[i].c_str(), v);
+    }
+    s["responses"] = responses;
+    io::Json rn = io::Json::array();
+    for (const auto &n : names) rn.push_back(n);
+    s["response_names"] = rn;
+    if (o.gradient) {
+      const std::string file = detail::write_gradients(*design, e, dir);
+      io::Json a = io::Json::object();
+      design->describe(a);
+      s["adjoint"] = a;
+      print0(ctx.comm(), "gradient: forward run %.3f s, backward sweep %.3f s; wrote %s\n",
+             design->forward_seconds(), design->adjoint_seconds(), file.c_str());
+    }
+  } else {
+    built = dynamics::build_scene(ctx.comm(), c);
+  }
+  dynamics::Scene &scene = design ? design->scene() : built;
   const dynamics::Mechanism &mech = scene.mechanism;
   print0(ctx.comm(), "mechanism: %zu bodies, %d coordinates, %d constraint rows enforced of %d\n",
          mech.bodies.size(), mech.coordinates(), mech.constraints(), mech.all_rows());

@@ -34,6 +34,8 @@ const char *kUsage =
     "  --restart    optimize: continue from out/restart.h5\n"
     "  --max-iterations N  optimize: override optimizer.max_iterations\n"
     "  --fd-step H  check-gradient: finite-difference step (default 1e-2)\n"
+    "  --design FILE  simulate (dynamic, with design:): the design of a run's restart.h5\n"
+    "  --gradient   simulate (dynamic, with design:): also the adjoint gradients\n"
     "  --help       this text, or a command's: flexopt <command> --help\n"
     "\n"
     "PETSc and SLEPc options (-ksp_monitor, -log_view, -eps_view, ...) pass through; the\n"
@@ -46,11 +48,17 @@ const char *command_help(const std::string &cmd) {
            "physical groups and the partition (elements and nodes per rank); writes\n"
            "out/summary.json. Nothing is solved.\n";
   if (cmd == "simulate")
-    return "usage: flexopt simulate CASE [--out DIR] [PETSc options]\n"
+    return "usage: flexopt simulate CASE [--design FILE] [--gradient] [--out DIR] [PETSc options]\n"
            "analysis: static — solves K u = f for the single body with its supports, tractions\n"
            "and gravity. Writes out/static.xdmf + .h5 (nodal displacement, element von Mises\n"
            "stress, element owner rank) and out/summary.json (compliance, max_displacement,\n"
-           "sensors). Default solver: CG + GAMG with the rigid-body near-null space.\n";
+           "sensors). Default solver: CG + GAMG with the rigid-body near-null space.\n"
+           "analysis: dynamic — integrates the mechanism (generalized-alpha) and writes\n"
+           "out/motion.xdmf + .h5 and out/summary.json (sensors, energy, Newton statistics).\n"
+           "With a design: section, the design body takes the densities of design.initial, or\n"
+           "of --design FILE (the restart.h5 of a run), and summary.json reports every\n"
+           "response (responses: {objective, constraint0, ...}); --gradient also computes\n"
+           "their adjoint gradients (out/gradient.xdmf, forward_s, adjoint_s, checkpoints).\n";
   if (cmd == "modes")
     return "usage: flexopt modes CASE [--count N] [--free] [--body NAME] [--out DIR] [PETSc/SLEPc "
            "options]\n"
@@ -132,6 +140,10 @@ int main(int argc, char **argv) {
       opts.body = value("--body");
     else if (a == "--restart")
       opts.restart = true;
+    else if (a == "--design")
+      opts.design = value("--design");
+    else if (a == "--gradient")
+      opts.gradient = true;
     else if (a == "--max-iterations")
       positive_int("--max-iterations", opts.max_iterations);
     else if (a == "--fd-step") {

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <set>
 #include <yaml-cpp/yaml.h>
@@ -837,9 +838,11 @@ ResponseSpec read_response(const Reader &r, const YAML::Node &v, const std::stri
       if (c.time.given)
         for (double t : {0.0, 0.5 * c.time.end, c.time.end}) {
           const double y = Expression(s.target[k])(t);
-          if (!std::isfinite(y))
-            r.fail(tg[k], kp + ": '" + s.target[k] + "' is not finite at t = " + std::to_string(t) +
-                              " s (" + std::to_string(y) + ")");
+          if (!std::isfinite(y)) {
+            char buf[64];
+            std::snprintf(buf, sizeof buf, "%g s (%g)", t, y);
+            r.fail(tg[k], kp + ": '" + s.target[k] + "' is not finite at t = " + buf);
+          }
         }
     }
   }

@@ -72,6 +72,16 @@ public:
   /// 1e-12: every step is solved to Newton's tolerance 1e-12 (relative increment), whose error
   /// reaches the responses (measured remainders of the Taylor test clean to 1e-14 relative).
   double noise_floor() const override { return 1e-12; }
+  /// Solve every step with Newton's method proper (reuse 0) or with kept matrices
+  /// (time.newton_reuse, the default). check-gradient uses 0: kept-matrix iterations stop within
+  /// their tolerance at a point that depends on when the matrix was renewed, which leaves about
+  /// 1e-10 relative noise in the responses of a 2,000-step run (docs/theory.md section 9.5),
+  /// above what a finite difference of a single element resolves.
+  void set_newton_reuse(double reuse) { newton_.reuse_contraction = reuse; }
+  /// The scene, its design body with the mass of the last evaluation's design.
+  dynamics::Scene &scene() { return scene_; }
+  double forward_seconds() const { return forward_s_; }
+  double adjoint_seconds() const { return adjoint_s_; }
   /// Main steps recomputed from checkpoints by the last evaluation with gradients.
   long long recomputed_steps() const { return recomputed_; }
 

@@ -16,6 +16,8 @@ struct Options {
   bool restart = false;   ///< optimize: continue from out/restart.h5
   int max_iterations = 0; ///< optimize: overrides optimizer.max_iterations when > 0
   double fd_step = 1e-2;  ///< check-gradient: finite-difference step h
+  std::string design;     ///< simulate (dynamic): the design of this restart.h5
+  bool gradient = false;  ///< simulate (dynamic): also the adjoint gradients
 };
 
 /// Runs one command. Collective. Returns the process exit status; throws flexopt::Error.
