@@ -666,7 +666,8 @@ int run_optimize(const Context &ctx, const Options &o, const io::Case &c, double
   const std::string dir = output_directory(ctx, o);
   io::Case run_case = c;
   if (o.max_iterations > 0) run_case.optimizer.max_iterations = o.max_iterations;
-  const auto r = optimize::run_optimization(ctx.comm(), run_case, dir, o.restart);
+  auto problem = create_design_problem(ctx.comm(), run_case, dir);
+  const auto r = optimize::run_optimization(ctx.comm(), *problem, run_case, dir, o.restart);
   io::Json s = base_summary(ctx, o, c);
   s["dofs"] = r.dofs;
   s["elements"] = r.elements;

@@ -70,13 +70,13 @@ void set_move_box(Vec x, double move, Vec xmin, Vec xmax) {
 
 } // namespace
 
-OptimizationResult run_optimization(MPI_Comm comm, const io::Case &c, const std::string &out_dir,
-                                    bool restart) {
-  auto problem = TopologyProblem::create(comm, c);
+OptimizationResult run_optimization(MPI_Comm comm, DesignProblem &design, const io::Case &c,
+                                    const std::string &out_dir, bool restart) {
+  DesignProblem *problem = &design;
   const auto &names = problem->response_names();
   const std::size_t m = c.constraints.size();
   OptimizationResult result;
-  result.dofs = problem->static_problem().global_dofs();
+  result.dofs = problem->dofs();
   result.elements = problem->mesh().global_elements;
   result.design_variables = problem->design_size();
 
@@ -94,7 +94,8 @@ OptimizationResult run_optimization(MPI_Comm comm, const io::Case &c, const std:
 
   // MMA works best with an objective of order 1 ... 100 and constraints of order 1 (Svanberg
   // 2007; its subproblem tolerance is absolute, docs/theory-mma.md): the objective is scaled
-  // to 10 at the first iteration, and constraints are g_i = R_i / max_i - 1.
+  // to 10 at the first iteration, and constraints are g_i = R_i / max_i - 1 (max_i > 0; else
+  // (R_i - max_i) / |max_i|, or R_i for max_i = 0).
   double objective_scale = 1.0;
   std::vector<Vec> dg(m);
   for (auto &v : dg) FX_PETSC(VecDuplicate(x, &v));
@@ -192,10 +193,13 @@ OptimizationResult run_optimization(MPI_Comm comm, const io::Case &c, const std:
     FX_PETSC(VecScale(df0, objective_scale));
     std::vector<double> g(m);
     for (std::size_t i = 0; i < m; ++i) {
+      // R <= max as g = R / max - 1 <= 0 for a positive bound; a bound <= 0 (a sensor
+      // component that must stay negative) as g = (R - max) / |max| (or R when max = 0).
       const double bound = c.constraints[i].max;
-      g[i] = e.constraints[i] / bound - 1.0;
+      const double scale = bound > 0 ? bound : bound < 0 ? -bound : 1.0;
+      g[i] = bound > 0 ? e.constraints[i] / bound - 1.0 : (e.constraints[i] - bound) / scale;
       FX_PETSC(VecCopy(e.d_constraints[i], dg[i]));
-      FX_PETSC(VecScale(dg[i], 1.0 / bound));
+      FX_PETSC(VecScale(dg[i], 1.0 / scale));
     }
     FX_PETSC(VecCopy(x, xold));
     set_move_box(x, c.optimizer.move_limit, xmin, xmax);

@@ -43,6 +43,9 @@ public:
   /// Facts of the problem and of the evaluations so far for summary.json (sizes, solves,
   /// timings). Collective.
   virtual void describe(io::Json &summary) const = 0;
+  /// Unknowns of one state solve (static: displacement DOFs; dynamic: the mechanism's
+  /// coordinates).
+  virtual long long dofs() const = 0;
   /// Relative round-off of a response evaluation, |R| times this, below which a Taylor
   /// remainder is noise (check-gradient).
   virtual double noise_floor() const = 0;

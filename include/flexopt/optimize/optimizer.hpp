@@ -1,6 +1,7 @@
 #pragma once
 /// \file The optimization loop: MMA on the topology problem, with history and density output.
 #include "flexopt/io/case.hpp"
+#include "flexopt/optimize/design_problem.hpp"
 
 #include <mpi.h>
 #include <string>
@@ -20,14 +21,15 @@ struct OptimizationResult {
   std::string output; ///< design.xdmf path
 };
 
-/// Runs the case's optimization problem (design:, objective:, constraints:, optimizer:),
+/// Runs the case's optimization problem (design:, objective:, constraints:, optimizer:) on
+/// `problem` (static or dynamic: the same loop for both),
 /// writing `out_dir`/history.csv and `out_dir`/design.xdmf (+ .h5: design and filtered
 /// densities every output.every iterations and at the last). Prints one line per
 /// iteration. Collective.
 /// With `restart`, continues from `out_dir`/restart.h5 (written atomically after every
 /// iteration: design, MMA state, objective scale and history, keyed by element tag so that
 /// any number of ranks can resume); the iterates are those of an uninterrupted run.
-OptimizationResult run_optimization(MPI_Comm comm, const io::Case &c, const std::string &out_dir,
-                                    bool restart = false);
+OptimizationResult run_optimization(MPI_Comm comm, DesignProblem &problem, const io::Case &c,
+                                    const std::string &out_dir, bool restart = false);
 
 } // namespace flexopt::optimize

@@ -27,6 +27,7 @@ public:
   /// 1e-10: the state solve is accurate to about eps cond(K), measured ~1e-11 relative on the
   /// test cases.
   double noise_floor() const override { return 1e-10; }
+  long long dofs() const override { return static_cast<long long>(static_->global_dofs()); }
 
   DesignField &field() override { return *field_; }
   const DesignField &field() const override { return *field_; }
