@@ -313,7 +313,8 @@ DistributedAlpha::DistributedAlpha(std::vector<const bodies::AcfBody *> bodies,
   FX_PETSC(MatDestroy(&P));
   FX_PETSC(MatZeroEntries(M_));
   for (std::size_t b = 0; b < nb; ++b)
-    fem::add_mass(bodies_[b]->mesh(), bodies_[b]->material().density, {}, L.node_dof[b], M_);
+    fem::add_mass(bodies_[b]->mesh(), bodies_[b]->material().density, bodies_[b]->mass_factor(),
+                  L.node_dof[b], M_);
   FX_PETSC(MatAssemblyBegin(M_, MAT_FINAL_ASSEMBLY));
   FX_PETSC(MatAssemblyEnd(M_, MAT_FINAL_ASSEMBLY));
   // The scatters of every body's local-node positions.

@@ -22,11 +22,32 @@ public:
           const fem::IsotropicMaterial &material, const std::vector<double> &modulus_factor = {},
           double damping = 0);
 
+  /// A design's element factors (docs/theory.md section 9.6): E scaled by modulus_factor[e],
+  /// the density by mass_factor[e] (local elements; empty: 1). Collective (the total mass).
+  void set_factors(const std::vector<double> &modulus_factor,
+                   const std::vector<double> &mass_factor);
+  /// Per local element (empty: 1).
+  const std::vector<double> &modulus_factor() const { return modulus_factor_; }
+  const std::vector<double> &mass_factor() const { return mass_factor_; }
+
+  /// The design partials of mu . R_d (section 9.6) at displacements u, velocities v (may be
+  /// null: no damping force), accelerations acc and multipliers mu (each 3 per local node in the
+  /// mesh's local numbering): per local element, into d_modulus[e] = mu_e . (f_e + f_d,e) / s_e
+  /// and d_mass[e] = mu_e . M0_e (acc_e - g). Throws flexopt::Error for an inverted element. Not
+  /// collective.
+  void design_partials(const double *u, const double *v, const double *acc, const double *mu,
+                       const Eigen::Vector3d &gravity, std::vector<double> &d_modulus,
+                       std::vector<double> &d_mass) const;
+  /// The elastic energy of every local element at displacements u (3 per local node), with its
+  /// modulus factor, and, if `force` is non-null, the elements' forces added into it (3 per
+  /// local node). Not collective.
+  std::vector<double> element_energies(const double *u, double *force = nullptr) const;
+
   const std::string &name() const { return name_; }
   const mesh::DistributedMesh &mesh() const { return mesh_; }
   const std::vector<fem::CorotatedElement> &elements() const { return elements_; }
   const fem::IsotropicMaterial &material() const { return material_; }
-  /// density x volume [kg] (the same on every rank).
+  /// density x volume, with the mass factors [kg] (the same on every rank).
   double total_mass() const { return mass_; }
   /// The stiffness-proportional damping coefficient b [s] (0: none).
   double damping() const { return damping_; }
@@ -36,6 +57,7 @@ private:
   const mesh::DistributedMesh &mesh_;
   fem::IsotropicMaterial material_;
   std::vector<fem::CorotatedElement> elements_;
+  std::vector<double> modulus_factor_, mass_factor_;
   double mass_ = 0;
   double damping_ = 0;
 };
