@@ -1041,11 +1041,50 @@ void DistributedAlpha::equations(const DistState &s, Vec R) const {
 }
 
 Mat DistributedAlpha::newton_matrix(const DistState &s, double h) const {
+  return scaled_matrix(s, par_.newton_scaling(h));
+}
+
+Mat DistributedAlpha::scaled_matrix(const DistState &s, const NewtonScaling &k) const {
   double violation;
   factored_ = false;
-  if (!assemble(s, par_.newton_scaling(h), true, violation))
+  if (!assemble(s, k, true, violation))
     throw Error("DistributedAlpha::newton_matrix: an inverted element", true);
   return A_;
+}
+
+void DistributedAlpha::solve_transpose(Vec rhs, Vec z) const {
+  factored_ = false; // the factorization below is not a kept Newton matrix of the forward run
+  if (!factorized(ksp_))
+    throw Error("adjoint: the transposed Newton matrix of a step is singular", true);
+  FX_PETSC(KSPSolveTranspose(ksp_, rhs, z));
+  KSPConvergedReason reason;
+  FX_PETSC(KSPGetConvergedReason(ksp_, &reason));
+  if (reason < 0 || !std::isfinite(max_abs(z)))
+    throw Error("adjoint: the transposed solve of a step failed (" +
+                    std::string(KSPConvergedReasons[reason]) + ")",
+                true);
+}
+
+void DistributedAlpha::mass_multiply(const DistState &s, Vec x, Vec y) const {
+  const detail::AcfLayout &L = *layout_;
+  FX_PETSC(MatMult(M_, x, y)); // the ACF rows (M_ is zero elsewhere)
+  if (!small_) return;
+  const State sm = small_state(s);
+  if (comm_rank(comm_) == 0) {
+    const int n = L.small_n;
+    Vector r, xs(n);
+    Matrix Ms;
+    small_->dynamics(sm.q, sm.v, Vector::Zero(n), sm.t, r, nullptr, nullptr, &Ms);
+    const PetscScalar *xa;
+    FX_PETSC(VecGetArrayRead(x, &xa));
+    for (int i = 0; i < n; ++i) xs(i) = xa[L.small_coord0 + i];
+    FX_PETSC(VecRestoreArrayRead(x, &xa));
+    const Vector ys = Ms * xs;
+    const auto ic = range(L.small_coord0, n);
+    FX_PETSC(VecSetValues(y, n, ic.data(), ys.data(), ADD_VALUES));
+  }
+  FX_PETSC(VecAssemblyBegin(y));
+  FX_PETSC(VecAssemblyEnd(y));
 }
 
 bool DistributedAlpha::step_once(const DistState &s, double h, DistState &next,

@@ -11,6 +11,7 @@
 //    0.2 s differ by less than the static sag of the beam under its own weight and the block
 //    (the elastic deflection's scale; measured 5.1e-6 m against 2.5e-4 m);
 //  - the run on 2 ranks equals the run on rank 0 alone (another partition) to 1e-9.
+#include "flexopt/adjoint/dist_sweep.hpp"
 #include "flexopt/bodies/acf_body.hpp"
 #include "flexopt/bodies/rigid_body.hpp"
 #include "flexopt/core/context.hpp"
@@ -190,6 +191,102 @@ TEST(AcfMechanism, NewtonMatrixIsTheDerivativeOfTheEquations) {
 // the matrix adds (df_d/dx + gamma' df_d/dv) / beta'.
 TEST(AcfMechanism, NewtonMatrixWithDampingIsTheDerivativeOfTheEquations) {
   check_newton_matrix(1e-3);
+}
+
+/// The distributed backward sweep (docs/theory.md section 9.7) against central differences of
+/// whole forward runs: Psi = the block's x after 8 steps of 1 ms from a state s0 of the swinging
+/// ACF pendulum; dPsi/ds0 = -mu_0 (treating s0 as free: R_1 uses its q, v, a, acc linearly) in a
+/// random direction of all four blocks, against (Psi(s0 + e d) - Psi(s0 - e d)) / 2e. Newton's
+/// method proper (responses smooth to round-off, docs/theory.md section 9.5).
+void check_backward_sweep(double damping) {
+  auto m = test_support::load_test_mesh("beam.geo", 0.05, 2);
+  dynamics::NewtonSettings newton;
+  newton.reuse_contraction = 0;
+  const AcfPendulum p(m, 2.1e9, 0.8, damping, newton);
+  const double h = 1e-3;
+  const int steps = 8;
+  const dynamics::DistState s0 = p.run(p.initial(), h, 3);
+  const int block_x = p.mech.offset(2);
+  auto psi = [&](const dynamics::DistState &start, std::vector<dynamics::DistState> *states) {
+    dynamics::DistState s = start, next;
+    if (states) states->assign(1, start);
+    for (int n = 0; n < steps; ++n) {
+      dynamics::StepInfo info;
+      if (!p.da->advance(s, h, next, info) || info.halvings > 0)
+        throw std::runtime_error("step failed or halved");
+      s = next;
+      if (states) states->push_back(s);
+    }
+    return p.tip(s).x();
+  };
+  std::vector<dynamics::DistState> states;
+  const double psi0 = psi(s0, &states);
+  // dPsi/ds_N: 1 at the block's x.
+  dynamics::DistState dN = s0;
+  for (Vec v : {dN.q, dN.v, dN.a, dN.acc, dN.lambda}) VecZeroEntries(v);
+  Vector e = Vector::Zero(p.mech.coordinates());
+  e(block_x) = 1;
+  p.da->set_small(dN.q, e);
+  VecAssemblyBegin(dN.q);
+  VecAssemblyEnd(dN.q);
+  adjoint::DistBackwardSweep sweep(*p.da, 1);
+  for (int k = steps; k >= 1; --k)
+    sweep.step(states[static_cast<std::size_t>(k)], h, {k == steps ? &dN : nullptr});
+  const dynamics::DistState mu0 = sweep.finish({nullptr})[0];
+  // A random direction d (the same global vector on every rank count), on the coordinates.
+  Vec cmask = p.da->create_vector();
+  p.da->coordinate_mask(cmask);
+  PetscInt lo, hi;
+  VecGetOwnershipRange(cmask, &lo, &hi);
+  auto random = [&](unsigned seed, double scale) {
+    Vec v = p.da->create_vector();
+    std::mt19937 gen(seed);
+    std::uniform_real_distribution<double> u(-scale, scale);
+    for (PetscInt i = 0; i < p.da->global_size(); ++i) {
+      const double value = u(gen);
+      if (i >= lo && i < hi) VecSetValue(v, i, value, INSERT_VALUES);
+    }
+    VecAssemblyBegin(v);
+    VecAssemblyEnd(v);
+    VecPointwiseMult(v, v, cmask);
+    return v;
+  };
+  Vec dq = random(11, 1e-3), dv = random(12, 1e-1), da = random(13, 1.0), dacc = random(14, 1.0);
+  auto dot = [](Vec a, Vec b) {
+    PetscScalar d;
+    VecDot(a, b, &d);
+    return d;
+  };
+  const double adjoint = -(dot(mu0.q, dq) + dot(mu0.v, dv) + dot(mu0.a, da) + dot(mu0.acc, dacc));
+  auto moved = [&](double eps) {
+    dynamics::DistState t = s0;
+    VecAXPY(t.q, eps, dq);
+    VecAXPY(t.v, eps, dv);
+    VecAXPY(t.a, eps, da);
+    VecAXPY(t.acc, eps, dacc);
+    return psi(t, nullptr);
+  };
+  const double eps = 1e-3;
+  // Fourth order: (4 D(e/2) - D(e)) / 3.
+  const double d1 = (moved(eps) - moved(-eps)) / (2 * eps),
+               d2 = (moved(eps / 2) - moved(-eps / 2)) / eps;
+  const double fd = (4 * d2 - d1) / 3;
+  if (comm_rank(m.comm) == 0)
+    std::printf("ACF pendulum backward sweep (damping %g s, %d steps, Psi = %.9f): adjoint "
+                "% .12e, central differences % .12e, relative difference %.2e\n",
+                damping, steps, psi0, adjoint, fd, std::abs(adjoint - fd) / std::abs(fd));
+  EXPECT_LT(std::abs(adjoint - fd), 1e-7 * std::abs(fd));
+  for (Vec *v : {&cmask, &dq, &dv, &da, &dacc}) VecDestroy(v);
+}
+
+TEST(AcfMechanism, DistributedBackwardSweepGivesTheDerivativeOfAResponse) {
+  check_backward_sweep(0);
+}
+
+// With damping the velocity block C = df_d/dv is non-zero; the sweep separates it from the
+// matrix by a second assembly without it.
+TEST(AcfMechanism, DistributedBackwardSweepWithDamping) {
+  check_backward_sweep(1e-3);
 }
 
 TEST(AcfMechanism, SwingingPendulumKeepsItsEnergy) {

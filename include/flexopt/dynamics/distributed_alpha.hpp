@@ -69,6 +69,7 @@ public:
   DistributedAlpha(const DistributedAlpha &) = delete;
   DistributedAlpha &operator=(const DistributedAlpha &) = delete;
 
+  const AlphaParameters &parameters() const { return par_; }
   /// A zero vector of the integrator's layout; the caller destroys it. Collective.
   Vec create_vector() const;
   /// Sets field(X) at the owned nodes of ACF body b (X: reference position) in v. Not
@@ -115,6 +116,19 @@ public:
   /// a += alpha' dq, acc += beta' dq, lambda += beta' dlambda_hat. Owned by the integrator (valid
   /// until its next step). Collective.
   Mat newton_matrix(const DistState &s, double h) const;
+
+  /// The matrix of newton_matrix for any scaling k (k.bp > 0): M + (k.gp / k.bp) C + K / k.bp
+  /// on the coordinates, Phi_q^T and Phi_q with the multipliers (the adjoint separates C from
+  /// it with k.gp = 0; docs/theory.md section 9.7). Owned, valid until the next call.
+  /// Collective.
+  Mat scaled_matrix(const DistState &s, const NewtonScaling &k) const;
+  /// z with A^T z = rhs for the matrix A last returned by newton_matrix or scaled_matrix
+  /// (factorized here by the integrator's solver; a later step assembles and factorizes anew).
+  /// Collective; throws a collective flexopt::Error if A is singular or the solve fails.
+  void solve_transpose(Vec rhs, Vec z) const;
+  /// y = M x on the coordinate entries (the ACF bodies' mass, with their mass factors, and the
+  /// small part's mass matrix at s), 0 on the multipliers. Collective.
+  void mass_multiply(const DistState &s, Vec x, Vec y) const;
 
   /// Kinetic energy 1/2 v^T M v, elastic energy and the potential of gravity -f_g . x of the
   /// ACF bodies. Collective.
