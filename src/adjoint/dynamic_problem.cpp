@@ -66,14 +66,16 @@ Matrix initial_state_adjoint(const dynamics::GeneralizedAlpha &ga, const dynamic
   return G;
 }
 
+double trapezoid_weight(std::size_t n, std::size_t N) {
+  if (N == 0) return 1.0;
+  return (n == 0 || n == N ? 0.5 : 1.0) / static_cast<double>(N);
+}
+
 SampledResponse sampled_response(const io::ResponseSpec &r, const std::vector<Vec3> &y, double h) {
   SampledResponse out;
   const std::size_t N = y.size() - 1;
   out.dy.assign(y.size(), Vec3::Zero());
-  auto weight = [&](std::size_t n) {
-    if (N == 0) return 1.0;
-    return (n == 0 || n == N ? 0.5 : 1.0) / static_cast<double>(N);
-  };
+  auto weight = [&](std::size_t n) { return trapezoid_weight(n, N); };
   const int K = r.component;
   if (r.type == "tracking_error") {
     std::array<Expression, 3> target;
@@ -121,8 +123,6 @@ SampledResponse sampled_response(const io::ResponseSpec &r, const std::vector<Ve
   return out;
 }
 
-namespace {
-
 /// dy/dq of a sensor of a rigid or FFRF body at q (3 x n, the body's columns only).
 Matrix sensor_jacobian(const dynamics::Scene &scene, const dynamics::BoundSensor &s,
                        const Vector &q) {
@@ -137,8 +137,6 @@ Matrix sensor_jacobian(const dynamics::Scene &scene, const dynamics::BoundSensor
   return D;
 }
 
-} // namespace
-
 std::unique_ptr<DynamicProblem> DynamicProblem::create(MPI_Comm comm, const io::Case &c,
                                                        const std::string &scratch) {
   if (!c.design || !c.objective)
@@ -146,36 +144,45 @@ std::unique_ptr<DynamicProblem> DynamicProblem::create(MPI_Comm comm, const io::
   const io::DesignSpec &d = *c.design;
   const io::BodySpec &body = c.body(d.body);
   const std::string model = io::simulated_model(body.model);
-  if (model != "rigid")
+  if (model != "rigid" && model != "acf")
     throw Error(d.where.str() + ": design.body '" + d.body + "' is simulated as " + model +
                     ": design sensitivities of " + model +
-                    " bodies are not built yet (this version: rigid design bodies; ACF and FFRF "
-                    "follow)",
+                    " bodies are not built yet (this version: rigid and ACF design bodies; FFRF "
+                    "follows)",
                 true);
   std::unique_ptr<DynamicProblem> p(new DynamicProblem());
   p->case_ = c;
   p->scratch_ = scratch;
   p->scene_ = dynamics::build_scene(comm, c);
-  if (!p->scene_.acf.empty())
-    throw Error(c.file + ": an optimization of a scene with ACF bodies is not built yet (the "
-                         "distributed backend's adjoint); simulate them as rigid or ffrf",
-                true);
   for (std::size_t b = 0; b < c.bodies.size(); ++b)
     if (c.bodies[b].name == d.body) p->design_body_ = static_cast<int>(b);
-  p->mechanism_body_ = p->scene_.bodies[static_cast<std::size_t>(p->design_body_)].mechanism;
+  const dynamics::SceneBody &dsb = p->scene_.bodies[static_cast<std::size_t>(p->design_body_)];
+  p->mechanism_body_ = dsb.mechanism;
+  p->acf_design_ = dsb.acf;
+  if (model == "rigid" && !p->scene_.acf.empty())
+    throw Error(d.where.str() + ": a rigid design body in a scene with ACF bodies is not built "
+                                "yet (its partials on the distributed backend)",
+                true);
+  if (model == "acf" && (c.adjoint.checkpoints != 0 || c.adjoint.storage != "memory"))
+    throw Error(c.adjoint.where.str() + ": adjoint: checkpoints and disk storage are not built "
+                                        "yet for ACF design bodies (checkpoints: all, storage: "
+                                        "memory)",
+                true);
   const mesh::DistributedMesh &m = p->scene_.meshes[static_cast<std::size_t>(p->design_body_)];
   p->field_ = std::make_unique<optimize::DesignField>(m, d);
   p->grad_physical_ = p->field_->filter().create_element_vector();
 
-  // The design body keeps its solid centre of mass as its reference point (section 9.1).
-  const auto &solid =
-      dynamic_cast<const bodies::RigidBody &>(p->scene_.mechanism.body(p->mechanism_body_));
-  p->reference_ = solid.center();
-  const double density = c.material(body.material).density;
-  p->element_theta_.resize(static_cast<std::size_t>(m.local_elements()));
-  for (PetscInt e = 0; e < m.local_elements(); ++e)
-    p->element_theta_[static_cast<std::size_t>(e)] =
-        bodies::element_mass_parameters(m.type, m.element_coordinates(e), density, p->reference_);
+  if (model == "rigid") {
+    // The design body keeps its solid centre of mass as its reference point (section 9.1).
+    const auto &solid =
+        dynamic_cast<const bodies::RigidBody &>(p->scene_.mechanism.body(p->mechanism_body_));
+    p->reference_ = solid.center();
+    const double density = c.material(body.material).density;
+    p->element_theta_.resize(static_cast<std::size_t>(m.local_elements()));
+    for (PetscInt e = 0; e < m.local_elements(); ++e)
+      p->element_theta_[static_cast<std::size_t>(e)] =
+          bodies::element_mass_parameters(m.type, m.element_coordinates(e), density, p->reference_);
+  }
 
   p->specs_.push_back(&*p->case_.objective);
   for (const auto &r : p->case_.constraints) p->specs_.push_back(&r);
@@ -190,11 +197,20 @@ std::unique_ptr<DynamicProblem> DynamicProblem::create(MPI_Comm comm, const io::
     p->sensor_of_.push_back(sensor);
     if (r->type == "strain_energy_integral") {
       const std::string bm = io::simulated_model(c.body(r->body).model);
-      throw Error(r->where.str() + ": strain_energy_integral of body '" + r->body +
-                      "' (simulated as " + bm +
-                      "): the strain energy response is not built yet (ACF and FFRF bodies, "
-                      "next); a rigid body has none",
-                  true);
+      if (bm != "acf" || model != "acf")
+        throw Error(r->where.str() + ": strain_energy_integral of body '" + r->body +
+                        "' (simulated as " + bm +
+                        "): built for ACF bodies in a scene with an ACF design body (FFRF "
+                        "bodies follow; a rigid body has no strain energy)",
+                    true);
+    }
+    if (sensor >= 0 && model == "acf") {
+      const dynamics::BoundSensor &s = p->scene_.sensors[static_cast<std::size_t>(sensor)];
+      if (s.acf_body >= 0 && s.quantity == "elastic_displacement")
+        throw Error(r->where.str() + ": sensor '" + s.name +
+                        "' measures the elastic displacement of an ACF body, which a response "
+                        "cannot use yet (position, displacement)",
+                    true);
     }
   }
   p->par_ = dynamics::AlphaParameters::from_rho_inf(c.time.rho_inf);
@@ -237,10 +253,13 @@ double DynamicProblem::response_value(std::size_t i) const {
   const io::ResponseSpec &r = *specs_[i];
   if (r.type == "volume_fraction") return field_->volume_fraction();
   if (r.type == "mass") {
-    if (r.body == case_.design->body) return theta_(0);
+    if (r.body == case_.design->body && acf_design_ < 0) return theta_(0);
     for (std::size_t b = 0; b < case_.bodies.size(); ++b)
-      if (case_.bodies[b].name == r.body)
-        return scene_.mechanism.body(scene_.bodies[b].mechanism).mass();
+      if (case_.bodies[b].name == r.body) {
+        const dynamics::SceneBody &sb = scene_.bodies[b];
+        if (sb.acf >= 0) return scene_.acf[static_cast<std::size_t>(sb.acf)]->total_mass();
+        return scene_.mechanism.body(sb.mechanism).mass();
+      }
   }
   return sampled_[i].value;
 }
@@ -251,16 +270,52 @@ void DynamicProblem::evaluate(Vec x, bool gradients, optimize::Evaluation &out) 
   field_->update(x);
   const mesh::DistributedMesh &m = mesh();
   const PetscInt ne = m.local_elements();
+  const io::DesignSpec &d = *case_.design;
+  // Mass factors w (section 9.1) and, for an ACF body, SIMP modulus factors s (section 9.6).
   w_.assign(static_cast<std::size_t>(ne), 1.0);
   dw_.assign(static_cast<std::size_t>(ne), 0.0);
+  s_.assign(static_cast<std::size_t>(ne), 1.0);
+  ds_.assign(static_cast<std::size_t>(ne), 0.0);
   {
     const PetscScalar *ph;
     FX_PETSC(VecGetArrayRead(field_->physical(), &ph));
-    for (PetscInt e : field_->design_elements())
-      w_[static_cast<std::size_t>(e)] =
-          mass_factor(std::max(ph[e], 0.0), &dw_[static_cast<std::size_t>(e)]);
+    for (PetscInt e : field_->design_elements()) {
+      const auto k = static_cast<std::size_t>(e);
+      const double r = std::max(ph[e], 0.0);
+      w_[k] = mass_factor(r, &dw_[k]);
+      s_[k] = d.min_stiffness + std::pow(r, d.penalty) * (1.0 - d.min_stiffness);
+      ds_[k] = r > 0 ? d.penalty * std::pow(r, d.penalty - 1.0) * (1.0 - d.min_stiffness) : 0.0;
+    }
     FX_PETSC(VecRestoreArrayRead(field_->physical(), &ph));
   }
+  const std::size_t nr = specs_.size();
+  element_gradient_.assign(nr, std::vector<double>(static_cast<std::size_t>(ne), 0.0));
+  if (acf_design_ >= 0)
+    evaluate_acf(gradients, out);
+  else
+    evaluate_rigid(gradients, out);
+  if (!gradients) return;
+  if (!out.d_objective) {
+    out.d_objective = create_design_vector();
+    for (std::size_t i = 0; i < case_.constraints.size(); ++i)
+      out.d_constraints.push_back(create_design_vector());
+  }
+  for (std::size_t i = 0; i < nr; ++i) {
+    if (specs_[i]->type == "volume_fraction") {
+      field_->volume_fraction_gradient(grad_physical_);
+    } else {
+      PetscScalar *g;
+      FX_PETSC(VecGetArray(grad_physical_, &g));
+      for (PetscInt e = 0; e < ne; ++e) g[e] = element_gradient_[i][static_cast<std::size_t>(e)];
+      FX_PETSC(VecRestoreArray(grad_physical_, &g));
+    }
+    field_->pull_back(grad_physical_, i == 0 ? out.d_objective : out.d_constraints[i - 1]);
+  }
+}
+
+void DynamicProblem::evaluate_rigid(bool gradients, optimize::Evaluation &out) {
+  const mesh::DistributedMesh &m = mesh();
+  const PetscInt ne = m.local_elements();
   bodies::MassParameters local = bodies::MassParameters::Zero();
   for (PetscInt e = 0; e < ne; ++e)
     local += w_[static_cast<std::size_t>(e)] * element_theta_[static_cast<std::size_t>(e)];
@@ -382,27 +437,14 @@ void DynamicProblem::evaluate(Vec x, bool gradients, optimize::Evaluation &out) 
                                  const Matrix &W) { return design_partials(q, v, a, gravity, W); });
   adjoint_s_ = wall_time() - t_adjoint;
 
-  if (!out.d_objective) {
-    out.d_objective = create_design_vector();
-    for (std::size_t i = 0; i < case_.constraints.size(); ++i)
-      out.d_constraints.push_back(create_design_vector());
-  }
+  // dPsi/dw_e = G . theta_e (+ m_e for the design body's mass), then dw/d(physical).
   for (std::size_t i = 0; i < nr; ++i) {
     const io::ResponseSpec &r = *specs_[i];
-    if (r.type == "volume_fraction") {
-      field_->volume_fraction_gradient(grad_physical_);
-    } else {
-      // dPsi/dw_e = G . theta_e (+ m_e for the design body's mass), then dw/d(physical).
-      Vector g = G.col(static_cast<Eigen::Index>(i));
-      if (r.type == "mass" && r.body == case_.design->body) g(0) += 1;
-      PetscScalar *ga_;
-      FX_PETSC(VecGetArray(grad_physical_, &ga_));
-      for (PetscInt e = 0; e < ne; ++e)
-        ga_[e] =
-            dw_[static_cast<std::size_t>(e)] * g.dot(element_theta_[static_cast<std::size_t>(e)]);
-      FX_PETSC(VecRestoreArray(grad_physical_, &ga_));
-    }
-    field_->pull_back(grad_physical_, i == 0 ? out.d_objective : out.d_constraints[i - 1]);
+    Vector g = G.col(static_cast<Eigen::Index>(i));
+    if (r.type == "mass" && r.body == case_.design->body) g(0) += 1;
+    for (PetscInt e = 0; e < ne; ++e)
+      element_gradient_[i][static_cast<std::size_t>(e)] =
+          dw_[static_cast<std::size_t>(e)] * g.dot(element_theta_[static_cast<std::size_t>(e)]);
   }
 }
 

@@ -699,6 +699,65 @@ double DistributedAlpha::add_constraints(const DistState &next, double bp, doubl
   return global;
 }
 
+Mat DistributedAlpha::acceleration_matrix(const DistState &s) const {
+  const detail::AcfLayout &L = *layout_;
+  // The matrix [M Phi_q^T; Phi_q 0] (ties with zero multipliers: no Hessian).
+  factored_ = false;
+  FX_PETSC(MatZeroEntries(A_));
+  FX_PETSC(MatAXPY(A_, 1.0, M_, SAME_NONZERO_PATTERN));
+  const State sm = small_state(s);
+  if (small_) add_all_ties(s, sm, false, 1.0, A_, w_); // w_: the ties' right-hand side, unused
+  if (comm_rank(comm_) == 0 && small_)
+    add_mass_system(*small_, sm, A_, L.small_coord0, L.small_row0);
+  FX_PETSC(VecAssemblyBegin(w_));
+  FX_PETSC(VecAssemblyEnd(w_));
+  FX_PETSC(MatAssemblyBegin(A_, MAT_FINAL_ASSEMBLY));
+  FX_PETSC(MatAssemblyEnd(A_, MAT_FINAL_ASSEMBLY));
+  return A_;
+}
+
+void DistributedAlpha::local_values(Vec v, std::size_t body, std::vector<double> &out) const {
+  detail::AcfLayout &L = *layout_;
+  gather(v, body, L.local_v[body]);
+  const PetscScalar *a;
+  PetscInt n = 0;
+  FX_PETSC(VecGetLocalSize(L.local_v[body], &n));
+  FX_PETSC(VecGetArrayRead(L.local_v[body], &a));
+  out.assign(a, a + n);
+  FX_PETSC(VecRestoreArrayRead(L.local_v[body], &a));
+}
+
+void DistributedAlpha::add_local_values(Vec v, std::size_t body,
+                                        const std::vector<double> &local) const {
+  const auto &dof = layout_->node_dof[body];
+  for (std::size_t l = 0; l < dof.size(); ++l) {
+    const PetscInt idx[3] = {dof[l], dof[l] + 1, dof[l] + 2};
+    FX_PETSC(VecSetValues(v, 3, idx, local.data() + 3 * l, ADD_VALUES));
+  }
+}
+
+void DistributedAlpha::add_point_weights(Vec v, std::size_t body, const fem::PointLocation &p,
+                                         const Vec3 &w) const {
+  if (comm_rank(comm_) != p.owner) return;
+  const mesh::DistributedMesh &m = bodies_[body]->mesh();
+  const int npe = m.nodes_per_element();
+  for (int a = 0; a < npe; ++a) {
+    const PetscInt l = m.connectivity[static_cast<std::size_t>(p.element * npe + a)];
+    const PetscInt d = layout_->node_dof[body][static_cast<std::size_t>(l)];
+    const PetscInt idx[3] = {d, d + 1, d + 2};
+    const double val[3] = {p.shape[static_cast<std::size_t>(a)] * w.x(),
+                           p.shape[static_cast<std::size_t>(a)] * w.y(),
+                           p.shape[static_cast<std::size_t>(a)] * w.z()};
+    FX_PETSC(VecSetValues(v, 3, idx, val, ADD_VALUES));
+  }
+}
+
+void DistributedAlpha::add_small(Vec v, const Vector &values) const {
+  if (comm_rank(comm_) != 0 || !small_) return;
+  const auto ic = range(layout_->small_coord0, layout_->small_n);
+  FX_PETSC(VecSetValues(v, layout_->small_n, ic.data(), values.data(), ADD_VALUES));
+}
+
 DistState DistributedAlpha::initial_state(Vec q0, Vec v0, double t0, StartReport *report) const {
   const detail::AcfLayout &L = *layout_;
   const bool root = comm_rank(comm_) == 0;
@@ -735,18 +794,7 @@ DistState DistributedAlpha::initial_state(Vec q0, Vec v0, double t0, StartReport
                       bad,
                   true);
   }
-  // The matrix [M Phi_q^T; Phi_q 0] (ties with zero multipliers: no Hessian).
-  factored_ = false;
-  FX_PETSC(MatZeroEntries(A_));
-  FX_PETSC(MatAXPY(A_, 1.0, M_, SAME_NONZERO_PATTERN));
-  {
-    if (small_) add_all_ties(s, sm, false, 1.0, A_, w_); // w_: the ties' right-hand side, unused
-    if (root && small_) add_mass_system(*small_, sm, A_, L.small_coord0, L.small_row0);
-    FX_PETSC(VecAssemblyBegin(w_));
-    FX_PETSC(VecAssemblyEnd(w_));
-    FX_PETSC(MatAssemblyBegin(A_, MAT_FINAL_ASSEMBLY));
-    FX_PETSC(MatAssemblyEnd(A_, MAT_FINAL_ASSEMBLY));
-  }
+  acceleration_matrix(s);
   if (!factorized(ksp_))
     throw Error("initial conditions: the acceleration system [M Phi_q^T; Phi_q 0] is singular "
                 "(a body without mass, an interface node held by nothing, or joints that "
@@ -766,6 +814,7 @@ DistState DistributedAlpha::initial_state(Vec q0, Vec v0, double t0, StartReport
   StartReport rep;
   rep.kinetic_given = kinetic_energy(s);
   const double given = velocity_violation(s, sm);
+  rep.given_violation = given;
   if (small_) {
     const std::vector<RigidField> fields = rigid_fields(s);
     const VelocityCorrection c = rigid_velocity_correction(*small_, sm.q, sm.v, t0, fields);
@@ -1156,11 +1205,18 @@ bool DistributedAlpha::step_once(const DistState &s, double h, DistState &next,
   return detail::newton_loop(backend, settings_, par_.newton_scaling(h), info);
 }
 
-bool DistributedAlpha::advance(const DistState &s, double h, DistState &next,
-                               StepInfo &info) const {
-  return detail::advance_with_halving(s, h, next, info, settings_.max_halvings,
-                                      [this](const DistState &from, double dt, DistState &to,
-                                             StepInfo &i) { return step_once(from, dt, to, i); });
+bool DistributedAlpha::advance(const DistState &s, double h, DistState &next, StepInfo &info,
+                               std::vector<std::pair<DistState, double>> *substeps) const {
+  return detail::advance_with_halving(
+      s, h, next, info, settings_.max_halvings,
+      [this](const DistState &from, double dt, DistState &to, StepInfo &i) {
+        return step_once(from, dt, to, i);
+      },
+      substeps);
+}
+
+bool DistributedAlpha::step(const DistState &s, double h, DistState &next, StepInfo &info) const {
+  return step_once(s, h, next, info);
 }
 
 } // namespace flexopt::dynamics

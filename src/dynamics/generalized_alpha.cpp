@@ -200,6 +200,7 @@ State GeneralizedAlpha::initial_state(const Vector &q0, const Vector &v0, double
   const VelocityCorrection rigid = rigid_velocity_correction(mech_, s.q, v0, t0);
   s.v = v0 + rigid.dv;
   rep.rigid_residual = rigid.residual;
+  rep.given_violation = rigid.scale;
   mech_.constraint(s.q, t0, phi, &J);
   // One factorization of [M J^T; J 0] serves the fallback velocity correction and the
   // accelerations (q and so M and J are fixed from here on).

@@ -50,6 +50,15 @@ struct SampledResponse {
 /// target is not finite.
 SampledResponse sampled_response(const io::ResponseSpec &r, const std::vector<Vec3> &y, double h);
 
+/// dy/dq of a sensor of a rigid or FFRF body of the scene's mechanism at q (3 x n, the body's
+/// columns only; position and displacement: the anchor Jacobian, elastic displacement: S).
+Matrix sensor_jacobian(const dynamics::Scene &scene, const dynamics::BoundSensor &s,
+                       const Vector &q);
+
+/// The trapezoidal weight of main step n of N in a time average (section 9.3): 1/(2N) at the
+/// ends, 1/N between (1 for N = 0).
+double trapezoid_weight(std::size_t n, std::size_t N);
+
 class DynamicProblem : public optimize::DesignProblem {
 public:
   /// Builds the scene (meshes, joints, sensors) and the design field of `c` (analysis:
@@ -88,6 +97,11 @@ public:
 
 private:
   DynamicProblem() = default;
+  /// The rigid design body on the dense backend (sections 9.1-9.5): responses into `out`,
+  /// with gradients dPsi/d(physical density) into element_gradient_.
+  void evaluate_rigid(bool gradients, optimize::Evaluation &out);
+  /// The ACF design body on the distributed backend (sections 9.6, 9.7), the same outputs.
+  void evaluate_acf(bool gradients, optimize::Evaluation &out);
   /// Mass factor w(rho) of the mass interpolation and its derivative.
   double mass_factor(double rho, double *derivative) const;
   /// (d r/d theta)^T W for the design body's block of W (ResidualPartials).
@@ -105,6 +119,11 @@ private:
   bodies::Vec3 reference_{0, 0, 0};
   std::vector<bodies::MassParameters> element_theta_; ///< per local element of the design body
   std::vector<double> w_, dw_;                        ///< mass factors, per local element
+  std::vector<double> s_, ds_; ///< SIMP modulus factors (ACF design body), per local element
+  int acf_design_ = -1;        ///< the design body's index in scene_.acf (-1: rigid)
+  /// Per response: dPsi/d(physical density) of every local element (the volume fraction's
+  /// from the design field).
+  std::vector<std::vector<double>> element_gradient_;
   bodies::MassParameters theta_ = bodies::MassParameters::Zero();
   std::vector<const io::ResponseSpec *> specs_;
   std::vector<int> sensor_of_; ///< per response: index in scene_.sensors (-1: none)

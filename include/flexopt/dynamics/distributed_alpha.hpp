@@ -104,7 +104,25 @@ public:
   DistState initial_state(Vec q0, Vec v0, double t0, StartReport *report = nullptr) const;
   /// Advances s by h to `next`, halving the step (recursively, up to max_halvings) when Newton
   /// fails. Returns false (and fills `info`) if even the smallest substep fails. Collective.
-  bool advance(const DistState &s, double h, DistState &next, StepInfo &info) const;
+  bool advance(const DistState &s, double h, DistState &next, StepInfo &info,
+               std::vector<std::pair<DistState, double>> *substeps = nullptr) const;
+  /// One step of size h without halving (the adjoint's recomputation). Collective.
+  bool step(const DistState &s, double h, DistState &next, StepInfo &info) const;
+  /// The matrix [M Phi_q^T; Phi_q 0] of the consistent start at s (the ties without their
+  /// multipliers' Hessian), as the operator of solve_transpose. Collective.
+  Mat acceleration_matrix(const DistState &s) const;
+  /// The entries of v at ACF body b's local nodes (owned and ghosts, the mesh's local
+  /// numbering, 3 per node). Collective.
+  void local_values(Vec v, std::size_t body, std::vector<double> &out) const;
+  /// v += local (3 per local node of ACF body b, owned and ghosts); the caller assembles v. Not
+  /// collective.
+  void add_local_values(Vec v, std::size_t body, const std::vector<double> &local) const;
+  /// v += N_a w at the nodes of the element holding the located point p of ACF body b (the
+  /// owner rank adds); the caller assembles v. Not collective.
+  void add_point_weights(Vec v, std::size_t body, const fem::PointLocation &p, const Vec3 &w) const;
+  /// v += values on the small part's coordinate entries (rank 0 adds); the caller assembles v.
+  /// Not collective.
+  void add_small(Vec v, const Vector &values) const;
 
   /// The equations at a state, R = [R_d; Phi] in this layout: on the coordinates the
   /// equations of motion M acc + f(x) - f_g + Phi_q^T lambda (ACF bodies) and those of the small

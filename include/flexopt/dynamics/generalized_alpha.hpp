@@ -77,6 +77,8 @@ struct StartReport {
   /// tolerance: a mass-weighted correction of all velocities followed.
   bool elastic_corrected = false;
   double rigid_residual = 0;
+  /// max |Phi_q v + Phi_t| of the given velocities (after the position projection).
+  double given_violation = 0;
 };
 
 /// What one step did, for progress output and failure messages.

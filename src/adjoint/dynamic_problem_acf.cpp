@@ -1,0 +1,281 @@
+// DynamicProblem with an ACF design body (docs/theory.md sections 9.6 and 9.7): the forward run
+// on the distributed backend with every state kept, the responses, the backward sweep with the
+// element partials, and the adjoint of the initial accelerations.
+#include "flexopt/adjoint/dist_sweep.hpp"
+#include "flexopt/adjoint/dynamic_problem.hpp"
+#include "flexopt/core/context.hpp"
+#include "flexopt/core/error.hpp"
+
+#include <algorithm>
+#include <sstream>
+
+namespace flexopt::adjoint {
+
+namespace {
+
+/// A main step's end state and, if Newton halved it, its substeps (the last is the end).
+struct DistRecord {
+  dynamics::DistState state;
+  std::vector<std::pair<dynamics::DistState, double>> substeps;
+};
+
+/// Zero vectors of the integrator's layout.
+dynamics::DistState zeros(const dynamics::DistributedAlpha &da) {
+  dynamics::DistState s;
+  s.q = da.create_vector();
+  s.v = da.create_vector();
+  s.a = da.create_vector();
+  s.acc = da.create_vector();
+  s.lambda = da.create_vector();
+  return s;
+}
+
+} // namespace
+
+void DynamicProblem::evaluate_acf(bool gradients, optimize::Evaluation &out) {
+  const mesh::DistributedMesh &m = mesh();
+  const auto ne = static_cast<std::size_t>(m.local_elements());
+  const auto design = static_cast<std::size_t>(acf_design_);
+  bodies::AcfBody &body = *scene_.acf[design];
+  body.set_factors(s_, w_);
+  std::vector<const bodies::AcfBody *> list;
+  for (const auto &a : scene_.acf) list.push_back(a.get());
+  dynamics::Mechanism &mech = scene_.mechanism;
+  const std::size_t nr = specs_.size();
+  const double h = case_.time.step;
+
+  const double t_forward = wall_time();
+  const dynamics::DistributedAlpha da(list, &mech, scene_.acf_interfaces, mech.gravity, par_,
+                                      newton_);
+  dynamics::StartReport start;
+  DistRecord record;
+  {
+    Vec x0, v0;
+    dynamics::acf_initial_vectors(scene_, da, x0, v0);
+    struct Destroy {
+      Vec &x, &v;
+      ~Destroy() {
+        VecDestroy(&x);
+        VecDestroy(&v);
+      }
+    } destroy{x0, v0};
+    record.state = da.initial_state(x0, v0, 0.0, &start);
+  }
+  // The adjoint of the velocity correction is built for the dense backend only (section 9.2):
+  // the given velocities must already satisfy the joints (a scene started at rest does).
+  if (start.elastic_corrected || start.given_violation > 1e-12)
+    throw Error(case_.file +
+                    ": initial velocities: with an ACF design body the given "
+                    "velocities must satisfy the joints (max |Phi_q v + Phi_t| = " +
+                    std::to_string(start.given_violation) +
+                    "); the adjoint of the velocity correction is not built for ACF scenes yet",
+                true);
+  // Which ACF body each strain energy response measures.
+  std::vector<int> strain_body(nr, -1);
+  for (std::size_t i = 0; i < nr; ++i)
+    if (specs_[i]->type == "strain_energy_integral")
+      for (std::size_t b = 0; b < case_.bodies.size(); ++b)
+        if (case_.bodies[b].name == specs_[i]->body) strain_body[i] = scene_.bodies[b].acf;
+  // Local displacements of ACF body b at a state (mesh numbering, owned and ghosts).
+  auto displacement = [&](const dynamics::DistState &s, std::size_t b) {
+    std::vector<double> u;
+    da.local_values(s.q, b, u);
+    const mesh::DistributedMesh &mb = scene_.acf[b]->mesh();
+    for (std::size_t k = 0; k < u.size(); ++k) u[k] -= mb.coordinates[k];
+    return u;
+  };
+  samples_.assign(nr, {});
+  std::vector<std::vector<double>> energy(nr);         // U_n of strain responses
+  std::vector<std::vector<double>> energy_partial(nr); // sum_n w_n U_e,n (design body)
+  std::vector<double> energy_steps;                    // U_e at one step
+  std::vector<DistRecord> records;
+  auto sample = [&](const dynamics::DistState &s) {
+    const dynamics::State small = da.small_state(s);
+    for (std::size_t i = 0; i < nr; ++i) {
+      if (sensor_of_[i] >= 0) {
+        const dynamics::BoundSensor &bs = scene_.sensors[static_cast<std::size_t>(sensor_of_[i])];
+        samples_[i].push_back(bs.acf_body >= 0
+                                  ? dynamics::acf_sensor_value(scene_, da, bs, s, small)
+                                  : dynamics::sensor_value(scene_, bs, small.q));
+      }
+      if (strain_body[i] >= 0) {
+        const auto b = static_cast<std::size_t>(strain_body[i]);
+        const std::vector<double> u = displacement(s, b);
+        const std::vector<double> Ue = scene_.acf[b]->element_energies(u.data());
+        double local = 0;
+        for (double x : Ue) local += x;
+        double total = 0;
+        MPI_Allreduce(&local, &total, 1, MPI_DOUBLE, MPI_SUM, m.comm);
+        energy[i].push_back(total);
+        if (b == design) {
+          // Kept per step: the direct partial sum_n w_n U_e / s_e needs the weights (N known).
+          energy_steps.insert(energy_steps.end(), Ue.begin(), Ue.end());
+        }
+      }
+    }
+  };
+  sample(record.state);
+  if (gradients) records.push_back(record);
+  substep_sizes_.assign(static_cast<std::size_t>(steps_ + 1), {});
+  dynamics::DistState next;
+  for (long long j = 1; j <= steps_; ++j) {
+    dynamics::StepInfo info;
+    record.substeps.clear();
+    const double t_next = static_cast<double>(j) * h;
+    if (!da.advance(record.state, h, next, info, &record.substeps)) {
+      std::ostringstream msg;
+      msg << "integrate: Newton did not converge in step " << j
+          << " (t = " << static_cast<double>(j - 1) * h << " s -> " << t_next
+          << " s) at this design; reduce time.step or check the scene";
+      throw Error(msg.str(), true);
+    }
+    for (const auto &sub : record.substeps)
+      substep_sizes_[static_cast<std::size_t>(j)].push_back(sub.second);
+    record.state = next;
+    record.state.t = t_next;
+    sample(record.state);
+    if (gradients) records.push_back(record);
+  }
+  const auto N = static_cast<std::size_t>(steps_);
+  sampled_.assign(nr, SampledResponse{});
+  for (std::size_t i = 0; i < nr; ++i) {
+    if (sensor_of_[i] >= 0) sampled_[i] = sampled_response(*specs_[i], samples_[i], h);
+    if (strain_body[i] >= 0)
+      for (std::size_t n = 0; n <= N; ++n)
+        sampled_[i].value += trapezoid_weight(n, N) * energy[i][n];
+  }
+  const double forward = wall_time() - t_forward;
+  forward_total_s_ += forward;
+  out.constraints.assign(case_.constraints.size(), 0.0);
+  for (std::size_t i = 0; i < nr; ++i)
+    (i == 0 ? out.objective : out.constraints[i - 1]) = response_value(i);
+  if (!gradients) return;
+  forward_s_ = forward;
+
+  // Direct partials: the strain energy's sum_n w_n U_e / s_e, the mass's rho V_e.
+  const std::vector<double> volume = fem::element_volumes(m);
+  const double density = body.material().density;
+  for (std::size_t i = 0; i < nr; ++i) {
+    if (strain_body[i] == acf_design_ && acf_design_ >= 0) {
+      std::size_t column = 0; // energy_steps holds ne values per step for each such response
+      for (std::size_t k = 0; k < i; ++k) column += strain_body[k] == acf_design_ ? 1 : 0;
+      const std::size_t per_step =
+          ne *
+          static_cast<std::size_t>(std::count(strain_body.begin(), strain_body.end(), acf_design_));
+      for (std::size_t n = 0; n <= N; ++n)
+        for (std::size_t e = 0; e < ne; ++e)
+          element_gradient_[i][e] += trapezoid_weight(n, N) * ds_[e] / s_[e] *
+                                     energy_steps[n * per_step + column * ne + e];
+    }
+    if (specs_[i]->type == "mass" && specs_[i]->body == case_.design->body)
+      for (std::size_t e = 0; e < ne; ++e) element_gradient_[i][e] += dw_[e] * density * volume[e];
+  }
+
+  // Backward sweep over every kept state (section 9.7), the element partials at each.
+  const double t_adjoint = wall_time();
+  DistBackwardSweep sweep(da, static_cast<int>(nr));
+  std::vector<dynamics::DistState> partials;
+  for (std::size_t i = 0; i < nr; ++i) partials.push_back(zeros(da));
+  // (dPsi/ds)^T at main step j, state s: the sensors' and strain energies' q blocks.
+  auto state_partials_dist = [&](std::size_t j, const dynamics::DistState &s) {
+    std::vector<const dynamics::DistState *> ptr(nr, nullptr);
+    const dynamics::State small = da.small_state(s);
+    std::vector<double> force;
+    for (std::size_t i = 0; i < nr; ++i) {
+      dynamics::DistState &P = partials[i];
+      FX_PETSC(VecZeroEntries(P.q));
+      bool any = false;
+      if (sensor_of_[i] >= 0 && !sampled_[i].dy[j].isZero(0)) {
+        const dynamics::BoundSensor &bs = scene_.sensors[static_cast<std::size_t>(sensor_of_[i])];
+        const Vec3 &dy = sampled_[i].dy[j];
+        if (bs.acf_body >= 0) {
+          const auto b =
+              static_cast<std::size_t>(scene_.bodies[static_cast<std::size_t>(bs.acf_body)].acf);
+          da.add_point_weights(P.q, b, bs.location, dy);
+        } else {
+          da.add_small(P.q, sensor_jacobian(scene_, bs, small.q).transpose() * dy);
+        }
+        any = true;
+      }
+      if (strain_body[i] >= 0) {
+        const auto b = static_cast<std::size_t>(strain_body[i]);
+        const std::vector<double> u = displacement(s, b);
+        force.assign(u.size(), 0.0);
+        scene_.acf[b]->element_energies(u.data(), force.data());
+        // Each element's force went to its local nodes; ghosts are added on their owners.
+        for (double &f : force) f *= trapezoid_weight(j, N);
+        da.add_local_values(P.q, b, force);
+        any = true;
+      }
+      FX_PETSC(VecAssemblyBegin(P.q));
+      FX_PETSC(VecAssemblyEnd(P.q));
+      if (any) ptr[i] = &P;
+    }
+    return ptr;
+  };
+  std::vector<double> d_modulus, d_mass, u, v, acc, mu_d;
+  // G_e += ds mu . dR/ds_e + dw mu . dR/dw_e at state s for the multipliers mu (one per response).
+  auto add_partials = [&](const dynamics::DistState &s, const std::vector<dynamics::DistState> &mu,
+                          double sign) {
+    u = displacement(s, design);
+    da.local_values(s.v, design, v);
+    da.local_values(s.acc, design, acc);
+    for (std::size_t i = 0; i < nr; ++i) {
+      da.local_values(mu[i].acc, design, mu_d);
+      body.design_partials(u.data(), v.data(), acc.data(), mu_d.data(), mech.gravity, d_modulus,
+                           d_mass);
+      for (std::size_t e = 0; e < ne; ++e)
+        element_gradient_[i][e] += sign * (ds_[e] * d_modulus[e] + dw_[e] * d_mass[e]);
+    }
+  };
+  for (std::size_t j = N; j >= 1; --j) {
+    const DistRecord &r = records[j];
+    if (r.substeps.empty()) {
+      add_partials(r.state, sweep.step(r.state, h, state_partials_dist(j, r.state)), 1.0);
+      continue;
+    }
+    for (std::size_t k = r.substeps.size(); k-- > 0;) {
+      const bool end = k + 1 == r.substeps.size();
+      const dynamics::DistState &s = end ? r.state : r.substeps[k].first;
+      add_partials(s,
+                   sweep.step(s, r.substeps[k].second,
+                              end ? state_partials_dist(j, r.state)
+                                  : std::vector<const dynamics::DistState *>(nr, nullptr)),
+                   1.0);
+    }
+  }
+  std::vector<dynamics::DistState> gbar = sweep.finish(state_partials_dist(0, records[0].state));
+  // gbar = -mu_0 = dPsi/ds_0; the initial accelerations [M Phi_q^T; Phi_q 0] [acc; lambda] =
+  // [Q; gamma] (section 9.2, stage 2): nu from the transposed system, then -nu_acc . dr/dtheta.
+  const dynamics::DistState &s0 = records[0].state;
+  Vec cmask = da.create_vector(), rhs = da.create_vector(), nu = da.create_vector();
+  da.coordinate_mask(cmask);
+  std::vector<dynamics::DistState> minus_nu;
+  da.acceleration_matrix(s0);
+  for (std::size_t i = 0; i < nr; ++i) {
+    dynamics::DistState &g = gbar[i];
+    for (Vec x : {g.q, g.v, g.a, g.acc, g.lambda}) FX_PETSC(VecScale(x, -1.0));
+    FX_PETSC(VecWAXPY(rhs, 1.0, g.acc, g.a));
+    FX_PETSC(VecAXPY(rhs, 1.0, g.lambda));
+    da.solve_transpose(rhs, nu);
+    dynamics::DistState w = zeros(da);
+    FX_PETSC(VecPointwiseMult(w.acc, nu, cmask));
+    minus_nu.push_back(w);
+  }
+  add_partials(s0, minus_nu, -1.0);
+  for (Vec *x : {&cmask, &rhs, &nu}) VecDestroy(x);
+  adjoint_s_ = wall_time() - t_adjoint;
+  recomputed_ = 0;
+  adjoint_factorizations_ = 2 * sweep.steps() + 1;
+  long long bytes = 0;
+  for (const DistRecord &r : records) {
+    PetscInt n = 0;
+    FX_PETSC(VecGetLocalSize(r.state.q, &n));
+    bytes += 5LL * n * static_cast<long long>(sizeof(double)) *
+             (1 + static_cast<long long>(r.substeps.size()));
+  }
+  MPI_Allreduce(MPI_IN_PLACE, &bytes, 1, MPI_LONG_LONG, MPI_SUM, m.comm);
+  checkpoint_bytes_ = bytes;
+}
+
+} // namespace flexopt::adjoint
