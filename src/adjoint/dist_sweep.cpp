@@ -4,30 +4,15 @@
 
 namespace flexopt::adjoint {
 
-namespace {
-
-/// A DistState of zero vectors of the integrator's layout.
-dynamics::DistState zero_state(const dynamics::DistributedAlpha &da) {
-  dynamics::DistState s;
-  s.q = da.create_vector();
-  s.v = da.create_vector();
-  s.a = da.create_vector();
-  s.acc = da.create_vector();
-  s.lambda = da.create_vector();
-  return s;
-}
-
-} // namespace
-
 DistBackwardSweep::DistBackwardSweep(const dynamics::DistributedAlpha &da, int responses)
     : da_(da) {
   for (int r = 0; r < responses; ++r) {
-    carry_.push_back(zero_state(da));
-    mu_.push_back(zero_state(da));
+    carry_.push_back(da.zero_state());
+    mu_.push_back(da.zero_state());
     z_.push_back(da.create_vector());
     p1_.push_back(da.create_vector());
   }
-  f_ = zero_state(da);
+  f_ = da.zero_state();
   cmask_ = da.create_vector();
   da.coordinate_mask(cmask_);
   lmask_ = da.create_vector();
@@ -129,7 +114,7 @@ std::vector<dynamics::DistState>
 DistBackwardSweep::finish(const std::vector<const dynamics::DistState *> &dpsi0) const {
   std::vector<dynamics::DistState> out;
   for (std::size_t r = 0; r < mu_.size(); ++r) {
-    dynamics::DistState f = zero_state(da_);
+    dynamics::DistState f = da_.zero_state();
     right_hand_side(r, r < dpsi0.size() ? dpsi0[r] : nullptr, f);
     out.push_back(f);
   }

@@ -5,6 +5,7 @@
 #include "flexopt/core/expression.hpp"
 #include "flexopt/core/log.hpp"
 #include "flexopt/dynamics/consistent_start.hpp"
+#include "forward_loop.hpp"
 
 #include <Eigen/LU>
 #include <algorithm>
@@ -365,27 +366,11 @@ void DynamicProblem::evaluate_rigid(bool gradients, optimize::Evaluation &out) {
             scene_, scene_.sensors[static_cast<std::size_t>(sensor_of_[i])], s.q));
   };
   sample(record.state);
-  substep_sizes_.assign(static_cast<std::size_t>(steps_ + 1), {});
   const double h = case_.time.step;
-  dynamics::State next;
-  for (long long j = 1; j <= steps_; ++j) {
-    dynamics::StepInfo info;
-    record.substeps.clear();
-    const double t_next = static_cast<double>(j) * h;
-    if (!ga.advance(record.state, h, next, info, &record.substeps)) {
-      std::ostringstream msg;
-      msg << "integrate: Newton did not converge in step " << j
-          << " (t = " << static_cast<double>(j - 1) * h << " s -> " << t_next
-          << " s) at this design; reduce time.step or check the scene";
-      throw Error(msg.str(), true);
-    }
-    for (const auto &sub : record.substeps)
-      substep_sizes_[static_cast<std::size_t>(j)].push_back(sub.second);
-    record.state = std::move(next);
-    record.state.t = t_next;
+  detail::forward_loop(ga, steps_, h, record, substep_sizes_, [&](long long j) {
     sample(record.state);
     if (gradients && keep[static_cast<std::size_t>(j)]) store->put(j, record);
-  }
+  });
   // The responses on the time grid.
   sampled_.assign(nr, SampledResponse{});
   for (std::size_t i = 0; i < nr; ++i)

@@ -5,6 +5,7 @@
 #include "flexopt/adjoint/dynamic_problem.hpp"
 #include "flexopt/core/context.hpp"
 #include "flexopt/core/error.hpp"
+#include "forward_loop.hpp"
 
 #include <algorithm>
 #include <sstream>
@@ -18,17 +19,6 @@ struct DistRecord {
   dynamics::DistState state;
   std::vector<std::pair<dynamics::DistState, double>> substeps;
 };
-
-/// Zero vectors of the integrator's layout.
-dynamics::DistState zeros(const dynamics::DistributedAlpha &da) {
-  dynamics::DistState s;
-  s.q = da.create_vector();
-  s.v = da.create_vector();
-  s.a = da.create_vector();
-  s.acc = da.create_vector();
-  s.lambda = da.create_vector();
-  return s;
-}
 
 } // namespace
 
@@ -116,26 +106,10 @@ void DynamicProblem::evaluate_acf(bool gradients, optimize::Evaluation &out) {
   };
   sample(record.state);
   if (gradients) records.push_back(record);
-  substep_sizes_.assign(static_cast<std::size_t>(steps_ + 1), {});
-  dynamics::DistState next;
-  for (long long j = 1; j <= steps_; ++j) {
-    dynamics::StepInfo info;
-    record.substeps.clear();
-    const double t_next = static_cast<double>(j) * h;
-    if (!da.advance(record.state, h, next, info, &record.substeps)) {
-      std::ostringstream msg;
-      msg << "integrate: Newton did not converge in step " << j
-          << " (t = " << static_cast<double>(j - 1) * h << " s -> " << t_next
-          << " s) at this design; reduce time.step or check the scene";
-      throw Error(msg.str(), true);
-    }
-    for (const auto &sub : record.substeps)
-      substep_sizes_[static_cast<std::size_t>(j)].push_back(sub.second);
-    record.state = next;
-    record.state.t = t_next;
+  detail::forward_loop(da, steps_, h, record, substep_sizes_, [&](long long) {
     sample(record.state);
     if (gradients) records.push_back(record);
-  }
+  });
   const auto N = static_cast<std::size_t>(steps_);
   sampled_.assign(nr, SampledResponse{});
   for (std::size_t i = 0; i < nr; ++i) {
@@ -175,7 +149,7 @@ void DynamicProblem::evaluate_acf(bool gradients, optimize::Evaluation &out) {
   const double t_adjoint = wall_time();
   DistBackwardSweep sweep(da, static_cast<int>(nr));
   std::vector<dynamics::DistState> partials;
-  for (std::size_t i = 0; i < nr; ++i) partials.push_back(zeros(da));
+  for (std::size_t i = 0; i < nr; ++i) partials.push_back(da.zero_state());
   // (dPsi/ds)^T at main step j, state s: the sensors' and strain energies' q blocks.
   auto state_partials_dist = [&](std::size_t j, const dynamics::DistState &s) {
     std::vector<const dynamics::DistState *> ptr(nr, nullptr);
@@ -258,7 +232,7 @@ void DynamicProblem::evaluate_acf(bool gradients, optimize::Evaluation &out) {
     FX_PETSC(VecWAXPY(rhs, 1.0, g.acc, g.a));
     FX_PETSC(VecAXPY(rhs, 1.0, g.lambda));
     da.solve_transpose(rhs, nu);
-    dynamics::DistState w = zeros(da);
+    dynamics::DistState w = da.zero_state();
     FX_PETSC(VecPointwiseMult(w.acc, nu, cmask));
     minus_nu.push_back(w);
   }

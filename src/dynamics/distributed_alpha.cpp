@@ -699,6 +699,16 @@ double DistributedAlpha::add_constraints(const DistState &next, double bp, doubl
   return global;
 }
 
+DistState DistributedAlpha::zero_state() const {
+  DistState s;
+  s.q = create_vector();
+  s.v = create_vector();
+  s.a = create_vector();
+  s.acc = create_vector();
+  s.lambda = create_vector();
+  return s;
+}
+
 Mat DistributedAlpha::acceleration_matrix(const DistState &s) const {
   const detail::AcfLayout &L = *layout_;
   // The matrix [M Phi_q^T; Phi_q 0] (ties with zero multipliers: no Hessian).

@@ -878,11 +878,7 @@ TEST_F(CaseFiles, StaticAnalysisRejectsDynamicKeys) {
 TEST_F(CaseFiles, DynamicAnalysisRejectsStaticOnlyKeys) {
   const std::string extra[] = {"supports: [{body: crank, surface: hub, fix: [x]}]\n",
                                "tractions: [{body: crank, surface: hub, value: [0, 0, 1]}]\n",
-                               "line_loads: [{body: crank, curve: e, value: [0, 0, 1]}]\n",
-                               "design: {body: crank, filter: {radius: 0.1}}\n",
-                               "objective: {type: compliance}\n",
-                               "constraints: [{type: volume_fraction, max: 0.5}]\n",
-                               "optimizer: {max_iterations: 10}\n"};
+                               "line_loads: [{body: crank, curve: e, value: [0, 0, 1]}]\n"};
   for (const auto &e : extra) {
     const std::string key = e.substr(0, e.find(':'));
     EXPECT_CASE_ERROR(std::string(kDynamic) + e,
@@ -890,7 +886,64 @@ TEST_F(CaseFiles, DynamicAnalysisRejectsStaticOnlyKeys) {
   }
 }
 
-TEST_F(CaseFiles, AdjointStillNotSupported) {
-  EXPECT_CASE_ERROR(std::string(kDynamic) + "adjoint: {checkpoints: 32}\n", "case.yaml:43:1:",
-                    "key 'adjoint' is part of the case format but not supported yet");
+// A dynamic optimization (docs/case-format.md, "Dynamic responses and the adjoint"): every
+// response type and the adjoint section parse field by field.
+TEST_F(CaseFiles, DynamicResponsesAndAdjointParse) {
+  write(std::string(kDynamic) + R"yaml(design: {body: rod, region: beam, filter: {radius: 0.1}}
+objective: {type: tracking_error, sensor: s, target: ["cos(t)", 0, "2*t"]}
+constraints:
+  - {type: sensor, sensor: s, component: y, measure: ks_max, ks: 30, max: 1}
+  - {type: sensor, sensor: d, component: 2, measure: final, max: -0.5}
+  - {type: strain_energy_integral, body: rod, max: 3}
+  - {type: mass, body: crank, max: 10}
+  - {type: volume_fraction, max: 0.4}
+adjoint: {checkpoints: 32, storage: disk}
+)yaml");
+  const auto c = load_case(dir_.string());
+  ASSERT_TRUE(c.objective);
+  EXPECT_EQ(c.objective->type, "tracking_error");
+  EXPECT_EQ(c.objective->target[0], "cos(t)");
+  EXPECT_EQ(c.objective->target[2], "2*t");
+  ASSERT_EQ(c.constraints.size(), 5u);
+  EXPECT_EQ(c.constraints[0].component, 1);
+  EXPECT_EQ(c.constraints[0].measure, "ks_max");
+  EXPECT_EQ(c.constraints[0].ks, 30);
+  EXPECT_EQ(c.constraints[1].component, 2);
+  EXPECT_EQ(c.constraints[1].max, -0.5);
+  EXPECT_EQ(c.constraints[2].body, "rod");
+  EXPECT_EQ(c.constraints[3].type, "mass");
+  EXPECT_EQ(c.adjoint.checkpoints, 32);
+  EXPECT_EQ(c.adjoint.storage, "disk");
+  write(std::string(kDynamic) +
+        "design: {body: rod, filter: {radius: 0.1}}\nobjective: {type: volume_fraction}\n"
+        "adjoint: {checkpoints: all}\n");
+  EXPECT_EQ(load_case(dir_.string()).adjoint.checkpoints, 0); // all
+}
+
+TEST_F(CaseFiles, DynamicResponsesAreValidated) {
+  const std::string design = "design: {body: rod, filter: {radius: 0.1}}\n";
+  EXPECT_CASE_ERROR(std::string(kDynamic) + design + "objective: {type: compliance}\n",
+                    "objective.type: 'compliance' is a response of a static analysis");
+  EXPECT_CASE_ERROR(std::string(kDynamic) + design +
+                        "objective: {type: sensor, sensor: s, component: w, measure: final}\n",
+                    "objective.component: expected 0, 1, 2 (or x, y, z), got 'w'");
+  EXPECT_CASE_ERROR(
+      std::string(kDynamic) + design +
+          "objective: {type: sensor, sensor: s, component: 0, measure: final, ks: 5}\n",
+      "objective.ks: only measure: ks_max takes it");
+  EXPECT_CASE_ERROR(std::string(kDynamic) + design +
+                        "objective: {type: sensor, sensor: c, component: 0, measure: final}\n",
+                    "measures rotation_angle, which a response cannot use yet");
+  EXPECT_CASE_ERROR(std::string(kDynamic) + design +
+                        "objective: {type: tracking_error, sensor: s, target: [0, 0]}\n",
+                    "objective.target: expected a list of 3 components");
+  EXPECT_CASE_ERROR(std::string(kDynamic) + design +
+                        "objective: {type: mass, body: rod, sensor: s}\n",
+                    "objective.sensor: a 'mass' response does not take it");
+  EXPECT_CASE_ERROR(std::string(kDynamic) + design + "objective: {type: volume_fraction}\n" +
+                        "adjoint: {checkpoints: 0}\n",
+                    "adjoint.checkpoints: must be 'all' or a number of stored states >= 1");
+  EXPECT_CASE_ERROR(std::string(kDynamic) + design + "objective: {type: volume_fraction}\n" +
+                        "adjoint: {storage: tape}\n",
+                    "adjoint.storage");
 }

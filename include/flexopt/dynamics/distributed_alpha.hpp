@@ -72,6 +72,8 @@ public:
   const AlphaParameters &parameters() const { return par_; }
   /// A zero vector of the integrator's layout; the caller destroys it. Collective.
   Vec create_vector() const;
+  /// A state of zero vectors of this layout (t = 0). Collective.
+  DistState zero_state() const;
   /// Sets field(X) at the owned nodes of ACF body b (X: reference position) in v. Not
   /// collective.
   void set_nodal(Vec v, std::size_t body,

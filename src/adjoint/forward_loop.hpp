@@ -1,0 +1,40 @@
+#pragma once
+/// \file The forward time loop of the dynamic problem, the same on both backends (private to
+/// src/adjoint): main steps n h, each halved step's substeps kept with their sizes (docs/theory.md
+/// section 9.3), a clear error naming the step where Newton fails.
+#include "flexopt/core/error.hpp"
+
+#include <sstream>
+#include <vector>
+
+namespace flexopt::adjoint::detail {
+
+/// Advances record.state (a state of `integrator`) by `steps` main steps of h: record.substeps
+/// holds the substeps of the last step (empty if it was whole), substep_sizes[j] their sizes;
+/// on_step(j) runs after main step j. Collective; throws a collective flexopt::Error if Newton
+/// fails.
+template <class Integrator, class Record, class OnStep>
+void forward_loop(const Integrator &integrator, long long steps, double h, Record &record,
+                  std::vector<std::vector<double>> &substep_sizes, OnStep &&on_step) {
+  substep_sizes.assign(static_cast<std::size_t>(steps + 1), {});
+  decltype(record.state) next;
+  for (long long j = 1; j <= steps; ++j) {
+    dynamics::StepInfo info;
+    record.substeps.clear();
+    const double t_next = static_cast<double>(j) * h;
+    if (!integrator.advance(record.state, h, next, info, &record.substeps)) {
+      std::ostringstream msg;
+      msg << "integrate: Newton did not converge in step " << j
+          << " (t = " << static_cast<double>(j - 1) * h << " s -> " << t_next
+          << " s) at this design; reduce time.step or check the scene";
+      throw Error(msg.str(), true);
+    }
+    for (const auto &sub : record.substeps)
+      substep_sizes[static_cast<std::size_t>(j)].push_back(sub.second);
+    record.state = next;
+    record.state.t = t_next;
+    on_step(j);
+  }
+}
+
+} // namespace flexopt::adjoint::detail
