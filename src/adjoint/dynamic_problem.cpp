@@ -375,13 +375,7 @@ void DynamicProblem::evaluate_rigid(bool gradients, optimize::Evaluation &out) {
   sampled_.assign(nr, SampledResponse{});
   for (std::size_t i = 0; i < nr; ++i)
     if (sensor_of_[i] >= 0) sampled_[i] = sampled_response(*specs_[i], samples_[i], h);
-  const double forward = wall_time() - t_forward;
-  forward_total_s_ += forward;
-  out.constraints.assign(case_.constraints.size(), 0.0);
-  for (std::size_t i = 0; i < nr; ++i)
-    (i == 0 ? out.objective : out.constraints[i - 1]) = response_value(i);
-  if (!gradients) return;
-  forward_s_ = forward;
+  if (!finish_forward(t_forward, gradients, out)) return;
 
   // Backward sweep for all responses at once (one column each), main step by main step.
   const double t_adjoint = wall_time();
@@ -431,6 +425,16 @@ void DynamicProblem::evaluate_rigid(bool gradients, optimize::Evaluation &out) {
       element_gradient_[i][static_cast<std::size_t>(e)] =
           dw_[static_cast<std::size_t>(e)] * g.dot(element_theta_[static_cast<std::size_t>(e)]);
   }
+}
+
+bool DynamicProblem::finish_forward(double t_forward, bool gradients, optimize::Evaluation &out) {
+  const double forward = wall_time() - t_forward;
+  forward_total_s_ += forward;
+  out.constraints.assign(case_.constraints.size(), 0.0);
+  for (std::size_t i = 0; i < specs_.size(); ++i)
+    (i == 0 ? out.objective : out.constraints[i - 1]) = response_value(i);
+  if (gradients) forward_s_ = forward;
+  return gradients;
 }
 
 Matrix DynamicProblem::state_partials(long long j, const dynamics::State &state) const {

@@ -118,13 +118,7 @@ void DynamicProblem::evaluate_acf(bool gradients, optimize::Evaluation &out) {
       for (std::size_t n = 0; n <= N; ++n)
         sampled_[i].value += trapezoid_weight(n, N) * energy[i][n];
   }
-  const double forward = wall_time() - t_forward;
-  forward_total_s_ += forward;
-  out.constraints.assign(case_.constraints.size(), 0.0);
-  for (std::size_t i = 0; i < nr; ++i)
-    (i == 0 ? out.objective : out.constraints[i - 1]) = response_value(i);
-  if (!gradients) return;
-  forward_s_ = forward;
+  if (!finish_forward(t_forward, gradients, out)) return;
 
   // Direct partials: the strain energy's sum_n w_n U_e / s_e, the mass's rho V_e.
   const std::vector<double> volume = fem::element_volumes(m);

@@ -102,6 +102,9 @@ private:
   void evaluate_rigid(bool gradients, optimize::Evaluation &out);
   /// The ACF design body on the distributed backend (sections 9.6, 9.7), the same outputs.
   void evaluate_acf(bool gradients, optimize::Evaluation &out);
+  /// After a forward run started at wall time t_forward: its time, the response values into
+  /// `out`; returns `gradients` (whether the backward sweep follows).
+  bool finish_forward(double t_forward, bool gradients, optimize::Evaluation &out);
   /// Mass factor w(rho) of the mass interpolation and its derivative.
   double mass_factor(double rho, double *derivative) const;
   /// (d r/d theta)^T W for the design body's block of W (ResidualPartials).
