@@ -51,11 +51,11 @@ EOF
   done
 done
 # ACF design body (tests/gradient/acf_pendulum: a soft hinged link, 50 steps of 2 ms) at about
-# 1k and 10k DOFs (Tet4 at 4 cm and 1.6 cm), every state kept, the case's kept Newton matrices.
+# 1k and 10k DOFs (Tet4 at 2.5 cm and 1 cm), every state kept, the case's kept Newton matrices.
 if [ "${FLEXOPT_BENCH_ACF:-1}" != 0 ]; then
   { echo; echo "| ACF link | DOFs | steps | forward_s | adjoint_s | adjoint / forward | adjoint factorizations | stored states [MB] |"
     echo "|---|---|---|---|---|---|---|---|"; } >> "$results"
-  for size in 0.04 0.016; do
+  for size in 0.025 0.01; do
     scene="$work/acf_pendulum_$size"
     mkdir -p "$scene"
     sed -e "s|geometry: ../../../meshes/|geometry: $root/meshes/|" \
