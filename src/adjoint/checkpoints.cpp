@@ -2,7 +2,9 @@
 
 #include "flexopt/core/error.hpp"
 
+#include <algorithm>
 #include <filesystem>
+#include <functional>
 #include <hdf5.h>
 
 namespace flexopt::adjoint {
@@ -54,16 +56,33 @@ std::vector<long long> BinomialSchedule::first_descent() const {
 
 namespace {
 
-class MemoryStore : public CheckpointStore {
+long long state_bytes(const dynamics::State &s) {
+  return static_cast<long long>(sizeof(double)) *
+         (1 + s.q.size() + s.v.size() + s.a.size() + s.acc.size() + s.lambda.size());
+}
+
+long long state_bytes(const dynamics::DistState &s) {
+  PetscInt n = 0;
+  FX_PETSC(VecGetLocalSize(s.q, &n));
+  return static_cast<long long>(sizeof(double)) * (1 + 5LL * n);
+}
+
+template <class R> long long record_bytes(const R &r) {
+  long long b = state_bytes(r.state);
+  for (const auto &s : r.substeps) b += state_bytes(s.first) + 8;
+  return b;
+}
+
+template <class R> class MemoryStore : public Store<R> {
 public:
-  void put(long long i, const StepRecord &r) override {
+  void put(long long i, const R &r) override {
     erase(i);
     const long long b = record_bytes(r);
     records_[i] = {r, b};
     bytes_ += b;
     peak_ = std::max(peak_, bytes_);
   }
-  StepRecord get(long long i) const override {
+  R get(long long i) const override {
     const auto it = records_.find(i);
     if (it == records_.end()) throw Error("checkpoints: no stored state " + std::to_string(i));
     return it->second.first;
@@ -77,18 +96,8 @@ public:
   long long bytes() const override { return bytes_; }
   long long peak_bytes() const override { return peak_; }
 
-  static long long state_bytes(const dynamics::State &s) {
-    return static_cast<long long>(sizeof(double)) *
-           (1 + s.q.size() + s.v.size() + s.a.size() + s.acc.size() + s.lambda.size());
-  }
-  static long long record_bytes(const StepRecord &r) {
-    long long b = state_bytes(r.state);
-    for (const auto &s : r.substeps) b += state_bytes(s.first) + 8;
-    return b;
-  }
-
 private:
-  std::map<long long, std::pair<StepRecord, long long>> records_;
+  std::map<long long, std::pair<R, long long>> records_;
   long long bytes_ = 0, peak_ = 0;
 };
 
@@ -132,9 +141,15 @@ StepRecord unpack(const std::vector<double> &d) {
   return r;
 }
 
-class DiskStore : public CheckpointStore {
+/// A record's doubles and back.
+template <class R> struct Codec {
+  std::function<std::vector<double>(const R &)> pack;
+  std::function<R(const std::vector<double> &)> unpack;
+};
+
+template <class R> class DiskStore : public Store<R> {
 public:
-  explicit DiskStore(std::string path) : path_(std::move(path)) {
+  DiskStore(std::string path, Codec<R> codec) : path_(std::move(path)), codec_(std::move(codec)) {
     file_ = H5Fcreate(path_.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
     if (file_ < 0) throw Error("adjoint.storage: disk: cannot create the checkpoint file " + path_);
   }
@@ -143,9 +158,9 @@ public:
     std::error_code ec;
     std::filesystem::remove(path_, ec);
   }
-  void put(long long i, const StepRecord &r) override {
+  void put(long long i, const R &r) override {
     erase(i);
-    const std::vector<double> d = pack(r);
+    const std::vector<double> d = codec_.pack(r);
     const hsize_t dims = d.size();
     const hid_t space = H5Screate_simple(1, &dims, nullptr);
     const std::string name = "s" + std::to_string(i);
@@ -161,7 +176,7 @@ public:
     bytes_ += sizes_[i];
     peak_ = std::max(peak_, bytes_);
   }
-  StepRecord get(long long i) const override {
+  R get(long long i) const override {
     const std::string name = "s" + std::to_string(i);
     const auto it = sizes_.find(i);
     if (it == sizes_.end()) throw Error("checkpoints: no stored state " + std::to_string(i));
@@ -172,7 +187,7 @@ public:
     if (set >= 0) H5Dclose(set);
     if (status < 0)
       throw Error("adjoint.storage: disk: reading " + name + " from " + path_ + " failed");
-    return unpack(d);
+    return codec_.unpack(d);
   }
   void erase(long long i) override {
     const auto it = sizes_.find(i);
@@ -186,6 +201,7 @@ public:
 
 private:
   std::string path_;
+  Codec<R> codec_;
   hid_t file_ = -1;
   std::map<long long, long long> sizes_;
   long long bytes_ = 0, peak_ = 0;
@@ -194,51 +210,69 @@ private:
 } // namespace
 
 std::unique_ptr<CheckpointStore> memory_store() {
-  return std::make_unique<MemoryStore>();
+  return std::make_unique<MemoryStore<StepRecord>>();
+}
+
+std::unique_ptr<DistCheckpointStore> dist_memory_store() {
+  return std::make_unique<MemoryStore<DistRecord>>();
 }
 
 std::unique_ptr<CheckpointStore> disk_store(const std::string &path) {
-  return std::make_unique<DiskStore>(path);
+  return std::make_unique<DiskStore<StepRecord>>(path, Codec<StepRecord>{pack, unpack});
 }
 
-long long reverse_binomial(const BinomialSchedule &schedule, CheckpointStore &store,
-                           const std::function<StepRecord(const StepRecord &, long long)> &advance,
-                           const std::function<void(long long, const StepRecord &)> &visit) {
-  long long recomputed = 0;
-  // State j from the stored state a (a < j).
-  auto recompute = [&](long long a, long long j) {
-    StepRecord r = store.get(a);
-    for (long long i = a + 1; i <= j; ++i) {
-      r = advance(r, i);
-      ++recomputed;
+std::unique_ptr<DistCheckpointStore> dist_disk_store(const std::string &path,
+                                                     const dynamics::DistributedAlpha &da) {
+  // [t, q, v, a, acc, lambda (this rank's entries), substeps, (dt, t, the five)...].
+  auto add = [](std::vector<double> &out, const dynamics::DistState &s) {
+    out.push_back(s.t);
+    for (Vec v : {s.q, s.v, s.a, s.acc, s.lambda}) {
+      PetscInt n = 0;
+      const PetscScalar *a;
+      FX_PETSC(VecGetLocalSize(v, &n));
+      FX_PETSC(VecGetArrayRead(v, &a));
+      out.insert(out.end(), a, a + n);
+      FX_PETSC(VecRestoreArrayRead(v, &a));
+    }
+  };
+  Codec<DistRecord> codec;
+  codec.pack = [add](const DistRecord &r) {
+    std::vector<double> out;
+    add(out, r.state);
+    out.push_back(static_cast<double>(r.substeps.size()));
+    for (const auto &[s, dt] : r.substeps) {
+      out.push_back(dt);
+      add(out, s);
+    }
+    return out;
+  };
+  codec.unpack = [&da](const std::vector<double> &d) {
+    std::size_t pos = 0;
+    auto take = [&]() {
+      dynamics::DistState s = da.zero_state();
+      s.t = d[pos++];
+      for (Vec v : {s.q, s.v, s.a, s.acc, s.lambda}) {
+        PetscInt n = 0;
+        PetscScalar *a;
+        FX_PETSC(VecGetLocalSize(v, &n));
+        FX_PETSC(VecGetArray(v, &a));
+        std::copy(d.begin() + static_cast<std::ptrdiff_t>(pos),
+                  d.begin() + static_cast<std::ptrdiff_t>(pos) + n, a);
+        FX_PETSC(VecRestoreArray(v, &a));
+        pos += static_cast<std::size_t>(n);
+      }
+      return s;
+    };
+    DistRecord r;
+    r.state = take();
+    const auto subs = static_cast<std::size_t>(d[pos++]);
+    for (std::size_t k = 0; k < subs; ++k) {
+      const double dt = d[pos++];
+      r.substeps.emplace_back(take(), dt);
     }
     return r;
   };
-  // Visits b, b - 1, ..., a + 1 with the state a stored and c more slots; on the first descent
-  // the forward run stored the split states and the last one.
-  std::function<void(long long, long long, int, bool)> reverse = [&](long long a, long long b,
-                                                                     int c, bool descent) {
-    if (b <= a) return;
-    if (c == 0 || b - a == 1) {
-      for (long long j = b; j > a; --j) {
-        if (descent && j == b) {
-          visit(j, store.get(j));
-          store.erase(j);
-        } else {
-          visit(j, recompute(a, j));
-        }
-      }
-      return;
-    }
-    const long long m = a + schedule.split(b - a, c);
-    if (!descent) store.put(m, recompute(a, m));
-    reverse(m, b, c - 1, descent);
-    visit(m, store.get(m));
-    store.erase(m);
-    reverse(a, m - 1, c, false);
-  };
-  reverse(0, schedule.steps(), schedule.slots(), true);
-  return recomputed;
+  return std::make_unique<DiskStore<DistRecord>>(path, std::move(codec));
 }
 
 } // namespace flexopt::adjoint

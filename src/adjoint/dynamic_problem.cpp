@@ -164,11 +164,6 @@ std::unique_ptr<DynamicProblem> DynamicProblem::create(MPI_Comm comm, const io::
     throw Error(d.where.str() + ": a rigid design body in a scene with ACF bodies is not built "
                                 "yet (its partials on the distributed backend)",
                 true);
-  if (model == "acf" && (c.adjoint.checkpoints != 0 || c.adjoint.storage != "memory"))
-    throw Error(c.adjoint.where.str() + ": adjoint: checkpoints and disk storage are not built "
-                                        "yet for ACF design bodies (checkpoints: all, storage: "
-                                        "memory)",
-                true);
   const mesh::DistributedMesh &m = p->scene_.meshes[static_cast<std::size_t>(p->design_body_)];
   p->field_ = std::make_unique<optimize::DesignField>(m, d);
   p->grad_physical_ = p->field_->filter().create_element_vector();
@@ -338,23 +333,12 @@ void DynamicProblem::evaluate_rigid(bool gradients, optimize::Evaluation &out) {
                              "built: give consistent initial velocities",
                 true);
   const dynamics::State s0 = record.state;
-  const int checkpoints = case_.adjoint.checkpoints; // 0: all
   std::unique_ptr<BinomialSchedule> schedule;
   std::vector<char> keep;
   std::unique_ptr<CheckpointStore> store;
   if (gradients) {
-    keep.assign(static_cast<std::size_t>(steps_ + 1), checkpoints == 0 ? 1 : 0);
-    if (checkpoints > 0) {
-      schedule = std::make_unique<BinomialSchedule>(
-          steps_, static_cast<int>(std::min<long long>(checkpoints - 1, steps_)));
-      for (long long j : schedule->first_descent()) keep[static_cast<std::size_t>(j)] = 1;
-      keep.front() = keep.back() = 1;
-    }
-    int rank = 0;
-    MPI_Comm_rank(mesh().comm, &rank);
-    store = case_.adjoint.storage == "disk"
-                ? disk_store(scratch_ + "/adjoint_checkpoints." + std::to_string(rank) + ".h5")
-                : memory_store();
+    keep = plan_checkpoints(schedule);
+    store = case_.adjoint.storage == "disk" ? disk_store(checkpoint_file()) : memory_store();
     store->put(0, record);
   }
   const std::size_t nr = specs_.size();
@@ -404,7 +388,7 @@ void DynamicProblem::evaluate_rigid(bool gradients, optimize::Evaluation &out) {
       store->erase(j);
     }
   } else {
-    recomputed_ = reverse_binomial(
+    recomputed_ = reverse_binomial<StepRecord>(
         *schedule, *store,
         [&](const StepRecord &previous, long long j) { return recompute(ga, previous, j); }, visit);
   }
@@ -425,6 +409,25 @@ void DynamicProblem::evaluate_rigid(bool gradients, optimize::Evaluation &out) {
       element_gradient_[i][static_cast<std::size_t>(e)] =
           dw_[static_cast<std::size_t>(e)] * g.dot(element_theta_[static_cast<std::size_t>(e)]);
   }
+}
+
+std::vector<char>
+DynamicProblem::plan_checkpoints(std::unique_ptr<BinomialSchedule> &schedule) const {
+  const int checkpoints = case_.adjoint.checkpoints; // 0: all
+  std::vector<char> keep(static_cast<std::size_t>(steps_ + 1), checkpoints == 0 ? 1 : 0);
+  if (checkpoints > 0) {
+    schedule = std::make_unique<BinomialSchedule>(
+        steps_, static_cast<int>(std::min<long long>(checkpoints - 1, steps_)));
+    for (long long j : schedule->first_descent()) keep[static_cast<std::size_t>(j)] = 1;
+    keep.front() = keep.back() = 1;
+  }
+  return keep;
+}
+
+std::string DynamicProblem::checkpoint_file() const {
+  int rank = 0;
+  MPI_Comm_rank(mesh().comm, &rank);
+  return scratch_ + "/adjoint_checkpoints." + std::to_string(rank) + ".h5";
 }
 
 bool DynamicProblem::finish_forward(double t_forward, bool gradients, optimize::Evaluation &out) {

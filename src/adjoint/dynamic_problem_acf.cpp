@@ -12,15 +12,7 @@
 
 namespace flexopt::adjoint {
 
-namespace {
-
-/// A main step's end state and, if Newton halved it, its substeps (the last is the end).
-struct DistRecord {
-  dynamics::DistState state;
-  std::vector<std::pair<dynamics::DistState, double>> substeps;
-};
-
-} // namespace
+namespace {} // namespace
 
 void DynamicProblem::evaluate_acf(bool gradients, optimize::Evaluation &out) {
   const mesh::DistributedMesh &m = mesh();
@@ -78,7 +70,14 @@ void DynamicProblem::evaluate_acf(bool gradients, optimize::Evaluation &out) {
   std::vector<std::vector<double>> energy(nr);         // U_n of strain responses
   std::vector<std::vector<double>> energy_partial(nr); // sum_n w_n U_e,n (design body)
   std::vector<double> energy_steps;                    // U_e at one step
-  std::vector<DistRecord> records;
+  std::unique_ptr<BinomialSchedule> schedule;
+  std::vector<char> keep;
+  std::unique_ptr<DistCheckpointStore> store;
+  if (gradients) {
+    keep = plan_checkpoints(schedule);
+    store = case_.adjoint.storage == "disk" ? dist_disk_store(checkpoint_file(), da)
+                                            : dist_memory_store();
+  }
   auto sample = [&](const dynamics::DistState &s) {
     const dynamics::State small = da.small_state(s);
     for (std::size_t i = 0; i < nr; ++i) {
@@ -105,10 +104,11 @@ void DynamicProblem::evaluate_acf(bool gradients, optimize::Evaluation &out) {
     }
   };
   sample(record.state);
-  if (gradients) records.push_back(record);
-  detail::forward_loop(da, steps_, h, record, substep_sizes_, [&](long long) {
+  const dynamics::DistState s0 = record.state;
+  if (gradients) store->put(0, record);
+  detail::forward_loop(da, steps_, h, record, substep_sizes_, [&](long long j) {
     sample(record.state);
-    if (gradients) records.push_back(record);
+    if (gradients && keep[static_cast<std::size_t>(j)]) store->put(j, record);
   });
   const auto N = static_cast<std::size_t>(steps_);
   sampled_.assign(nr, SampledResponse{});
@@ -196,12 +196,13 @@ void DynamicProblem::evaluate_acf(bool gradients, optimize::Evaluation &out) {
         element_gradient_[i][e] += sign * (ds_[e] * d_modulus[e] + dw_[e] * d_mass[e]);
     }
   };
-  for (std::size_t j = N; j >= 1; --j) {
-    const DistRecord &r = records[j];
+  auto visit = [&](long long jj, const DistRecord &r) {
+    const auto j = static_cast<std::size_t>(jj);
     if (r.substeps.empty()) {
       add_partials(r.state, sweep.step(r.state, h, state_partials_dist(j, r.state)), 1.0);
-      continue;
+      return;
     }
+    // A halved step: its substeps backwards, the responses only at its end (section 9.3).
     for (std::size_t k = r.substeps.size(); k-- > 0;) {
       const bool end = k + 1 == r.substeps.size();
       const dynamics::DistState &s = end ? r.state : r.substeps[k].first;
@@ -211,11 +212,22 @@ void DynamicProblem::evaluate_acf(bool gradients, optimize::Evaluation &out) {
                                   : std::vector<const dynamics::DistState *>(nr, nullptr)),
                    1.0);
     }
+  };
+  recomputed_ = 0;
+  if (!schedule) {
+    for (long long j = steps_; j >= 1; --j) {
+      visit(j, store->get(j));
+      store->erase(j);
+    }
+  } else {
+    recomputed_ = reverse_binomial<DistRecord>(
+        *schedule, *store,
+        [&](const DistRecord &previous, long long j) { return recompute_dist(da, previous, j); },
+        visit);
   }
-  std::vector<dynamics::DistState> gbar = sweep.finish(state_partials_dist(0, records[0].state));
+  std::vector<dynamics::DistState> gbar = sweep.finish(state_partials_dist(0, s0));
   // gbar = -mu_0 = dPsi/ds_0; the initial accelerations [M Phi_q^T; Phi_q 0] [acc; lambda] =
   // [Q; gamma] (section 9.2, stage 2): nu from the transposed system, then -nu_acc . dr/dtheta.
-  const dynamics::DistState &s0 = records[0].state;
   Vec cmask = da.create_vector(), rhs = da.create_vector(), nu = da.create_vector();
   da.coordinate_mask(cmask);
   std::vector<dynamics::DistState> minus_nu;
@@ -233,17 +245,32 @@ void DynamicProblem::evaluate_acf(bool gradients, optimize::Evaluation &out) {
   add_partials(s0, minus_nu, -1.0);
   for (Vec *x : {&cmask, &rhs, &nu}) VecDestroy(x);
   adjoint_s_ = wall_time() - t_adjoint;
-  recomputed_ = 0;
   adjoint_factorizations_ = 2 * sweep.steps() + 1;
-  long long bytes = 0;
-  for (const DistRecord &r : records) {
-    PetscInt n = 0;
-    FX_PETSC(VecGetLocalSize(r.state.q, &n));
-    bytes += 5LL * n * static_cast<long long>(sizeof(double)) *
-             (1 + static_cast<long long>(r.substeps.size()));
-  }
+  long long bytes = store->peak_bytes();
   MPI_Allreduce(MPI_IN_PLACE, &bytes, 1, MPI_LONG_LONG, MPI_SUM, m.comm);
   checkpoint_bytes_ = bytes;
+}
+
+DistRecord DynamicProblem::recompute_dist(const dynamics::DistributedAlpha &da,
+                                          const DistRecord &previous, long long j) const {
+  // The forward run's substeps, each solved to the forward tolerance (section 9.4).
+  const double h = case_.time.step;
+  const auto &sizes = substep_sizes_[static_cast<std::size_t>(j)];
+  DistRecord r;
+  dynamics::DistState from = previous.state, to;
+  const std::vector<double> whole{h};
+  for (double dt : sizes.empty() ? whole : sizes) {
+    dynamics::StepInfo info;
+    if (!da.step(from, dt, to, info))
+      throw Error("adjoint: recomputing step " + std::to_string(j) +
+                      " from a checkpoint, Newton did not converge where the forward run did",
+                  true);
+    if (!sizes.empty()) r.substeps.emplace_back(to, dt);
+    from = to;
+  }
+  r.state = to;
+  r.state.t = static_cast<double>(j) * h;
+  return r;
 }
 
 } // namespace flexopt::adjoint

@@ -123,8 +123,8 @@ TEST(DynamicAdjoint, GradientDoesNotDependOnTheRankCount) {
 // give the gradient of all states stored to 1e-10 (recomputed steps are re-solved to the
 // forward tolerance, not along the same Newton path), with the binomial schedule's count of
 // recomputed steps.
-TEST(DynamicAdjoint, CheckpointedSweepGivesTheSameGradient) {
-  io::Case c = io::load_case(FLEXOPT_SOURCE_DIR "/tests/gradient/rigid_slider_crank");
+void check_checkpoints(const std::string &name) {
+  io::Case c = io::load_case(FLEXOPT_SOURCE_DIR "/tests/gradient/" + name);
   const std::string scratch = ::testing::TempDir();
   auto gradient = [&](int checkpoints, const std::string &storage, long long *recomputed) {
     c.adjoint.checkpoints = checkpoints;
@@ -167,8 +167,27 @@ TEST(DynamicAdjoint, CheckpointedSweepGivesTheSameGradient) {
     }
     for (double *v : {&gmax, &d4, &d16, &disk})
       MPI_Allreduce(MPI_IN_PLACE, v, 1, MPI_DOUBLE, MPI_MAX, PETSC_COMM_WORLD);
+    int rank = 0;
+    MPI_Comm_rank(PETSC_COMM_WORLD, &rank);
+    if (rank == 0)
+      std::printf("%s response %zu: |dPsi/dx| %.3e; 4, 16 checkpoints, disk: %.1e %.1e %.1e\n",
+                  name.c_str(), i, gmax, d4 / gmax, d16 / gmax, disk / gmax);
+    EXPECT_GT(gmax, 0) << "response " << i;
     EXPECT_LE(d4, 1e-10 * gmax) << "response " << i;
     EXPECT_LE(d16, 1e-10 * gmax) << "response " << i;
-    EXPECT_EQ(disk, 0.0) << "response " << i << ": memory and disk storage";
+    // The same states either way: bit for bit on one rank; on several ranks the distributed
+    // solver's reductions are not bitwise repeatable from one run to the next, so the kept-matrix
+    // Newton paths differ within their tolerance (measured 1.4e-12 relative on 2 ranks).
+    EXPECT_LE(disk, 1e-10 * gmax) << "response " << i << ": memory and disk storage";
   }
+}
+
+TEST(DynamicAdjoint, CheckpointedSweepGivesTheSameGradient) {
+  check_checkpoints("rigid_slider_crank");
+}
+
+// The same on the distributed backend: an ACF design body (the records of its distributed
+// states stored in memory or in each rank's HDF5 file).
+TEST(DynamicAdjoint, CheckpointedDistributedSweepGivesTheSameGradient) {
+  check_checkpoints("acf_pendulum");
 }

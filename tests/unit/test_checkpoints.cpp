@@ -75,7 +75,7 @@ TEST(BinomialSchedule, ReversalVisitsEveryStateOnceBackwards) {
       long long expected = N, advanced = 0;
       std::set<long long> held;
       std::size_t most = 0;
-      const long long recomputed = adjoint::reverse_binomial(
+      const long long recomputed = adjoint::reverse_binomial<StepRecord>(
           s, *store,
           [&](const StepRecord &previous, long long j) {
             EXPECT_EQ(previous.state.t, static_cast<double>(j - 1));

@@ -102,6 +102,14 @@ private:
   void evaluate_rigid(bool gradients, optimize::Evaluation &out);
   /// The ACF design body on the distributed backend (sections 9.6, 9.7), the same outputs.
   void evaluate_acf(bool gradients, optimize::Evaluation &out);
+  /// Which main steps the forward run stores (all, or step 0, the binomial schedule's first
+  /// descent and the last step, with the schedule).
+  std::vector<char> plan_checkpoints(std::unique_ptr<BinomialSchedule> &schedule) const;
+  /// This rank's checkpoint file of `storage: disk`.
+  std::string checkpoint_file() const;
+  /// Main step j recomputed on the distributed backend from the record of step j - 1.
+  DistRecord recompute_dist(const dynamics::DistributedAlpha &da, const DistRecord &previous,
+                            long long j) const;
   /// After a forward run started at wall time t_forward: its time, the response values into
   /// `out`; returns `gradients` (whether the backward sweep follows).
   bool finish_forward(double t_forward, bool gradients, optimize::Evaluation &out);
