@@ -245,7 +245,7 @@ void DynamicProblem::evaluate_acf(bool gradients, optimize::Evaluation &out) {
   add_partials(s0, minus_nu, -1.0);
   for (Vec *x : {&cmask, &rhs, &nu}) VecDestroy(x);
   adjoint_s_ = wall_time() - t_adjoint;
-  adjoint_factorizations_ = 2 * sweep.steps() + 1;
+  adjoint_factorizations_ = sweep.steps() + 1; // one per backward step, one at the start
   long long bytes = store->peak_bytes();
   MPI_Allreduce(MPI_IN_PLACE, &bytes, 1, MPI_LONG_LONG, MPI_SUM, m.comm);
   checkpoint_bytes_ = bytes;

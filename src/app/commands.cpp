@@ -490,8 +490,17 @@ int run_check_gradient(const Context &ctx, const Options &o, const io::Case &c, 
     for (std::size_t k = 0; k < tags.size(); ++k) d[k] = 2.0 * hash_uniform(tags[k]) - 1.0;
     FX_PETSC(VecRestoreArray(direction, &d));
   }
+  // Progress: 1 evaluation with gradients, then 5 Taylor steps and 4 per checked element.
+  const double t_check = wall_time();
+  int evaluations = 0;
+  auto progress = [&](const char *what) {
+    ++evaluations;
+    print0(ctx.comm(), "check-gradient: evaluation %d of at most 26 (%s) done after %.1f s\n",
+           evaluations, what, wall_time() - t_check);
+  };
   optimize::Evaluation base;
   problem->evaluate(x0, true, base);
+  progress("responses and adjoint gradients");
   const std::vector<double> r0 = response_values(base);
   const std::string gradient_file = detail::write_gradients(*problem, base, dir);
   std::vector<double> slope(nr);
@@ -505,6 +514,7 @@ int run_check_gradient(const Context &ctx, const Options &o, const io::Case &c, 
     FX_PETSC(VecWAXPY(x, h, direction, x0));
     optimize::Evaluation e;
     problem->evaluate(x, false, e);
+    progress("Taylor test");
     const auto r = response_values(e);
     for (std::size_t i = 0; i < nr; ++i)
       remainders[i].push_back(std::abs(r[i] - r0[i] - h * slope[i]));
@@ -625,6 +635,7 @@ int run_check_gradient(const Context &ctx, const Options &o, const io::Case &c, 
       FX_PETSC(VecAssemblyEnd(x));
       optimize::Evaluation e;
       problem->evaluate(x, false, e);
+      progress("central differences");
       sided.push_back(response_values(e));
     }
     for (std::size_t i = 0; i < nr; ++i) {
