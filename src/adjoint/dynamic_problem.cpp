@@ -477,7 +477,15 @@ StepRecord DynamicProblem::recompute(const dynamics::GeneralizedAlpha &ga,
   return r;
 }
 
+long long DynamicProblem::dofs() const {
+  long long n = scene_.mechanism.coordinates();
+  for (std::size_t b = 0; b < scene_.bodies.size(); ++b)
+    if (scene_.bodies[b].acf >= 0) n += 3LL * scene_.meshes[b].global_nodes;
+  return n;
+}
+
 void DynamicProblem::describe(io::Json &s) const {
+  s["dofs"] = dofs();
   s["elements"] = static_cast<long long>(mesh().global_elements);
   s["design_variables"] = static_cast<long long>(design_size());
   s["coordinates"] = scene_.mechanism.coordinates();

@@ -81,7 +81,8 @@ public:
   /// 1e-12: every step is solved to Newton's tolerance 1e-12 (relative increment), whose error
   /// reaches the responses (measured remainders of the Taylor test clean to 1e-14 relative).
   double noise_floor() const override { return 1e-12; }
-  long long dofs() const override { return scene_.mechanism.coordinates(); }
+  /// The mechanism's coordinates and the ACF bodies' node coordinates.
+  long long dofs() const override;
   /// Solve every step with Newton's method proper (reuse 0) or with kept matrices
   /// (time.newton_reuse, the default). check-gradient uses 0: kept-matrix iterations stop within
   /// their tolerance at a point that depends on when the matrix was renewed, which leaves about
