@@ -10,7 +10,6 @@ DistBackwardSweep::DistBackwardSweep(const dynamics::DistributedAlpha &da, int r
     carry_.push_back(da.zero_state());
     mu_.push_back(da.zero_state());
     z_.push_back(da.create_vector());
-    p1_.push_back(da.create_vector());
   }
   f_ = da.zero_state();
   cmask_ = da.create_vector();
@@ -27,7 +26,6 @@ DistBackwardSweep::DistBackwardSweep(const dynamics::DistributedAlpha &da, int r
 DistBackwardSweep::~DistBackwardSweep() {
   for (Vec *v : {&cmask_, &lmask_, &rhs_, &w1_, &w2_, &w3_}) VecDestroy(v);
   for (Vec &v : z_) VecDestroy(&v);
-  for (Vec &v : p1_) VecDestroy(&v);
 }
 
 void DistBackwardSweep::right_hand_side(std::size_t r, const dynamics::DistState *dpsi,
@@ -73,27 +71,18 @@ DistBackwardSweep::step(const dynamics::DistState &state, double h,
     FX_PETSC(VecPointwiseMult(mu.acc, z_[r], cmask_));
     FX_PETSC(VecPointwiseMult(mu.lambda, z_[r], lmask_));
     FX_PETSC(VecScale(mu.lambda, k.bp));
-    FX_PETSC(MatMultTranspose(S, mu.acc, p1_[r])); // S1^T [mu_d; 0]
-    // Keep f's q, v, a blocks for the back-substitution in mu (overwritten below in order).
+    // C^T mu_d from the element loop and the small part (docs/theory.md section 9.7), then
+    // K^T mu_d + Phi_q^T mu_c = b' ((S^T z)_coord - M mu_d - (g'/b') C^T mu_d).
     FX_PETSC(VecCopy(f_.q, mu.q));
     FX_PETSC(VecCopy(f_.v, mu.v));
     FX_PETSC(VecCopy(f_.a, mu.a));
-  }
-  // S2 = S1 without C (g' = 0): C^T mu_d = (b'/g') (S1 - S2)^T [mu_d; 0] and
-  // K^T mu_d + Phi_q^T mu_c = b' ((S2^T z)_coord - M mu_d) (docs/theory.md section 9.7).
-  dynamics::NewtonScaling k2 = k;
-  k2.gp = 0;
-  S = da_.scaled_matrix(state, k2);
-  for (std::size_t r = 0; r < nr; ++r) {
-    dynamics::DistState &mu = mu_[r];
-    FX_PETSC(MatMultTranspose(S, mu.acc, w1_));
-    FX_PETSC(VecAYPX(w1_, -1.0, p1_[r])); // (S1 - S2)^T [mu_d; 0]
-    FX_PETSC(VecPointwiseMult(w1_, w1_, cmask_));
-    FX_PETSC(VecAXPY(mu.v, -k.bp / k.gp, w1_)); // mu_v = f_v - C^T mu_d
+    da_.velocity_transpose_multiply(state, mu.acc, w1_);
+    FX_PETSC(VecAXPY(mu.v, -1.0, w1_)); // mu_v = f_v - C^T mu_d
     FX_PETSC(MatMultTranspose(S, z_[r], w2_));
     FX_PETSC(VecPointwiseMult(w2_, w2_, cmask_));
     da_.mass_multiply(state, mu.acc, w3_);
     FX_PETSC(VecAXPY(w2_, -1.0, w3_));
+    FX_PETSC(VecAXPY(w2_, -k.gp / k.bp, w1_));
     FX_PETSC(VecAXPY(mu.q, -k.bp, w2_)); // mu_q = f_q - K^T mu_d - Phi_q^T mu_c
     // mu_a = (f_a + h^2 b mu_q + h g mu_v) / (1 - a_m).
     FX_PETSC(VecAXPBYPCZ(mu.a, h * h * b, h * g, 1.0, mu.q, mu.v));

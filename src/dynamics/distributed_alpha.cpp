@@ -1124,6 +1124,55 @@ void DistributedAlpha::solve_transpose(Vec rhs, Vec z) const {
                 true);
 }
 
+void DistributedAlpha::velocity_transpose_multiply(const DistState &s, Vec x, Vec y) const {
+  detail::AcfLayout &L = *layout_;
+  FX_PETSC(VecZeroEntries(y));
+  std::vector<double> xl, vl, pos;
+  for (std::size_t b = 0; b < bodies_.size(); ++b) {
+    const double beta = bodies_[b]->damping();
+    if (!(beta > 0)) continue;
+    const mesh::DistributedMesh &m = bodies_[b]->mesh();
+    local_values(x, b, xl);
+    local_values(s.v, b, vl);
+    local_values(s.q, b, pos);
+    fem::ElementMatrix Cv;
+    std::vector<double> out(xl.size(), 0.0);
+    const int npe = m.nodes_per_element();
+    for (PetscInt e = 0; e < m.local_elements(); ++e) {
+      const fem::CorotatedElement &ce = bodies_[b]->elements()[static_cast<std::size_t>(e)];
+      fem::ElementCoords xe(npe, 3);
+      for (int a = 0; a < npe; ++a) {
+        const PetscInt l = m.connectivity[static_cast<std::size_t>(e * npe + a)];
+        for (int k = 0; k < 3; ++k) xe(a, k) = pos[static_cast<std::size_t>(3 * l + k)];
+      }
+      fem::corotated_damping(ce, xe, fem::gather_element(m, e, vl.data()), beta, nullptr, &Cv,
+                             nullptr);
+      const fem::ElementVector ye = Cv.transpose() * fem::gather_element(m, e, xl.data());
+      for (int a = 0; a < npe; ++a) {
+        const PetscInt l = m.connectivity[static_cast<std::size_t>(e * npe + a)];
+        for (int k = 0; k < 3; ++k) out[static_cast<std::size_t>(3 * l + k)] += ye(3 * a + k);
+      }
+    }
+    add_local_values(y, b, out);
+  }
+  if (small_) {
+    const State sm = small_state(s);
+    if (comm_rank(comm_) == 0) {
+      const int n = L.small_n;
+      Vector r, xs(n);
+      Matrix C;
+      small_->dynamics(sm.q, sm.v, sm.acc, sm.t, r, nullptr, &C, nullptr);
+      const PetscScalar *xa;
+      FX_PETSC(VecGetArrayRead(x, &xa));
+      for (int i = 0; i < n; ++i) xs(i) = xa[L.small_coord0 + i];
+      FX_PETSC(VecRestoreArrayRead(x, &xa));
+      add_small(y, C.transpose() * xs);
+    }
+  }
+  FX_PETSC(VecAssemblyBegin(y));
+  FX_PETSC(VecAssemblyEnd(y));
+}
+
 void DistributedAlpha::mass_multiply(const DistState &s, Vec x, Vec y) const {
   const detail::AcfLayout &L = *layout_;
   FX_PETSC(MatMult(M_, x, y)); // the ACF rows (M_ is zero elsewhere)

@@ -1,8 +1,8 @@
 #pragma once
 /// \file The backward step of the discrete adjoint on the distributed backend (docs/theory.md
 /// section 9.7): the transposed solve with the scaled Newton matrix of DistributedAlpha, the
-/// back-substitution with C separated by a second assembly without it, and the coupling to the
-/// previous state. The multipliers of a step live in the integrator's layout, one DistState per
+/// back-substitution with C^T mu from the element loop and the small part, and the coupling to
+/// the previous state. The multipliers of a step live in the integrator's layout, one DistState per
 /// response (q, v, a, acc on the coordinate entries, lambda on the multipliers; t unused).
 #include "flexopt/dynamics/distributed_alpha.hpp"
 
@@ -39,7 +39,7 @@ private:
   dynamics::DistState f_;
   Vec cmask_ = nullptr, lmask_ = nullptr, rhs_ = nullptr, w1_ = nullptr, w2_ = nullptr,
       w3_ = nullptr;
-  std::vector<Vec> z_, p1_;
+  std::vector<Vec> z_;
   long long steps_ = 0;
 };
 

@@ -149,6 +149,10 @@ public:
   /// y = M x on the coordinate entries (the ACF bodies' mass, with their mass factors, and the
   /// small part's mass matrix at s), 0 on the multipliers. Collective.
   void mass_multiply(const DistState &s, Vec x, Vec y) const;
+  /// y = C^T x with C = dR_d/dv at s: the ACF bodies' damping (d f_d/dv of the co-rotated
+  /// elements, symmetric) and the small part's velocity Jacobian; 0 on the multipliers.
+  /// Collective.
+  void velocity_transpose_multiply(const DistState &s, Vec x, Vec y) const;
 
   /// Kinetic energy 1/2 v^T M v, elastic energy and the potential of gravity -f_g . x of the
   /// ACF bodies. Collective.
