@@ -101,6 +101,20 @@ private:
   long long bytes_ = 0, peak_ = 0;
 };
 
+/// A record from its doubles at d[pos]: the end state (by `take`, which reads one state and
+/// advances pos), the number of substeps, then (dt, state) per substep.
+template <class R, class Take>
+R unpack_record(const std::vector<double> &d, std::size_t &pos, Take &&take) {
+  R r;
+  r.state = take();
+  const auto subs = static_cast<std::size_t>(d[pos++]);
+  for (std::size_t k = 0; k < subs; ++k) {
+    const double dt = d[pos++];
+    r.substeps.emplace_back(take(), dt);
+  }
+  return r;
+}
+
 /// [n, m, t, packed state, substeps, (dt, t, packed)...] as one array of doubles.
 std::vector<double> pack(const StepRecord &r) {
   const auto n = r.state.q.size(), m = r.state.lambda.size();
@@ -131,14 +145,7 @@ StepRecord unpack(const std::vector<double> &d) {
     pos += size;
     return s;
   };
-  StepRecord r;
-  r.state = take();
-  const auto subs = static_cast<std::size_t>(d[pos++]);
-  for (std::size_t k = 0; k < subs; ++k) {
-    const double dt = d[pos++];
-    r.substeps.emplace_back(take(), dt);
-  }
-  return r;
+  return unpack_record<StepRecord>(d, pos, take);
 }
 
 /// A record's doubles and back.
@@ -263,14 +270,7 @@ std::unique_ptr<DistCheckpointStore> dist_disk_store(const std::string &path,
       }
       return s;
     };
-    DistRecord r;
-    r.state = take();
-    const auto subs = static_cast<std::size_t>(d[pos++]);
-    for (std::size_t k = 0; k < subs; ++k) {
-      const double dt = d[pos++];
-      r.substeps.emplace_back(take(), dt);
-    }
-    return r;
+    return unpack_record<DistRecord>(d, pos, take);
   };
   return std::make_unique<DiskStore<DistRecord>>(path, std::move(codec));
 }

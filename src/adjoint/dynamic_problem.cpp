@@ -381,17 +381,9 @@ void DynamicProblem::evaluate_rigid(bool gradients, optimize::Evaluation &out) {
       backward(k + 1 == r.substeps.size() ? r.state : r.substeps[k].first, r.substeps[k].second,
                k + 1 == r.substeps.size() ? state_partials(j, r.state) : Matrix());
   };
-  recomputed_ = 0;
-  if (!schedule) {
-    for (long long j = steps_; j >= 1; --j) {
-      visit(j, store->get(j));
-      store->erase(j);
-    }
-  } else {
-    recomputed_ = reverse_binomial<StepRecord>(
-        *schedule, *store,
-        [&](const StepRecord &previous, long long j) { return recompute(ga, previous, j); }, visit);
-  }
+  recomputed_ = reverse_steps<StepRecord>(
+      schedule.get(), *store, steps_,
+      [&](const StepRecord &previous, long long j) { return recompute(ga, previous, j); }, visit);
   checkpoint_bytes_ = store->peak_bytes();
   adjoint_factorizations_ = sweep.factorizations();
   const Matrix mu0 = sweep.finish(state_partials(0, s0));
@@ -457,24 +449,8 @@ Matrix DynamicProblem::state_partials(long long j, const dynamics::State &state)
 
 StepRecord DynamicProblem::recompute(const dynamics::GeneralizedAlpha &ga,
                                      const StepRecord &previous, long long j) const {
-  // The forward run's substeps, each solved to the forward tolerance (section 9.4).
-  const double h = case_.time.step;
-  const auto &sizes = substep_sizes_[static_cast<std::size_t>(j)];
-  StepRecord r;
-  dynamics::State from = previous.state, to;
-  const std::vector<double> whole{h};
-  for (double dt : sizes.empty() ? whole : sizes) {
-    dynamics::StepInfo info;
-    if (!ga.step(from, dt, to, info))
-      throw Error("adjoint: recomputing step " + std::to_string(j) +
-                      " from a checkpoint, Newton did not converge where the forward run did",
-                  true);
-    if (!sizes.empty()) r.substeps.emplace_back(to, dt);
-    from = to;
-  }
-  r.state = std::move(to);
-  r.state.t = static_cast<double>(j) * h;
-  return r;
+  return detail::recompute_step(ga, previous, j, case_.time.step,
+                                substep_sizes_[static_cast<std::size_t>(j)]);
 }
 
 long long DynamicProblem::dofs() const {

@@ -213,18 +213,10 @@ void DynamicProblem::evaluate_acf(bool gradients, optimize::Evaluation &out) {
                    1.0);
     }
   };
-  recomputed_ = 0;
-  if (!schedule) {
-    for (long long j = steps_; j >= 1; --j) {
-      visit(j, store->get(j));
-      store->erase(j);
-    }
-  } else {
-    recomputed_ = reverse_binomial<DistRecord>(
-        *schedule, *store,
-        [&](const DistRecord &previous, long long j) { return recompute_dist(da, previous, j); },
-        visit);
-  }
+  recomputed_ = reverse_steps<DistRecord>(
+      schedule.get(), *store, steps_,
+      [&](const DistRecord &previous, long long j) { return recompute_dist(da, previous, j); },
+      visit);
   std::vector<dynamics::DistState> gbar = sweep.finish(state_partials_dist(0, s0));
   // gbar = -mu_0 = dPsi/ds_0; the initial accelerations [M Phi_q^T; Phi_q 0] [acc; lambda] =
   // [Q; gamma] (section 9.2, stage 2): nu from the transposed system, then -nu_acc . dr/dtheta.
@@ -253,24 +245,8 @@ void DynamicProblem::evaluate_acf(bool gradients, optimize::Evaluation &out) {
 
 DistRecord DynamicProblem::recompute_dist(const dynamics::DistributedAlpha &da,
                                           const DistRecord &previous, long long j) const {
-  // The forward run's substeps, each solved to the forward tolerance (section 9.4).
-  const double h = case_.time.step;
-  const auto &sizes = substep_sizes_[static_cast<std::size_t>(j)];
-  DistRecord r;
-  dynamics::DistState from = previous.state, to;
-  const std::vector<double> whole{h};
-  for (double dt : sizes.empty() ? whole : sizes) {
-    dynamics::StepInfo info;
-    if (!da.step(from, dt, to, info))
-      throw Error("adjoint: recomputing step " + std::to_string(j) +
-                      " from a checkpoint, Newton did not converge where the forward run did",
-                  true);
-    if (!sizes.empty()) r.substeps.emplace_back(to, dt);
-    from = to;
-  }
-  r.state = to;
-  r.state.t = static_cast<double>(j) * h;
-  return r;
+  return detail::recompute_step(da, previous, j, case_.time.step,
+                                substep_sizes_[static_cast<std::size_t>(j)]);
 }
 
 } // namespace flexopt::adjoint

@@ -5,6 +5,7 @@
 #include "flexopt/core/error.hpp"
 
 #include <sstream>
+#include <string>
 #include <vector>
 
 namespace flexopt::adjoint::detail {
@@ -35,6 +36,29 @@ void forward_loop(const Integrator &integrator, long long steps, double h, Recor
     record.state.t = t_next;
     on_step(j);
   }
+}
+
+/// Main step j recomputed with `integrator` from the record of step j - 1 along the forward
+/// run's substeps (`sizes`; empty: one step of h), each solved to the forward tolerance
+/// (docs/theory.md section 9.4). Collective; throws a collective flexopt::Error if Newton fails.
+template <class Integrator, class Record>
+Record recompute_step(const Integrator &integrator, const Record &previous, long long j, double h,
+                      const std::vector<double> &sizes) {
+  Record r;
+  auto from = previous.state, to = previous.state;
+  const std::vector<double> whole{h};
+  for (double dt : sizes.empty() ? whole : sizes) {
+    dynamics::StepInfo info;
+    if (!integrator.step(from, dt, to, info))
+      throw Error("adjoint: recomputing step " + std::to_string(j) +
+                      " from a checkpoint, Newton did not converge where the forward run did",
+                  true);
+    if (!sizes.empty()) r.substeps.emplace_back(to, dt);
+    from = to;
+  }
+  r.state = to;
+  r.state.t = static_cast<double>(j) * h;
+  return r;
 }
 
 } // namespace flexopt::adjoint::detail

@@ -122,4 +122,18 @@ long long reverse_binomial(const BinomialSchedule &schedule, Store<R> &store,
   return recomputed;
 }
 
+/// The backward sweep over main steps N ... 1: with a schedule, reverse_binomial; without one
+/// (every record stored), each record visited and freed in turn. Returns the recomputed steps.
+template <class R>
+long long reverse_steps(const BinomialSchedule *schedule, Store<R> &store, long long steps,
+                        const std::function<R(const R &, long long)> &advance,
+                        const std::function<void(long long, const R &)> &visit) {
+  if (schedule) return reverse_binomial<R>(*schedule, store, advance, visit);
+  for (long long j = steps; j >= 1; --j) {
+    visit(j, store.get(j));
+    store.erase(j);
+  }
+  return 0;
+}
+
 } // namespace flexopt::adjoint
