@@ -223,17 +223,6 @@ const mesh::DistributedMesh &DynamicProblem::mesh() const {
   return scene_.meshes[static_cast<std::size_t>(design_body_)];
 }
 
-double DynamicProblem::mass_factor(double rho, double *derivative) const {
-  // linear: w = rho (no floor: a rigid body's motion is invariant under a uniform scaling).
-  // pedersen: w = rho above 0.1, 1e5 rho^6 below (continuous at 0.1; Pedersen 2000).
-  if (case_.design->mass == "pedersen" && rho < 0.1) {
-    *derivative = 6e5 * std::pow(rho, 5);
-    return 1e5 * std::pow(rho, 6);
-  }
-  *derivative = 1;
-  return rho;
-}
-
 Matrix DynamicProblem::design_partials(const Vector &q, const Vector &v, const Vector &a,
                                        bool gravity, const Matrix &W) const {
   const dynamics::Mechanism &mech = scene_.mechanism;
@@ -268,22 +257,8 @@ void DynamicProblem::evaluate(Vec x, bool gradients, optimize::Evaluation &out) 
   const PetscInt ne = m.local_elements();
   const io::DesignSpec &d = *case_.design;
   // Mass factors w (section 9.1) and, for an ACF body, SIMP modulus factors s (section 9.6).
-  w_.assign(static_cast<std::size_t>(ne), 1.0);
-  dw_.assign(static_cast<std::size_t>(ne), 0.0);
-  s_.assign(static_cast<std::size_t>(ne), 1.0);
-  ds_.assign(static_cast<std::size_t>(ne), 0.0);
-  {
-    const PetscScalar *ph;
-    FX_PETSC(VecGetArrayRead(field_->physical(), &ph));
-    for (PetscInt e : field_->design_elements()) {
-      const auto k = static_cast<std::size_t>(e);
-      const double r = std::max(ph[e], 0.0);
-      w_[k] = mass_factor(r, &dw_[k]);
-      s_[k] = d.min_stiffness + std::pow(r, d.penalty) * (1.0 - d.min_stiffness);
-      ds_[k] = r > 0 ? d.penalty * std::pow(r, d.penalty - 1.0) * (1.0 - d.min_stiffness) : 0.0;
-    }
-    FX_PETSC(VecRestoreArrayRead(field_->physical(), &ph));
-  }
+  field_->mass_factors(w_, dw_);
+  field_->stiffness_factors(s_, ds_);
   const std::size_t nr = specs_.size();
   element_gradient_.assign(nr, std::vector<double>(static_cast<std::size_t>(ne), 0.0));
   if (acf_design_ >= 0)

@@ -1100,13 +1100,9 @@ void DistributedAlpha::equations(const DistState &s, Vec R) const {
 }
 
 Mat DistributedAlpha::newton_matrix(const DistState &s, double h) const {
-  return scaled_matrix(s, par_.newton_scaling(h));
-}
-
-Mat DistributedAlpha::scaled_matrix(const DistState &s, const NewtonScaling &k) const {
   double violation;
   factored_ = false;
-  if (!assemble(s, k, true, violation))
+  if (!assemble(s, par_.newton_scaling(h), true, violation))
     throw Error("DistributedAlpha::newton_matrix: an inverted element", true);
   return A_;
 }

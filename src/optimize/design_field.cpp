@@ -4,6 +4,7 @@
 #include "flexopt/fem/assembly.hpp"
 #include "flexopt/optimize/design_problem.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 namespace flexopt::optimize {
@@ -104,6 +105,48 @@ void DesignField::volume_fraction_gradient(Vec g) const {
   FX_PETSC(VecGetArray(g, &ga));
   for (PetscInt e : design_elements_) ga[e] = volume_[static_cast<std::size_t>(e)] / design_volume_;
   FX_PETSC(VecRestoreArray(g, &ga));
+}
+
+namespace {
+
+/// f(rho) and f'(rho) of every design element's physical density (1 and 0 elsewhere).
+template <class F>
+void interpolate(const DesignField &field, Vec physical, std::vector<double> &f,
+                 std::vector<double> &df, PetscInt n, F &&law) {
+  f.assign(static_cast<std::size_t>(n), 1.0);
+  df.assign(static_cast<std::size_t>(n), 0.0);
+  const PetscScalar *ph;
+  FX_PETSC(VecGetArrayRead(physical, &ph));
+  for (PetscInt e : field.design_elements()) {
+    const auto k = static_cast<std::size_t>(e);
+    law(std::max(ph[e], 0.0), f[k], df[k]);
+  }
+  FX_PETSC(VecRestoreArrayRead(physical, &ph));
+}
+
+} // namespace
+
+void DesignField::stiffness_factors(std::vector<double> &s, std::vector<double> &ds) const {
+  const double emin = spec_.min_stiffness, p = spec_.penalty;
+  interpolate(*this, physical_, s, ds, mesh_.local_elements(),
+              [&](double r, double &f, double &df) {
+                f = emin + std::pow(r, p) * (1.0 - emin);
+                df = r > 0 ? p * std::pow(r, p - 1.0) * (1.0 - emin) : 0.0;
+              });
+}
+
+void DesignField::mass_factors(std::vector<double> &w, std::vector<double> &dw) const {
+  const bool pedersen = spec_.mass == "pedersen";
+  interpolate(*this, physical_, w, dw, mesh_.local_elements(),
+              [&](double r, double &f, double &df) {
+                if (pedersen && r < 0.1) {
+                  f = 1e5 * std::pow(r, 6);
+                  df = 6e5 * std::pow(r, 5);
+                } else {
+                  f = r;
+                  df = 1;
+                }
+              });
 }
 
 void DesignField::pull_back(Vec g_physical, Vec g_x) const {

@@ -147,19 +147,7 @@ void TopologyProblem::evaluate(Vec x, bool gradients, Evaluation &out) {
   field_->update(x);
 
   // SIMP: s = e_min + rho~^p (1 - e_min) on design elements; solid (s = 1) elsewhere.
-  const PetscInt ne = m.local_elements();
-  factor_.assign(static_cast<std::size_t>(ne), 1.0);
-  dfactor_.assign(static_cast<std::size_t>(ne), 0.0);
-  const PetscScalar *rt;
-  FX_PETSC(VecGetArrayRead(field_->physical(), &rt));
-  for (PetscInt e : field_->design_elements()) {
-    const double r = std::max(rt[e], 0.0);
-    factor_[static_cast<std::size_t>(e)] =
-        d.min_stiffness + std::pow(r, d.penalty) * (1.0 - d.min_stiffness);
-    dfactor_[static_cast<std::size_t>(e)] =
-        r > 0 ? d.penalty * std::pow(r, d.penalty - 1.0) * (1.0 - d.min_stiffness) : 0.0;
-  }
-  FX_PETSC(VecRestoreArrayRead(field_->physical(), &rt));
+  field_->stiffness_factors(factor_, dfactor_);
   static_->assemble_operator(factor_);
   static_->solve();
   element_ku_current_ = false;

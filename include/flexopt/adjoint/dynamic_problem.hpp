@@ -114,8 +114,6 @@ private:
   /// After a forward run started at wall time t_forward: its time, the response values into
   /// `out`; returns `gradients` (whether the backward sweep follows).
   bool finish_forward(double t_forward, bool gradients, optimize::Evaluation &out);
-  /// Mass factor w(rho) of the mass interpolation and its derivative.
-  double mass_factor(double rho, double *derivative) const;
   /// (d r/d theta)^T W for the design body's block of W (ResidualPartials).
   Matrix design_partials(const Vector &q, const Vector &v, const Vector &a, bool gravity,
                          const Matrix &W) const;

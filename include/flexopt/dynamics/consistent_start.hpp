@@ -38,12 +38,11 @@ struct VelocityCorrection {
   double residual = 0;        ///< max |Phi_q (v + dv) + Phi_t| over the enforced rows
   double scale = 0;           ///< max |Phi_q v + Phi_t| before the correction
   /// The parts its derivative with respect to the mass matrix needs (docs/theory.md section
-  /// 9.2; empty when there is nothing to correct): dv = T y, the parameters y, the bodies with
-  /// their own six parameters (columns 6i ... 6i + 5 of T), and Pi = L^-T (I - B^+ B) L^-1,
+  /// 9.2; empty when there is nothing to correct): dv = T y, the parameters y, and
+  /// Pi = L^-T (I - B^+ B) L^-1,
   /// with which dy = -Pi dW y for a change dW of the metric W = T^T M T.
   Matrix T;
   Vector y;
-  std::vector<int> own;
   Matrix Pi;
 };
 

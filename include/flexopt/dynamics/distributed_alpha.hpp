@@ -137,11 +137,7 @@ public:
   /// until its next step). Collective.
   Mat newton_matrix(const DistState &s, double h) const;
 
-  /// The matrix of newton_matrix for any scaling k (k.bp > 0): M + (k.gp / k.bp) C + K / k.bp
-  /// on the coordinates, Phi_q^T and Phi_q with the multipliers. Owned, valid until the next
-  /// call. Collective.
-  Mat scaled_matrix(const DistState &s, const NewtonScaling &k) const;
-  /// z with A^T z = rhs for the matrix A last returned by newton_matrix or scaled_matrix
+  /// z with A^T z = rhs for the matrix A last returned by newton_matrix
   /// (factorized here by the integrator's solver; a later step assembles and factorizes anew).
   /// Collective; throws a collective flexopt::Error if A is singular or the solve fails.
   void solve_transpose(Vec rhs, Vec z) const;

@@ -55,6 +55,13 @@ public:
   /// d(volume fraction)/d(physical density) into the element vector g.
   void volume_fraction_gradient(Vec g) const;
 
+  /// The SIMP modulus factors s = E_min/E_0 + rho^p (1 - E_min/E_0) of the physical densities
+  /// of all local elements and their derivatives (1 and 0 outside the design region).
+  void stiffness_factors(std::vector<double> &s, std::vector<double> &ds) const;
+  /// The mass factors of `interpolation.mass` (linear: rho; pedersen: rho above 0.1, 1e5 rho^6
+  /// below; docs/theory.md section 9.1) and their derivatives, as stiffness_factors.
+  void mass_factors(std::vector<double> &w, std::vector<double> &dw) const;
+
   /// g_x = R F^T (P' g_physical): a sensitivity with respect to the physical densities of all
   /// local elements (element vector, overwritten) pulled back to the design variables.
   /// Collective.
