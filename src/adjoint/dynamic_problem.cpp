@@ -282,6 +282,24 @@ void DynamicProblem::evaluate(Vec x, bool gradients, optimize::Evaluation &out) 
     }
     field_->pull_back(grad_physical_, i == 0 ? out.d_objective : out.d_constraints[i - 1]);
   }
+  // A response that the densities cannot move (a kinematic response of a fully driven rigid
+  // mechanism, say) has a gradient of round-off: say so once, rather than let an optimizer
+  // stall on it silently.
+  if (!zero_gradient_warned_) {
+    for (std::size_t i = 0; i < nr; ++i) {
+      PetscReal g = 0;
+      FX_PETSC(VecNorm(i == 0 ? out.d_objective : out.d_constraints[i - 1], NORM_INFINITY, &g));
+      const double value = i == 0 ? out.objective : out.constraints[i - 1];
+      if (g <= 1e-12 * std::max(std::abs(value), 1e-300)) {
+        print0(m.comm,
+               "adjoint: warning: %s does not depend on the densities (max |dPsi/dx| = %.2e, "
+               "value %.6g): a kinematic response of a mechanism whose motion the drivers fix, "
+               "or a body the design does not reach\n",
+               names_[i].c_str(), static_cast<double>(g), value);
+        zero_gradient_warned_ = true;
+      }
+    }
+  }
 }
 
 void DynamicProblem::evaluate_rigid(bool gradients, optimize::Evaluation &out) {

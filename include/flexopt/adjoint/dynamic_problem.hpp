@@ -158,6 +158,7 @@ private:
   /// forward runs.
   double forward_s_ = 0, adjoint_s_ = 0, forward_total_s_ = 0;
   long long steps_ = 0, evaluations_ = 0;
+  bool zero_gradient_warned_ = false; ///< the warning of a design-independent response, once
 };
 
 } // namespace flexopt::adjoint
