@@ -255,7 +255,6 @@ void DynamicProblem::evaluate(Vec x, bool gradients, optimize::Evaluation &out) 
   field_->update(x);
   const mesh::DistributedMesh &m = mesh();
   const PetscInt ne = m.local_elements();
-  const io::DesignSpec &d = *case_.design;
   // Mass factors w (section 9.1) and, for an ACF body, SIMP modulus factors s (section 9.6).
   field_->mass_factors(w_, dw_);
   field_->stiffness_factors(s_, ds_);

@@ -139,18 +139,37 @@ void DynamicProblem::evaluate_acf(bool gradients, optimize::Evaluation &out) {
       for (std::size_t e = 0; e < ne; ++e) element_gradient_[i][e] += dw_[e] * density * volume[e];
   }
 
-  // Backward sweep over every kept state (section 9.7), the element partials at each.
+  // Backward sweep over every kept state (section 9.7), the element partials at each, for the
+  // responses that depend on the state (the volume fraction and the mass do not: their
+  // multipliers are zero).
   const double t_adjoint = wall_time();
-  DistBackwardSweep sweep(da, static_cast<int>(nr));
+  std::vector<std::size_t> active;
+  for (std::size_t i = 0; i < nr; ++i)
+    if (sensor_of_[i] >= 0 || strain_body[i] >= 0) active.push_back(i);
+  const std::size_t na = active.size();
+  auto finish_adjoint = [&](long long factorizations) {
+    adjoint_s_ = wall_time() - t_adjoint;
+    adjoint_factorizations_ = factorizations;
+    long long bytes = store->peak_bytes();
+    MPI_Allreduce(MPI_IN_PLACE, &bytes, 1, MPI_LONG_LONG, MPI_SUM, m.comm);
+    checkpoint_bytes_ = bytes;
+  };
+  if (na == 0) { // no backward sweep: every gradient is the direct partial
+    recomputed_ = 0;
+    finish_adjoint(0);
+    return;
+  }
+  DistBackwardSweep sweep(da, static_cast<int>(na));
   std::vector<dynamics::DistState> partials;
-  for (std::size_t i = 0; i < nr; ++i) partials.push_back(da.zero_state());
+  for (std::size_t a = 0; a < na; ++a) partials.push_back(da.zero_state());
   // (dPsi/ds)^T at main step j, state s: the sensors' and strain energies' q blocks.
   auto state_partials_dist = [&](std::size_t j, const dynamics::DistState &s) {
-    std::vector<const dynamics::DistState *> ptr(nr, nullptr);
+    std::vector<const dynamics::DistState *> ptr(na, nullptr);
     const dynamics::State small = da.small_state(s);
     std::vector<double> force;
-    for (std::size_t i = 0; i < nr; ++i) {
-      dynamics::DistState &P = partials[i];
+    for (std::size_t a = 0; a < na; ++a) {
+      const std::size_t i = active[a];
+      dynamics::DistState &P = partials[a];
       FX_PETSC(VecZeroEntries(P.q));
       bool any = false;
       if (sensor_of_[i] >= 0 && !sampled_[i].dy[j].isZero(0)) {
@@ -177,24 +196,30 @@ void DynamicProblem::evaluate_acf(bool gradients, optimize::Evaluation &out) {
       }
       FX_PETSC(VecAssemblyBegin(P.q));
       FX_PETSC(VecAssemblyEnd(P.q));
-      if (any) ptr[i] = &P;
+      if (any) ptr[a] = &P;
     }
     return ptr;
   };
-  std::vector<double> d_modulus, d_mass, u, v, acc, mu_d;
-  // G_e += ds mu . dR/ds_e + dw mu . dR/dw_e at state s for the multipliers mu (one per response).
+  std::vector<std::vector<double>> d_modulus, d_mass, mu_d(na);
+  std::vector<double> u, v, acc;
+  std::vector<const double *> mu_ptr(na);
+  // G_e += ds mu . dR/ds_e + dw mu . dR/dw_e at state s for the multipliers mu (one per active
+  // response), in one element loop.
   auto add_partials = [&](const dynamics::DistState &s, const std::vector<dynamics::DistState> &mu,
                           double sign) {
+    if (na == 0) return;
     u = displacement(s, design);
     da.local_values(s.v, design, v);
     da.local_values(s.acc, design, acc);
-    for (std::size_t i = 0; i < nr; ++i) {
-      da.local_values(mu[i].acc, design, mu_d);
-      body.design_partials(u.data(), v.data(), acc.data(), mu_d.data(), mech.gravity, d_modulus,
-                           d_mass);
-      for (std::size_t e = 0; e < ne; ++e)
-        element_gradient_[i][e] += sign * (ds_[e] * d_modulus[e] + dw_[e] * d_mass[e]);
+    for (std::size_t a = 0; a < na; ++a) {
+      da.local_values(mu[a].acc, design, mu_d[a]);
+      mu_ptr[a] = mu_d[a].data();
     }
+    body.design_partials(u.data(), v.data(), acc.data(), mu_ptr, mech.gravity, d_modulus, d_mass);
+    for (std::size_t a = 0; a < na; ++a)
+      for (std::size_t e = 0; e < ne; ++e)
+        element_gradient_[active[a]][e] +=
+            sign * (ds_[e] * d_modulus[a][e] + dw_[e] * d_mass[a][e]);
   };
   auto visit = [&](long long jj, const DistRecord &r) {
     const auto j = static_cast<std::size_t>(jj);
@@ -209,7 +234,7 @@ void DynamicProblem::evaluate_acf(bool gradients, optimize::Evaluation &out) {
       add_partials(s,
                    sweep.step(s, r.substeps[k].second,
                               end ? state_partials_dist(j, r.state)
-                                  : std::vector<const dynamics::DistState *>(nr, nullptr)),
+                                  : std::vector<const dynamics::DistState *>(na, nullptr)),
                    1.0);
     }
   };
@@ -224,8 +249,8 @@ void DynamicProblem::evaluate_acf(bool gradients, optimize::Evaluation &out) {
   da.coordinate_mask(cmask);
   std::vector<dynamics::DistState> minus_nu;
   da.acceleration_matrix(s0);
-  for (std::size_t i = 0; i < nr; ++i) {
-    dynamics::DistState &g = gbar[i];
+  for (std::size_t a = 0; a < na; ++a) {
+    dynamics::DistState &g = gbar[a];
     for (Vec x : {g.q, g.v, g.a, g.acc, g.lambda}) FX_PETSC(VecScale(x, -1.0));
     FX_PETSC(VecWAXPY(rhs, 1.0, g.acc, g.a));
     FX_PETSC(VecAXPY(rhs, 1.0, g.lambda));
@@ -236,11 +261,7 @@ void DynamicProblem::evaluate_acf(bool gradients, optimize::Evaluation &out) {
   }
   add_partials(s0, minus_nu, -1.0);
   for (Vec *x : {&cmask, &rhs, &nu}) VecDestroy(x);
-  adjoint_s_ = wall_time() - t_adjoint;
-  adjoint_factorizations_ = sweep.steps() + 1; // one per backward step, one at the start
-  long long bytes = store->peak_bytes();
-  MPI_Allreduce(MPI_IN_PLACE, &bytes, 1, MPI_LONG_LONG, MPI_SUM, m.comm);
-  checkpoint_bytes_ = bytes;
+  finish_adjoint(sweep.steps() + 1); // one factorization per backward step, one at the start
 }
 
 DistRecord DynamicProblem::recompute_dist(const dynamics::DistributedAlpha &da,

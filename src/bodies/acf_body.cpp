@@ -46,15 +46,16 @@ fem::ElementCoords positions(const mesh::DistributedMesh &mesh, const fem::Corot
 
 } // namespace
 
-void AcfBody::design_partials(const double *u, const double *v, const double *acc, const double *mu,
-                              const Eigen::Vector3d &gravity, std::vector<double> &d_modulus,
-                              std::vector<double> &d_mass) const {
-  const PetscInt n = mesh_.local_elements();
-  d_modulus.assign(static_cast<std::size_t>(n), 0.0);
-  d_mass.assign(static_cast<std::size_t>(n), 0.0);
-  fem::ElementVector f, fd;
-  for (PetscInt e = 0; e < n; ++e) {
-    const auto k = static_cast<std::size_t>(e);
+void AcfBody::design_partials(const double *u, const double *v, const double *acc,
+                              const std::vector<const double *> &mu, const Eigen::Vector3d &gravity,
+                              std::vector<std::vector<double>> &d_modulus,
+                              std::vector<std::vector<double>> &d_mass) const {
+  const auto n = static_cast<std::size_t>(mesh_.local_elements());
+  d_modulus.assign(mu.size(), std::vector<double>(n, 0.0));
+  d_mass.assign(mu.size(), std::vector<double>(n, 0.0));
+  fem::ElementVector f, fd, Ma;
+  for (std::size_t k = 0; k < n; ++k) {
+    const auto e = static_cast<PetscInt>(k);
     const fem::CorotatedElement &ce = elements_[k];
     const fem::ElementCoords x = positions(mesh_, ce, e, u);
     fem::corotated_state(ce, x, &f, nullptr);
@@ -63,14 +64,17 @@ void AcfBody::design_partials(const double *u, const double *v, const double *ac
                              nullptr);
       f += fd;
     }
-    const fem::ElementVector me = fem::gather_element(mesh_, e, mu);
     const double s = modulus_factor_.empty() ? 1.0 : modulus_factor_[k];
-    d_modulus[k] = me.dot(f) / s;
+    f /= s;
     // M0_e (acc_e - g): the consistent mass at the material density (section 9.6).
     fem::ElementVector a = fem::gather_element(mesh_, e, acc);
     for (int b = 0; b < ce.nodes(); ++b) a.segment<3>(3 * b) -= gravity;
-    const fem::ElementMatrix M0 = fem::element_mass(ce.type, ce.X, material_.density);
-    d_mass[k] = me.dot(M0 * a);
+    Ma = fem::element_mass(ce.type, ce.X, material_.density) * a;
+    for (std::size_t r = 0; r < mu.size(); ++r) {
+      const fem::ElementVector me = fem::gather_element(mesh_, e, mu[r]);
+      d_modulus[r][k] = me.dot(f);
+      d_mass[r][k] = me.dot(Ma);
+    }
   }
 }
 

@@ -95,8 +95,8 @@ TEST(AcfDesign, ElementPartialsAreThoseOfTheAssembledEquations) {
     return dot;
   };
   body.set_factors(s, w);
-  std::vector<double> d_modulus, d_mass;
-  body.design_partials(ua, va, aa, ma, g, d_modulus, d_mass);
+  std::vector<std::vector<double>> d_modulus, d_mass;
+  body.design_partials(ua, va, aa, {ma}, g, d_modulus, d_mass);
   // A few elements by global number, differenced on every rank together.
   for (PetscInt pick : {0, 7, 40}) {
     const PetscInt global = pick % m.global_elements;
@@ -113,7 +113,7 @@ TEST(AcfDesign, ElementPartialsAreThoseOfTheAssembledEquations) {
       }
       const double fd = (residual(sp, wp, which) - residual(sm, wm, which)) / (2 * delta);
       double analytic =
-          mine ? (which == 0 ? d_modulus : d_mass)[static_cast<std::size_t>(local)] : 0;
+          mine ? (which == 0 ? d_modulus : d_mass)[0][static_cast<std::size_t>(local)] : 0;
       MPI_Allreduce(MPI_IN_PLACE, &analytic, 1, MPI_DOUBLE, MPI_SUM, PETSC_COMM_WORLD);
       EXPECT_NEAR(analytic, fd, 1e-9 * std::max(std::abs(fd), 1e-6))
           << (which == 0 ? "modulus" : "mass") << " factor of element " << global;

@@ -30,14 +30,15 @@ public:
   const std::vector<double> &modulus_factor() const { return modulus_factor_; }
   const std::vector<double> &mass_factor() const { return mass_factor_; }
 
-  /// The design partials of mu . R_d (section 9.6) at displacements u, velocities v (may be
-  /// null: no damping force), accelerations acc and multipliers mu (each 3 per local node in the
-  /// mesh's local numbering): per local element, into d_modulus[e] = mu_e . (f_e + f_d,e) / s_e
-  /// and d_mass[e] = mu_e . M0_e (acc_e - g). Throws flexopt::Error for an inverted element. Not
-  /// collective.
-  void design_partials(const double *u, const double *v, const double *acc, const double *mu,
-                       const Eigen::Vector3d &gravity, std::vector<double> &d_modulus,
-                       std::vector<double> &d_mass) const;
+  /// The design partials of mu_r . R_d (section 9.6) at displacements u, velocities v (may be
+  /// null: no damping force) and accelerations acc, for every multiplier mu[r] (each 3 per local
+  /// node in the mesh's local numbering): per local element, d_modulus[r][e] = mu_r,e . (f_e +
+  /// f_d,e) / s_e and d_mass[r][e] = mu_r,e . M0_e (acc_e - g). One element loop serves all the
+  /// multipliers. Throws flexopt::Error for an inverted element. Not collective.
+  void design_partials(const double *u, const double *v, const double *acc,
+                       const std::vector<const double *> &mu, const Eigen::Vector3d &gravity,
+                       std::vector<std::vector<double>> &d_modulus,
+                       std::vector<std::vector<double>> &d_mass) const;
   /// The elastic energy of every local element at displacements u (3 per local node), with its
   /// modulus factor, and, if `force` is non-null, the elements' forces added into it (3 per
   /// local node). Not collective.
