@@ -308,10 +308,11 @@ void DynamicProblem::evaluate_rigid(bool gradients, optimize::Evaluation &out) {
   for (PetscInt e = 0; e < ne; ++e)
     local += w_[static_cast<std::size_t>(e)] * element_theta_[static_cast<std::size_t>(e)];
   MPI_Allreduce(local.data(), theta_.data(), 10, MPI_DOUBLE, MPI_SUM, m.comm);
-  dynamics::Mechanism &mech = scene_.mechanism;
-  mech.bodies[static_cast<std::size_t>(mechanism_body_)] =
+  dynamics::set_body_model(
+      m.comm, case_, scene_, static_cast<std::size_t>(design_body_),
       std::make_shared<bodies::RigidBody>(case_.bodies[static_cast<std::size_t>(design_body_)].name,
-                                          bodies::from_parameters(theta_, reference_));
+                                          bodies::from_parameters(theta_, reference_)));
+  dynamics::Mechanism &mech = scene_.mechanism;
 
   // Forward run (section 9.4): the records the backward sweep needs go to the store, all of
   // them or those of the binomial schedule's first descent; every main step's sensor samples.

@@ -162,165 +162,150 @@ bodies::Vector initial_elastic(MPI_Comm comm, const io::BodySpec &spec,
 
 } // namespace
 
-Scene build_scene(MPI_Comm comm, const io::Case &c) {
-  Scene scene;
+namespace {
+
+/// An ACF body: its mesh, its co-rotated elements, one interface node per interface.
+void add_acf_body(MPI_Comm comm, const io::BodySpec &spec, const io::MaterialSpec &mat,
+                  Scene &scene, SceneBody &sb) {
   Mechanism &mech = scene.mechanism;
-  std::map<std::string, int> body_index;
-  // Per body: interface centroids (mesh coordinates) by name, the reduction of flexible
-  // bodies (interface motion in the order of spec.interfaces); initial rotation and origin.
-  const std::size_t nbodies = c.bodies.size();
-  std::vector<std::map<std::string, Vec3>> interfaces(nbodies);
-  std::vector<std::shared_ptr<reduce::FlexibleReduction>> reductions(nbodies);
-  std::vector<Mat3> R0(nbodies);
-  std::vector<Vec3> origin(nbodies);
-  std::vector<bodies::Vector> elastic0(nbodies), elastic_rate0(nbodies); // zeta, zeta' at t = 0
-  scene.meshes.reserve(nbodies);
-  scene.bodies.resize(nbodies);
-  for (std::size_t b = 0; b < nbodies; ++b) {
-    const io::BodySpec &spec = c.bodies[b];
-    const auto &mat = c.material(spec.material);
-    SceneBody &sb = scene.bodies[b];
-    sb.mechanism = static_cast<int>(mech.bodies.size());
-    const std::string model = io::simulated_model(spec.model);
-    if (model == "acf") {
-      scene.meshes.push_back(mesh::load_body_mesh(comm, spec));
-      const mesh::DistributedMesh &m = scene.meshes.back();
-      sb.mechanism = -1;
-      sb.acf = static_cast<int>(scene.acf.size());
-      scene.acf.push_back(std::make_unique<bodies::AcfBody>(
-          spec.name, m, fem::IsotropicMaterial{mat.E, mat.nu, mat.density}, std::vector<double>{},
-          spec.rayleigh[1]));
-      std::string names;
-      for (const std::string &iface : spec.interfaces) {
-        const Vec3 cI = mesh::surface_centroid(
-            m, iface, spec.where.str() + ": body '" + spec.name + "' interface");
-        interfaces[b][iface] = cI;
-        sb.nodes.push_back(static_cast<int>(mech.bodies.size()));
-        sb.centroids.push_back(cI);
-        scene.acf_interfaces.push_back({static_cast<std::size_t>(sb.acf), iface, sb.nodes.back(),
-                                        cI, spec.where.str() + ": body '" + spec.name + "'"});
-        mech.bodies.push_back(std::make_shared<bodies::InterfaceNode>(spec.name + ":" + iface, cI));
-        names += (names.empty() ? "" : ", ") + iface;
-      }
-      // Initial elastic fields, added to the rigid placement of the nodes.
-      for (const bool rate : {false, true}) {
-        const auto &text = rate ? spec.initial.elastic_velocity : spec.initial.elastic_displacement;
-        if (text[0].empty()) continue;
-        const auto f =
-            std::make_shared<std::array<PointExpression, 3>>(std::array<PointExpression, 3>{
-                PointExpression(text[0]), PointExpression(text[1]), PointExpression(text[2])});
-        (rate ? sb.u0_rate : sb.u0) = [f](const Vec3 &X) {
-          return Vec3((*f)[0](X.x(), X.y(), X.z()), (*f)[1](X.x(), X.y(), X.z()),
-                      (*f)[2](X.x(), X.y(), X.z()));
-        };
-      }
-      scene.owned_modes.emplace_back();
-      scene.reduction_seconds.push_back(0.0);
-      print0(comm,
-             "body %s: acf (absolute nodal coordinates, co-rotated elements), mass %.6g kg, %lld "
-             "nodes (%lld DOFs), %lld elements, interface nodes: %s\n",
-             spec.name.c_str(), scene.acf.back()->total_mass(),
-             static_cast<long long>(m.global_nodes), 3LL * m.global_nodes,
-             static_cast<long long>(m.global_elements), names.empty() ? "none" : names.c_str());
-    } else if (model == "ffrf") {
-      if (spec.interfaces.empty())
-        throw Error(spec.where.str() + ": body '" + spec.name +
-                        "' (model: ffrf) lists no interfaces; its floating frame is clamped at "
-                        "the first one",
-                    true);
-      scene.meshes.push_back(mesh::load_body_mesh(comm, spec));
-      const mesh::DistributedMesh &m = scene.meshes.back();
-      auto red = std::make_shared<reduce::FlexibleReduction>();
-      const double t0 = wall_time();
-      reduce::reduce_flexible_body(
-          m, fem::IsotropicMaterial{mat.E, mat.nu, mat.density}, spec.interfaces,
-          spec.reduction.modes, spec.reduction.geometric_stiffening, *red,
-          spec.reduction.frame == "chord" ? reduce::FrameCondition::Chord
-                                          : reduce::FrameCondition::Clamped);
-      bodies::FfrfModel model;
-      model.invariants = red->invariants;
-      model.stiffness = red->K;
-      model.damping = rayleigh(*red, spec.rayleigh);
-      model.geometric = red->geometric;
-      model.origin = red->origin;
-      auto body = std::make_shared<bodies::FfrfBody>(spec.name, std::move(model));
-      for (std::size_t i = 0; i < spec.interfaces.size(); ++i) {
-        interfaces[b][spec.interfaces[i]] = red->centroids[i];
-      }
-      scene.owned_modes.push_back(reduce::owned_basis_values(*red, m.owned_nodes));
-      print0(comm,
-             "body %s: ffrf, mass %.6g kg, frame %s at interface '%s' (%.6g, %.6g, %.6g), %d "
-             "elastic coordinates (%d static + %d fixed-interface modes)%s, reduced in %.2f s\n",
-             spec.name.c_str(), body->mass(),
-             spec.reduction.frame == "chord"
-                 ? ("chord (axis to '" + spec.interfaces[1] + "')").c_str()
-                 : "clamped",
-             spec.interfaces.front().c_str(), red->origin.x(), red->origin.y(), red->origin.z(),
-             red->size(), red->static_modes, red->fixed_modes,
-             spec.reduction.geometric_stiffening ? ", centrifugal geometric stiffening" : "",
-             wall_time() - t0);
-      if (red->size() > 0) {
-        std::string freq;
-        for (int k = 0; k < std::min(red->size(), 8); ++k) {
-          char buf[32];
-          std::snprintf(buf, sizeof buf, "%s%.6g", k ? ", " : "",
-                        reduce::frequency_hz(red->eigenvalues(k)));
-          freq += buf;
-        }
-        print0(comm, "body %s: reduced frequencies (frame %s) [Hz]: %s%s\n", spec.name.c_str(),
-               spec.reduction.frame.c_str(), freq.c_str(), red->size() > 8 ? ", ..." : "");
-      }
-      reductions[b] = red;
-      scene.reduction_seconds.push_back(wall_time() - t0);
-      elastic0[b] = initial_elastic(comm, spec, m, mat.density, *red, false);
-      elastic_rate0[b] = initial_elastic(comm, spec, m, mat.density, *red, true);
-      mech.bodies.push_back(body);
-    } else {
-      // Mass properties and interface centroids from the whole mesh on rank 0, broadcast as
-      // one buffer: every rank, whatever the rank count, holds the same numbers to the last
-      // bit.
-      std::vector<double> buf(13 + 3 * spec.interfaces.size(), 0.0);
-      scene.meshes.push_back(mesh::load_body_mesh(comm, spec, [&](const mesh::MeshData &data) {
-        const bodies::MassProperties p = bodies::mass_properties(data, mat.density);
-        buf[0] = p.mass;
-        for (int k = 0; k < 3; ++k) buf[static_cast<std::size_t>(1 + k)] = p.center(k);
-        for (int k = 0; k < 9; ++k) buf[static_cast<std::size_t>(4 + k)] = p.inertia(k / 3, k % 3);
-        for (std::size_t i = 0; i < spec.interfaces.size(); ++i) {
-          const bodies::SurfaceCentroid sc = bodies::surface_centroid(data, spec.interfaces[i]);
-          for (int k = 0; k < 3; ++k)
-            buf[13 + 3 * i + static_cast<std::size_t>(k)] = sc.centroid(k);
-        }
-      }));
-      MPI_Bcast(buf.data(), static_cast<int>(buf.size()), MPI_DOUBLE, 0, comm);
-      bodies::MassProperties p;
-      p.mass = buf[0];
-      p.center = Vec3(buf[1], buf[2], buf[3]);
-      for (int k = 0; k < 9; ++k) p.inertia(k / 3, k % 3) = buf[static_cast<std::size_t>(4 + k)];
-      for (std::size_t i = 0; i < spec.interfaces.size(); ++i)
-        interfaces[b][spec.interfaces[i]] = Vec3(buf[13 + 3 * i], buf[14 + 3 * i], buf[15 + 3 * i]);
-      mech.bodies.push_back(std::make_shared<bodies::RigidBody>(spec.name, p));
-      scene.owned_modes.emplace_back();
-      scene.reduction_seconds.push_back(0.0);
-      const Eigen::SelfAdjointEigenSolver<Mat3> principal(p.inertia);
-      print0(comm,
-             "body %s: rigid, mass %.6g kg, centre of mass (%.6g, %.6g, %.6g), principal inertia "
-             "(%.6g, %.6g, %.6g) kg m^2\n",
-             spec.name.c_str(), p.mass, p.center.x(), p.center.y(), p.center.z(),
-             principal.eigenvalues()(0), principal.eigenvalues()(1), principal.eigenvalues()(2));
-    }
-    body_index[spec.name] = static_cast<int>(b);
-    R0[b] = Eigen::AngleAxisd(spec.initial.angle, v3(spec.initial.axis)).toRotationMatrix();
-    origin[b] = v3(spec.initial.position);
-    sb.position = origin[b];
-    sb.R = R0[b];
-    sb.velocity = v3(spec.initial.velocity);
-    sb.omega = v3(spec.initial.angular_velocity);
+  scene.meshes.push_back(mesh::load_body_mesh(comm, spec));
+  const mesh::DistributedMesh &m = scene.meshes.back();
+  sb.mechanism = -1;
+  sb.acf = static_cast<int>(scene.acf.size());
+  scene.acf.push_back(std::make_unique<bodies::AcfBody>(
+      spec.name, m, fem::IsotropicMaterial{mat.E, mat.nu, mat.density}, std::vector<double>{},
+      spec.rayleigh[1]));
+  std::string names;
+  for (const std::string &iface : spec.interfaces) {
+    const Vec3 cI =
+        mesh::surface_centroid(m, iface, spec.where.str() + ": body '" + spec.name + "' interface");
+    sb.interfaces[iface] = cI;
+    sb.nodes.push_back(static_cast<int>(mech.bodies.size()));
+    sb.centroids.push_back(cI);
+    scene.acf_interfaces.push_back({static_cast<std::size_t>(sb.acf), iface, sb.nodes.back(), cI,
+                                    spec.where.str() + ": body '" + spec.name + "'"});
+    mech.bodies.push_back(std::make_shared<bodies::InterfaceNode>(spec.name + ":" + iface, cI));
+    names += (names.empty() ? "" : ", ") + iface;
   }
+  // Initial elastic fields, added to the rigid placement of the nodes.
+  for (const bool rate : {false, true}) {
+    const auto &text = rate ? spec.initial.elastic_velocity : spec.initial.elastic_displacement;
+    if (text[0].empty()) continue;
+    const auto f = std::make_shared<std::array<PointExpression, 3>>(std::array<PointExpression, 3>{
+        PointExpression(text[0]), PointExpression(text[1]), PointExpression(text[2])});
+    (rate ? sb.u0_rate : sb.u0) = [f](const Vec3 &X) {
+      return Vec3((*f)[0](X.x(), X.y(), X.z()), (*f)[1](X.x(), X.y(), X.z()),
+                  (*f)[2](X.x(), X.y(), X.z()));
+    };
+  }
+  scene.owned_modes.emplace_back();
+  scene.reduction_seconds.push_back(0.0);
+  print0(comm,
+         "body %s: acf (absolute nodal coordinates, co-rotated elements), mass %.6g kg, %lld "
+         "nodes (%lld DOFs), %lld elements, interface nodes: %s\n",
+         spec.name.c_str(), scene.acf.back()->total_mass(), static_cast<long long>(m.global_nodes),
+         3LL * m.global_nodes, static_cast<long long>(m.global_elements),
+         names.empty() ? "none" : names.c_str());
+}
+
+/// An FFRF body: its mesh reduced (in parallel) to the floating frame and the Craig-Bampton
+/// basis, its initial elastic coordinates projected onto the basis.
+void add_ffrf_body(MPI_Comm comm, const io::BodySpec &spec, const io::MaterialSpec &mat,
+                   Scene &scene, SceneBody &sb) {
+  if (spec.interfaces.empty())
+    throw Error(spec.where.str() + ": body '" + spec.name +
+                    "' (model: ffrf) lists no interfaces; its floating frame is clamped at "
+                    "the first one",
+                true);
+  scene.meshes.push_back(mesh::load_body_mesh(comm, spec));
+  const mesh::DistributedMesh &m = scene.meshes.back();
+  auto red = std::make_shared<reduce::FlexibleReduction>();
+  const double t0 = wall_time();
+  reduce::reduce_flexible_body(m, fem::IsotropicMaterial{mat.E, mat.nu, mat.density},
+                               spec.interfaces, spec.reduction.modes,
+                               spec.reduction.geometric_stiffening, *red,
+                               spec.reduction.frame == "chord" ? reduce::FrameCondition::Chord
+                                                               : reduce::FrameCondition::Clamped);
+  bodies::FfrfModel model;
+  model.invariants = red->invariants;
+  model.stiffness = red->K;
+  model.damping = rayleigh(*red, spec.rayleigh);
+  model.geometric = red->geometric;
+  model.origin = red->origin;
+  auto body = std::make_shared<bodies::FfrfBody>(spec.name, std::move(model));
+  for (std::size_t i = 0; i < spec.interfaces.size(); ++i)
+    sb.interfaces[spec.interfaces[i]] = red->centroids[i];
+  scene.owned_modes.push_back(reduce::owned_basis_values(*red, m.owned_nodes));
+  print0(comm,
+         "body %s: ffrf, mass %.6g kg, frame %s at interface '%s' (%.6g, %.6g, %.6g), %d "
+         "elastic coordinates (%d static + %d fixed-interface modes)%s, reduced in %.2f s\n",
+         spec.name.c_str(), body->mass(),
+         spec.reduction.frame == "chord" ? ("chord (axis to '" + spec.interfaces[1] + "')").c_str()
+                                         : "clamped",
+         spec.interfaces.front().c_str(), red->origin.x(), red->origin.y(), red->origin.z(),
+         red->size(), red->static_modes, red->fixed_modes,
+         spec.reduction.geometric_stiffening ? ", centrifugal geometric stiffening" : "",
+         wall_time() - t0);
+  if (red->size() > 0) {
+    std::string freq;
+    for (int k = 0; k < std::min(red->size(), 8); ++k) {
+      char buf[32];
+      std::snprintf(buf, sizeof buf, "%s%.6g", k ? ", " : "",
+                    reduce::frequency_hz(red->eigenvalues(k)));
+      freq += buf;
+    }
+    print0(comm, "body %s: reduced frequencies (frame %s) [Hz]: %s%s\n", spec.name.c_str(),
+           spec.reduction.frame.c_str(), freq.c_str(), red->size() > 8 ? ", ..." : "");
+  }
+  sb.reduction = red;
+  scene.reduction_seconds.push_back(wall_time() - t0);
+  sb.elastic0 = initial_elastic(comm, spec, m, mat.density, *red, false);
+  sb.elastic_rate0 = initial_elastic(comm, spec, m, mat.density, *red, true);
+  scene.mechanism.bodies.push_back(body);
+}
+
+/// A rigid body: mass properties and interface centroids from the whole mesh on rank 0,
+/// broadcast as one buffer, so that every rank, whatever the rank count, holds the same numbers
+/// to the last bit.
+void add_rigid_body(MPI_Comm comm, const io::BodySpec &spec, const io::MaterialSpec &mat,
+                    Scene &scene, SceneBody &sb) {
+  std::vector<double> buf(13 + 3 * spec.interfaces.size(), 0.0);
+  scene.meshes.push_back(mesh::load_body_mesh(comm, spec, [&](const mesh::MeshData &data) {
+    const bodies::MassProperties p = bodies::mass_properties(data, mat.density);
+    buf[0] = p.mass;
+    for (int k = 0; k < 3; ++k) buf[static_cast<std::size_t>(1 + k)] = p.center(k);
+    for (int k = 0; k < 9; ++k) buf[static_cast<std::size_t>(4 + k)] = p.inertia(k / 3, k % 3);
+    for (std::size_t i = 0; i < spec.interfaces.size(); ++i) {
+      const bodies::SurfaceCentroid sc = bodies::surface_centroid(data, spec.interfaces[i]);
+      for (int k = 0; k < 3; ++k) buf[13 + 3 * i + static_cast<std::size_t>(k)] = sc.centroid(k);
+    }
+  }));
+  MPI_Bcast(buf.data(), static_cast<int>(buf.size()), MPI_DOUBLE, 0, comm);
+  bodies::MassProperties p;
+  p.mass = buf[0];
+  p.center = Vec3(buf[1], buf[2], buf[3]);
+  for (int k = 0; k < 9; ++k) p.inertia(k / 3, k % 3) = buf[static_cast<std::size_t>(4 + k)];
+  for (std::size_t i = 0; i < spec.interfaces.size(); ++i)
+    sb.interfaces[spec.interfaces[i]] = Vec3(buf[13 + 3 * i], buf[14 + 3 * i], buf[15 + 3 * i]);
+  scene.mechanism.bodies.push_back(std::make_shared<bodies::RigidBody>(spec.name, p));
+  scene.owned_modes.emplace_back();
+  scene.reduction_seconds.push_back(0.0);
+  const Eigen::SelfAdjointEigenSolver<Mat3> principal(p.inertia);
+  print0(comm,
+         "body %s: rigid, mass %.6g kg, centre of mass (%.6g, %.6g, %.6g), principal inertia "
+         "(%.6g, %.6g, %.6g) kg m^2\n",
+         spec.name.c_str(), p.mass, p.center.x(), p.center.y(), p.center.z(),
+         principal.eigenvalues()(0), principal.eigenvalues()(1), principal.eigenvalues()(2));
+}
+
+/// The placed coordinates q0 and velocities v0 of the mechanism at t = 0.
+void place(MPI_Comm comm, const io::Case &c, Scene &scene) {
+  const Mechanism &mech = scene.mechanism;
   int total = 0;
   for (const auto &b : mech.bodies) total += b->coordinates();
   scene.q0.setZero(total);
   scene.v0.setZero(total);
-  for (std::size_t b = 0, o = 0; b < nbodies; ++b) {
+  for (std::size_t b = 0, o = 0; b < scene.bodies.size(); ++b) {
     const SceneBody &sb = scene.bodies[b];
     std::vector<int> list = sb.nodes; // an ACF body's interface nodes move with it
     if (sb.mechanism >= 0) list.push_back(sb.mechanism);
@@ -354,14 +339,50 @@ Scene build_scene(MPI_Comm comm, const io::Case &c) {
       scene.q0.segment(static_cast<Eigen::Index>(o), n) = q;
       scene.v0.segment(static_cast<Eigen::Index>(o), n) = v;
       // FFRF: the elastic coordinates follow the 7 frame coordinates.
-      if (elastic0[b].size() > 0)
-        scene.q0.segment(static_cast<Eigen::Index>(o) + 7, n - 7) = elastic0[b];
-      if (elastic_rate0[b].size() > 0)
-        scene.v0.segment(static_cast<Eigen::Index>(o) + 7, n - 7) = elastic_rate0[b];
+      if (sb.elastic0.size() > 0)
+        scene.q0.segment(static_cast<Eigen::Index>(o) + 7, n - 7) = sb.elastic0;
+      if (sb.elastic_rate0.size() > 0)
+        scene.v0.segment(static_cast<Eigen::Index>(o) + 7, n - 7) = sb.elastic_rate0;
       o += static_cast<std::size_t>(n);
     }
   }
+}
 
+} // namespace
+
+Scene load_bodies(MPI_Comm comm, const io::Case &c) {
+  Scene scene;
+  const std::size_t nbodies = c.bodies.size();
+  scene.meshes.reserve(nbodies); // the ACF bodies refer to their meshes
+  scene.bodies.resize(nbodies);
+  for (std::size_t b = 0; b < nbodies; ++b) {
+    const io::BodySpec &spec = c.bodies[b];
+    const auto &mat = c.material(spec.material);
+    SceneBody &sb = scene.bodies[b];
+    sb.mechanism = static_cast<int>(scene.mechanism.bodies.size());
+    const std::string model = io::simulated_model(spec.model);
+    if (model == "acf")
+      add_acf_body(comm, spec, mat, scene, sb);
+    else if (model == "ffrf")
+      add_ffrf_body(comm, spec, mat, scene, sb);
+    else
+      add_rigid_body(comm, spec, mat, scene, sb);
+    sb.position = v3(spec.initial.position);
+    sb.R = Eigen::AngleAxisd(spec.initial.angle, v3(spec.initial.axis)).toRotationMatrix();
+    sb.velocity = v3(spec.initial.velocity);
+    sb.omega = v3(spec.initial.angular_velocity);
+  }
+  return scene;
+}
+
+void connect(MPI_Comm comm, const io::Case &c, Scene &scene, bool report) {
+  Mechanism &mech = scene.mechanism;
+  mech.equations.clear();
+  mech.forces.clear();
+  scene.sensors.clear();
+  place(comm, c, scene);
+  std::map<std::string, std::size_t> body_index;
+  for (std::size_t b = 0; b < c.bodies.size(); ++b) body_index[c.bodies[b].name] = b;
   std::map<std::string, Vec3> ground;
   for (const auto &g : c.ground) ground[g.name] = v3(g.origin);
 
@@ -377,22 +398,21 @@ Scene build_scene(MPI_Comm comm, const io::Case &c) {
       a.world = a.s;
       return a;
     }
-    const auto ub = static_cast<std::size_t>(body_index.at(body));
+    const std::size_t ub = body_index.at(body);
     const SceneBody &sb = scene.bodies[ub];
     // An ACF body's interface: its interface node (reference point at the centroid).
     a.body = sb.mechanism >= 0 ? sb.mechanism : sb.nodes[interface_index(ub, iface)];
-    const Vec3 X = interfaces[ub].at(iface);
+    const Vec3 X = sb.interfaces.at(iface);
     a.s = X - mech.bodies[static_cast<std::size_t>(a.body)]->origin();
-    a.R = R0[ub];
-    a.world = origin[ub] + a.R * X;
-    if (reductions[ub]) {
+    a.R = sb.R;
+    a.world = sb.position + a.R * X;
+    if (sb.reduction) {
       const std::size_t i = interface_index(ub, iface);
-      a.translation = reductions[ub]->translation[i];
-      a.rotation = reductions[ub]->rotation[i];
+      a.translation = sb.reduction->translation[i];
+      a.rotation = sb.reduction->rotation[i];
     }
     return a;
   };
-
   // Euler-parameter normalization, one row per body, first.
   for (std::size_t b = 0; b < mech.bodies.size(); ++b) {
     Equation e;
@@ -425,7 +445,7 @@ Scene build_scene(MPI_Comm comm, const io::Case &c) {
       mech.equations.push_back(std::move(e));
   }
   // (A scene with ACF bodies is not projected: its initial state checks the joints instead.)
-  if (max_gap > 1e-9 && scene.acf.empty())
+  if (report && max_gap > 1e-9 && scene.acf.empty())
     print0(comm,
            "scene: the interfaces of joint %s are %.3g m apart in the initial placement; the "
            "initial conditions move the bodies to close the joints\n",
@@ -434,10 +454,11 @@ Scene build_scene(MPI_Comm comm, const io::Case &c) {
   for (const io::ForceSpec &f : c.forces) {
     PointForce pf;
     const Attachment a = attach(f.body, f.interface);
-    const auto ub = static_cast<std::size_t>(body_index.at(f.body));
+    const std::size_t ub = body_index.at(f.body);
     pf.body = a.body;
     pf.s = a.s;
-    if (reductions[ub]) pf.S = reductions[ub]->translation[interface_index(ub, f.interface)];
+    if (const auto &red = scene.bodies[ub].reduction)
+      pf.S = red->translation[interface_index(ub, f.interface)];
     for (int k = 0; k < 3; ++k)
       pf.value[static_cast<std::size_t>(k)] = Expression(f.value[static_cast<std::size_t>(k)]);
     mech.forces.push_back(pf);
@@ -446,7 +467,7 @@ Scene build_scene(MPI_Comm comm, const io::Case &c) {
     BoundSensor bs;
     bs.name = s.name;
     bs.quantity = s.quantity;
-    const auto ub = static_cast<std::size_t>(body_index.at(s.body));
+    const std::size_t ub = body_index.at(s.body);
     bs.point = v3(s.point);
     const SceneBody &sb = scene.bodies[ub];
     if (sb.acf >= 0) {
@@ -466,8 +487,8 @@ Scene build_scene(MPI_Comm comm, const io::Case &c) {
     }
     bs.body = sb.mechanism;
     bs.s = bs.point - mech.bodies[static_cast<std::size_t>(bs.body)]->origin();
-    if (reductions[ub])
-      bs.S = reduce::basis_at_point(scene.meshes[ub], *reductions[ub], bs.point,
+    if (sb.reduction)
+      bs.S = reduce::basis_at_point(scene.meshes[ub], *sb.reduction, bs.point,
                                     s.where.str() + ": sensor '" + s.name + "' point");
     scene.sensors.push_back(bs);
   }
@@ -478,7 +499,20 @@ Scene build_scene(MPI_Comm comm, const io::Case &c) {
   for (int b = 0; b < static_cast<int>(mech.bodies.size()); ++b)
     scene.length_scale =
         std::max(scene.length_scale, scene.q0.segment<3>(mech.offset(b)).cwiseAbs().maxCoeff());
+}
+
+Scene build_scene(MPI_Comm comm, const io::Case &c) {
+  Scene scene = load_bodies(comm, c);
+  connect(comm, c, scene, true);
   return scene;
+}
+
+void set_body_model(MPI_Comm comm, const io::Case &c, Scene &scene, std::size_t b,
+                    std::shared_ptr<bodies::Body> body) {
+  const int mb = scene.bodies.at(b).mechanism;
+  if (mb < 0) throw Error("set_body_model: body '" + c.bodies[b].name + "' is an ACF body", true);
+  scene.mechanism.bodies[static_cast<std::size_t>(mb)] = std::move(body);
+  connect(comm, c, scene, false);
 }
 
 void acf_initial_vectors(const Scene &scene, const DistributedAlpha &da, Vec &x0, Vec &v0) {

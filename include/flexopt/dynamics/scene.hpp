@@ -11,10 +11,15 @@
 #include "flexopt/mesh/distributed_mesh.hpp"
 
 #include <functional>
+#include <map>
 #include <memory>
 #include <mpi.h>
 #include <string>
 #include <vector>
+
+namespace flexopt::reduce {
+struct FlexibleReduction;
+}
 
 namespace flexopt::dynamics {
 
@@ -47,6 +52,12 @@ struct SceneBody {
   /// ACF: initial elastic displacement u(X) and velocity (mesh axes), added to the placement:
   /// x = position + R (X + u), v = velocity + omega x R (X + u) + R u'. Null: zero.
   std::function<Vec3(const Vec3 &)> u0, u0_rate;
+  /// The interface centroids (mesh coordinates) by name.
+  std::map<std::string, Vec3> interfaces;
+  /// FFRF: the reduction (interface motion in the order of the case's interfaces) and the
+  /// initial elastic coordinates zeta, zeta' (empty: zero). Null and empty otherwise.
+  std::shared_ptr<const reduce::FlexibleReduction> reduction;
+  bodies::Vector elastic0, elastic_rate0;
 };
 
 struct Scene {
@@ -102,9 +113,27 @@ joints::Equation driver_equation(const std::string &joint_type, const Attachment
                                  const Attachment &b, const Vec3 &axis,
                                  std::shared_ptr<const Expression> f, const std::string &owner);
 
-/// Builds the scene of a dynamic case. Collective; throws collective flexopt::Errors naming the
-/// case key for scene-level problems (an interface without area, a sensor on a missing body).
+/// A scene is built in two phases (docs/architecture.md, "Scenes"):
+///
+/// 1. load_bodies, once per run: every body meshed and distributed (Gmsh on rank 0, METIS),
+///    its model built (rigid mass properties integrated on rank 0 and broadcast, FFRF bodies
+///    reduced in parallel, ACF elements set up) and its interfaces located. This is the
+///    expensive part.
+/// 2. connect, after phase 1 and again whenever a body's model changes (a design evaluation
+///    replacing a body's model): the initial placement q0, v0, the joints and drivers as
+///    constraint equations, the loads and the sensors bound to the bodies, redundant rows
+///    dropped. Cheap. `report`: print the notes on the initial placement (the first time).
+///
+/// Both are collective and throw collective flexopt::Errors naming the case key for
+/// scene-level problems (an interface without area, a sensor on a missing body).
+Scene load_bodies(MPI_Comm comm, const io::Case &c);
+void connect(MPI_Comm comm, const io::Case &c, Scene &scene, bool report);
+/// Both phases: the scene of a dynamic case.
 Scene build_scene(MPI_Comm comm, const io::Case &c);
+/// Per design: case body b (rigid or FFRF) takes the model `body` (a design's mass
+/// properties, say) and the scene is connected again; no mesh is touched. Collective.
+void set_body_model(MPI_Comm comm, const io::Case &c, Scene &scene, std::size_t b,
+                    std::shared_ptr<bodies::Body> body);
 
 /// The initial positions and velocities of a scene with ACF bodies in the layout of `da` (built
 /// on the scene's ACF bodies, mechanism and interfaces): every ACF body placed rigidly, the
