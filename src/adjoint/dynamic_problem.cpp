@@ -57,9 +57,23 @@ Matrix initial_state_adjoint(const dynamics::GeneralizedAlpha &ga, const dynamic
     mech.add_constraint_hessian(s0.q, t0, Vector(nu_lambda.col(c)), H);
     gv.col(c) -= 2 * H * s0.v;
   }
-  // The velocity correction v0 = v_given + T y: dy = -Pi dW y, dW = T^T dM T.
+  // The velocity correction, as the forward start made it: first the rigid-body velocities,
+  // v_r = v_given + T y; then, if they cannot satisfy the joints, the elastic fallback
+  // v_0 = v_r + dv with [M J^T; J 0] [dv; mu] = [0; -(J v_r + Phi_t)] (section 9.2):
+  // nu = A^-T [gv; 0], dPsi/dx += -nu_v^T dM dv, and gv_r = gv - J^T nu_lambda.
   const dynamics::VelocityCorrection vc =
       dynamics::rigid_velocity_correction(mech, s0.q, v_given, t0);
+  if (m > 0 && vc.residual > dynamics::kVelocityTolerance * (1 + vc.scale)) {
+    const Vector dv = s0.v - (vc.dv.size() > 0 ? Vector(v_given + vc.dv) : v_given);
+    Matrix rhs_v = Matrix::Zero(n + m, r);
+    rhs_v.topRows(n) = gv;
+    const Matrix nu_v = lu.solve(rhs_v);
+    G += partials(s0.q, Vector::Zero(n), dv, false, -nu_v.topRows(n));
+    gv -= J.transpose() * nu_v.bottomRows(m);
+  }
+  // The rigid correction v_r = v_given + T y: dy = -Pi dW y, dW = T^T dM T (also for joints that
+  // rigid-body velocities cannot satisfy: y is then the least-W-norm solution of the consistent
+  // P y = P P^+ b, whose set of least-squares solutions does not depend on W).
   if (vc.T.size() == 0) return G;
   const Matrix U = vc.T * (vc.Pi * (vc.T.transpose() * gv));
   const Vector ay = vc.T * vc.y;
@@ -320,11 +334,6 @@ void DynamicProblem::evaluate_rigid(bool gradients, optimize::Evaluation &out) {
   const dynamics::GeneralizedAlpha ga(mech, par_, newton_);
   dynamics::StartReport start;
   StepRecord record{ga.initial_state(scene_.q0, scene_.v0, 0.0, &start), {}};
-  if (start.elastic_corrected)
-    throw Error(case_.file + ": initial velocities: the joints need a change of elastic "
-                             "velocities (section 6.4); the adjoint of that correction is not "
-                             "built: give consistent initial velocities",
-                true);
   const dynamics::State s0 = record.state;
   std::unique_ptr<BinomialSchedule> schedule;
   std::vector<char> keep;
