@@ -30,6 +30,7 @@ void DynamicProblem::evaluate_acf(bool gradients, optimize::Evaluation &out) {
   const dynamics::DistributedAlpha da(list, &mech, scene_.acf_interfaces, mech.gravity, par_,
                                       newton_);
   dynamics::StartReport start;
+  dynamics::StartTrace trace; // what the start did to the velocities (section 9.2)
   DistRecord record;
   {
     Vec x0, v0;
@@ -41,17 +42,8 @@ void DynamicProblem::evaluate_acf(bool gradients, optimize::Evaluation &out) {
         VecDestroy(&v);
       }
     } destroy{x0, v0};
-    record.state = da.initial_state(x0, v0, 0.0, &start);
+    record.state = da.initial_state(x0, v0, 0.0, &start, &trace);
   }
-  // The adjoint of the velocity correction is built for the dense backend only (section 9.2):
-  // the given velocities must already satisfy the joints (a scene started at rest does).
-  if (start.elastic_corrected || start.given_violation > 1e-12)
-    throw Error(case_.file +
-                    ": initial velocities: with an ACF design body the given "
-                    "velocities must satisfy the joints (max |Phi_q v + Phi_t| = " +
-                    std::to_string(start.given_violation) +
-                    "); the adjoint of the velocity correction is not built for ACF scenes yet",
-                true);
   // Which ACF body each strain energy response measures.
   std::vector<int> strain_body(nr, -1);
   for (std::size_t i = 0; i < nr; ++i)
@@ -245,22 +237,83 @@ void DynamicProblem::evaluate_acf(bool gradients, optimize::Evaluation &out) {
   std::vector<dynamics::DistState> gbar = sweep.finish(state_partials_dist(0, s0));
   // gbar = -mu_0 = dPsi/ds_0; the initial accelerations [M Phi_q^T; Phi_q 0] [acc; lambda] =
   // [Q; gamma] (section 9.2, stage 2): nu from the transposed system, then -nu_acc . dr/dtheta.
-  Vec cmask = da.create_vector(), rhs = da.create_vector(), nu = da.create_vector();
+  // Stages 3 and 4 (the velocities) only if the start changed them: gv = dPsi/dv_0 through the
+  // accelerations, then the elastic fallback v_0 = v_r + dv (nu_f = A^-T [gv; 0], -nu_f^T dM dv,
+  // gv -= Phi_q^T nu_f,lambda) and the rigid-body correction v_r = v_given + T y (z = Pi T^T gv,
+  // -(T z)^T dM (T y) on the design body's rigid velocity field).
+  const bool fallback = trace.fallback != nullptr;
+  const bool rigid = trace.rigid.T.size() > 0 && trace.rigid.y.size() > 0 &&
+                     trace.rigid.y.cwiseAbs().maxCoeff() > 0;
+  Vec cmask = da.create_vector(), lmask = da.create_vector(), rhs = da.create_vector(),
+      nu = da.create_vector(), gv = da.create_vector(), w = da.create_vector();
   da.coordinate_mask(cmask);
+  FX_PETSC(VecSet(lmask, 1.0));
+  FX_PETSC(VecAXPY(lmask, -1.0, cmask));
   std::vector<dynamics::DistState> minus_nu;
-  da.acceleration_matrix(s0);
+  std::vector<std::vector<double>> fallback_mu(na), field_mu(na);
+  const Eigen::Index field0 =
+      rigid ? trace.rigid.T.cols() - 6 * static_cast<Eigen::Index>(trace.fields.size()) : 0;
+  std::vector<double> xloc;
+  da.local_values(s0.q, design, xloc); // positions of the design body's local nodes
+  const Vec3 centre = rigid ? trace.fields[design].centre : Vec3::Zero();
+  // A rigid velocity field (du, dw) at the design body's local nodes.
+  auto field_values = [&](const dynamics::Vector6 &p, std::vector<double> &out) {
+    out.resize(xloc.size());
+    for (std::size_t i = 0; i + 2 < xloc.size(); i += 3) {
+      const Vec3 d =
+          p.head<3>() + p.tail<3>().cross(Vec3(xloc[i], xloc[i + 1], xloc[i + 2]) - centre);
+      for (int k = 0; k < 3; ++k) out[i + static_cast<std::size_t>(k)] = d(k);
+    }
+  };
+  Mat A = da.acceleration_matrix(s0);
   for (std::size_t a = 0; a < na; ++a) {
     dynamics::DistState &g = gbar[a];
     for (Vec x : {g.q, g.v, g.a, g.acc, g.lambda}) FX_PETSC(VecScale(x, -1.0));
     FX_PETSC(VecWAXPY(rhs, 1.0, g.acc, g.a));
     FX_PETSC(VecAXPY(rhs, 1.0, g.lambda));
     da.solve_transpose(rhs, nu);
-    dynamics::DistState w = da.zero_state();
-    FX_PETSC(VecPointwiseMult(w.acc, nu, cmask));
-    minus_nu.push_back(w);
+    dynamics::DistState mu0 = da.zero_state();
+    FX_PETSC(VecPointwiseMult(mu0.acc, nu, cmask));
+    minus_nu.push_back(mu0);
+    if (!fallback && !rigid) continue;
+    FX_PETSC(VecPointwiseMult(gv, g.v, cmask));
+    da.start_velocity_transpose(s0, nu, gv);
+    if (fallback) {
+      da.solve_transpose(gv, nu); // gv is zero on the multiplier entries
+      FX_PETSC(VecPointwiseMult(w, nu, cmask));
+      da.local_values(w, design, fallback_mu[a]);
+      FX_PETSC(VecPointwiseMult(w, nu, lmask));
+      FX_PETSC(MatMultTranspose(A, w, rhs)); // [Phi_q^T nu_lambda; 0]
+      FX_PETSC(VecAXPY(gv, -1.0, rhs));
+    }
+    if (rigid) {
+      const Vector z = trace.rigid.Pi * da.rigid_parameters_transpose(s0, trace, gv);
+      field_values(z.segment<6>(field0 + 6 * static_cast<Eigen::Index>(design)), field_mu[a]);
+    }
   }
   add_partials(s0, minus_nu, -1.0);
-  for (Vec *x : {&cmask, &rhs, &nu}) VecDestroy(x);
+  // -mu^T (dM/dw_e) u at the start for multiplier fields mu (one per active response) and one
+  // velocity field u: per element -dw_e mu_e^T M0_e u_e.
+  auto add_mass_terms = [&](const std::vector<std::vector<double>> &mus,
+                            const std::vector<double> &velocity) {
+    std::vector<const double *> ptr(na);
+    for (std::size_t a = 0; a < na; ++a) ptr[a] = mus[a].data();
+    const std::vector<double> u0 = displacement(s0, design);
+    body.design_partials(u0.data(), nullptr, velocity.data(), ptr, Vec3::Zero(), d_modulus, d_mass);
+    for (std::size_t a = 0; a < na; ++a)
+      for (std::size_t e = 0; e < ne; ++e) element_gradient_[active[a]][e] -= dw_[e] * d_mass[a][e];
+  };
+  if (fallback) {
+    std::vector<double> dv;
+    da.local_values(trace.fallback, design, dv);
+    add_mass_terms(fallback_mu, dv);
+  }
+  if (rigid) {
+    std::vector<double> uy;
+    field_values(trace.rigid.field[design], uy);
+    add_mass_terms(field_mu, uy);
+  }
+  for (Vec *x : {&cmask, &lmask, &rhs, &nu, &gv, &w}) VecDestroy(x);
   finish_adjoint(sweep.steps() + 1); // one factorization per backward step, one at the start
 }
 

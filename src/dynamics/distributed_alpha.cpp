@@ -768,7 +768,8 @@ void DistributedAlpha::add_small(Vec v, const Vector &values) const {
   FX_PETSC(VecSetValues(v, layout_->small_n, ic.data(), values.data(), ADD_VALUES));
 }
 
-DistState DistributedAlpha::initial_state(Vec q0, Vec v0, double t0, StartReport *report) const {
+DistState DistributedAlpha::initial_state(Vec q0, Vec v0, double t0, StartReport *report,
+                                          StartTrace *trace) const {
   const detail::AcfLayout &L = *layout_;
   const bool root = comm_rank(comm_) == 0;
   DistState s;
@@ -828,6 +829,10 @@ DistState DistributedAlpha::initial_state(Vec q0, Vec v0, double t0, StartReport
   if (small_) {
     const std::vector<RigidField> fields = rigid_fields(s);
     const VelocityCorrection c = rigid_velocity_correction(*small_, sm.q, sm.v, t0, fields);
+    if (trace) {
+      trace->rigid = c;
+      trace->fields = fields;
+    }
     PetscScalar *v;
     const PetscScalar *x;
     FX_PETSC(VecGetArray(s.v, &v));
@@ -857,16 +862,33 @@ DistState DistributedAlpha::initial_state(Vec q0, Vec v0, double t0, StartReport
     FX_PETSC(VecAXPY(s.v, 1.0, w_));
     sm = small_state(s);
     rep.elastic_corrected = true;
+    if (trace) {
+      FX_PETSC(VecDestroy(&trace->fallback));
+      trace->fallback = copy_of(w_);
+    }
   }
   rep.kinetic = kinetic_energy(s);
   if (report) *report = rep;
-  Vector phi_t, phi_tt, phi_qt_v;
   // Accelerations and multipliers: [M Phi_q^T; Phi_q 0] [acc; lambda] = [Q; gamma].
-  internal(s.q, nullptr, s.v);           // the damping force at the projected velocities
-  FX_PETSC(VecWAXPY(r_, -1.0, F_, fg_)); // f_g - f(x) - f_d(x, v) on the ACF rows, 0 elsewhere
+  start_rhs(s, r_);
+  solve("initial accelerations");
+  FX_PETSC(VecPointwiseMult(s.acc, dz_, cmask_));
+  FX_PETSC(VecPointwiseMult(s.lambda, dz_, lmask_));
+  FX_PETSC(VecCopy(s.acc, s.a));
+  return s;
+}
+
+void DistributedAlpha::start_rhs(const DistState &s, Vec r) const {
+  const detail::AcfLayout &L = *layout_;
+  const bool root = comm_rank(comm_) == 0;
+  const State sm = small_state(s);
+  const double t0 = s.t;
+  Vector phi_t, phi_tt, phi_qt_v;
+  internal(s.q, nullptr, s.v);          // the damping force at the velocities of s
+  FX_PETSC(VecWAXPY(r, -1.0, F_, fg_)); // f_g - f(x) - f_d(x, v) on the ACF rows, 0 elsewhere
   {
-    PetscScalar *r;
-    FX_PETSC(VecGetArray(r_, &r));
+    PetscScalar *ra;
+    FX_PETSC(VecGetArray(r, &ra));
     std::vector<double> gamma;
     for (std::size_t i = 0; i < L.ties.size(); ++i) {
       const TieSet &t = L.ties[i];
@@ -874,7 +896,7 @@ DistState DistributedAlpha::initial_state(Vec q0, Vec v0, double t0, StartReport
       const int o = small_ ? small_->offset(interfaces_[i].node_body) : 0;
       if (!t.s.empty()) tie_accelerations(t, sm.v.segment<4>(o + 3), gamma.data());
       for (std::size_t k = 0; k < gamma.size(); ++k)
-        r[t.row0 - L.start + static_cast<PetscInt>(k)] = gamma[k];
+        ra[t.row0 - L.start + static_cast<PetscInt>(k)] = gamma[k];
     }
     if (root && small_) {
       const int n = L.small_n, m = L.small_m;
@@ -882,16 +904,93 @@ DistState DistributedAlpha::initial_state(Vec q0, Vec v0, double t0, StartReport
       small_->dynamics(sm.q, sm.v, Vector::Zero(n), t0, r0, nullptr, nullptr, nullptr);
       small_->constraint_time_terms(sm.q, sm.v, t0, phi_t, phi_tt, phi_qt_v);
       const Vector gamma_s = -small_->constraint_convective(sm.q, sm.v, t0) - 2 * phi_qt_v - phi_tt;
-      for (int k = 0; k < n; ++k) r[L.small_coord0 + k] = -r0(k);
-      for (int k = 0; k < m; ++k) r[L.small_row0 + k] = gamma_s(k);
+      for (int k = 0; k < n; ++k) ra[L.small_coord0 + k] = -r0(k);
+      for (int k = 0; k < m; ++k) ra[L.small_row0 + k] = gamma_s(k);
     }
-    FX_PETSC(VecRestoreArray(r_, &r));
+    FX_PETSC(VecRestoreArray(r, &ra));
   }
-  solve("initial accelerations");
-  FX_PETSC(VecPointwiseMult(s.acc, dz_, cmask_));
-  FX_PETSC(VecPointwiseMult(s.lambda, dz_, lmask_));
-  FX_PETSC(VecCopy(s.acc, s.a));
-  return s;
+}
+
+void DistributedAlpha::start_velocity_transpose(const DistState &s0, Vec nu, Vec gv) const {
+  const detail::AcfLayout &L = *layout_;
+  // Q = f_g - f - f_d(x, v) on the ACF rows and -r(q, v, 0) on the small part's: -C^T nu.
+  FX_PETSC(VecPointwiseMult(w_, nu, cmask_));
+  velocity_transpose_multiply(s0, w_, dz_);
+  FX_PETSC(VecAXPY(gv, -1.0, dz_));
+  if (!small_) return;
+  const State sm = small_state(s0);
+  const int n = small_->coordinates(), m = small_->constraints(); // on every rank
+  // The ties: gamma_j = D(p', s_j) p' (3 rows per tied node), d gamma_j / dp' = 2 D(p', s_j);
+  // each rank sums over its tied nodes, rank 0 adds the total to the interface nodes' rates.
+  Vector local = Vector::Zero(n), total(n);
+  {
+    const PetscScalar *l;
+    FX_PETSC(VecGetArrayRead(nu, &l));
+    for (std::size_t i = 0; i < L.ties.size(); ++i) {
+      const TieSet &t = L.ties[i];
+      const int o = small_->offset(interfaces_[i].node_body);
+      const bodies::Vec4 pd = sm.v.segment<4>(o + 3);
+      for (std::size_t j = 0; j < t.s.size(); ++j) {
+        const PetscInt row = t.row0 - L.start + 3 * static_cast<PetscInt>(j);
+        const Vec3 w(l[row], l[row + 1], l[row + 2]);
+        local.segment<4>(o + 3) += 2 * bodies::rotate_jacobian(pd, t.s[j]).transpose() * w;
+      }
+    }
+    FX_PETSC(VecRestoreArrayRead(nu, &l));
+  }
+  MPI_Allreduce(local.data(), total.data(), n, MPI_DOUBLE, MPI_SUM, comm_);
+  if (comm_rank(comm_) == 0 && m > 0) {
+    // The small part's gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt: gamma_v^T nu_c =
+    // -2 (sum_i nu_c,i H_i) v - 2 Phi_qt^T nu_c, Phi_qt column by column from v -> Phi_qt v.
+    Vector nc(m);
+    const PetscScalar *l;
+    FX_PETSC(VecGetArrayRead(nu, &l));
+    for (int k = 0; k < m; ++k) nc(k) = l[L.small_row0 - L.start + k];
+    FX_PETSC(VecRestoreArrayRead(nu, &l));
+    Matrix H = Matrix::Zero(n, n);
+    small_->add_constraint_hessian(sm.q, s0.t, nc, H);
+    total -= 2 * H * sm.v;
+    Vector phi_t, phi_tt, phi_qt_v;
+    for (int j = 0; j < n; ++j) {
+      small_->constraint_time_terms(sm.q, Vector::Unit(n, j), s0.t, phi_t, phi_tt, phi_qt_v);
+      total(j) -= 2 * phi_qt_v.dot(nc);
+    }
+  }
+  // gv += gamma_v^T nu (the constraint rows' right-hand side is +gamma).
+  if (comm_rank(comm_) == 0) {
+    PetscScalar *g;
+    FX_PETSC(VecGetArray(gv, &g));
+    for (int k = 0; k < n; ++k) g[L.small_coord0 - L.start + k] += total(k);
+    FX_PETSC(VecRestoreArray(gv, &g));
+  }
+}
+
+Vector DistributedAlpha::rigid_parameters_transpose(const DistState &s0, const StartTrace &trace,
+                                                    Vec g) const {
+  const detail::AcfLayout &L = *layout_;
+  const auto k = trace.rigid.T.cols();
+  const Eigen::Index field0 = k - 6 * static_cast<Eigen::Index>(trace.fields.size());
+  Vector local = Vector::Zero(k), out(k);
+  const PetscScalar *ga, *x;
+  FX_PETSC(VecGetArrayRead(g, &ga));
+  FX_PETSC(VecGetArrayRead(s0.q, &x));
+  if (comm_rank(comm_) == 0 && small_)
+    for (int i = 0; i < L.small_n; ++i)
+      local += ga[L.small_coord0 - L.start + i] * trace.rigid.T.row(i).transpose();
+  for (std::size_t b = 0; b < trace.fields.size(); ++b) {
+    const PetscInt base = L.offset[b] - L.start;
+    for (PetscInt i = 0; i < bodies_[b]->mesh().owned_nodes; ++i) {
+      const Vec3 gi(ga[base + 3 * i], ga[base + 3 * i + 1], ga[base + 3 * i + 2]);
+      const Vec3 arm =
+          Vec3(x[base + 3 * i], x[base + 3 * i + 1], x[base + 3 * i + 2]) - trace.fields[b].centre;
+      local.segment<3>(field0 + 6 * static_cast<Eigen::Index>(b)) += gi;
+      local.segment<3>(field0 + 6 * static_cast<Eigen::Index>(b) + 3) += arm.cross(gi);
+    }
+  }
+  FX_PETSC(VecRestoreArrayRead(s0.q, &x));
+  FX_PETSC(VecRestoreArrayRead(g, &ga));
+  MPI_Allreduce(local.data(), out.data(), static_cast<int>(k), MPI_DOUBLE, MPI_SUM, comm_);
+  return out;
 }
 
 double DistributedAlpha::velocity_violation(const DistState &s, const State &small) const {

@@ -466,3 +466,83 @@ TEST(AcfMechanism, StartKeepsElasticVelocities) {
   EXPECT_NEAR(report.kinetic, p.da->kinetic_energy(s), 1e-12 * report.kinetic);
   EXPECT_LT(report.kinetic, report.kinetic_given); // the spin about x and the slip were removed
 }
+
+// The adjoint of the start's velocity dependence (docs/theory.md section 9.2, stage 2):
+// start_velocity_transpose adds (d[Q; gamma]/dv)^T nu, with [Q; gamma] = start_rhs. Every part of
+// [Q; gamma] is at most quadratic in v (the damping force linear, the rigid block's inertia
+// terms, the joints' and the ties' convective terms quadratic), so a central difference along
+// any dv is exact up to round-off: nu . (r(v + e dv) - r(v - e dv)) / (2 e) = dv . (gv - 0).
+// The damped pendulum spinning about z (0.3 rad/s about x too, an elastic bending rate), random
+// nu and dv, the parts of nu on the coordinates and on the constraints apart (leaving out the
+// ties' terms changes the second by 7 %).
+TEST(AcfMechanism, StartVelocityTransposeIsTheDerivativeOfTheRightHandSide) {
+  auto m = test_support::load_test_mesh("beam.geo", 0.05, 2);
+  const AcfPendulum p(m, 2.1e11, 0.8, 1e-3);
+  const Vec3 omega(0.3, 0, 2);
+  Vec x0 = p.da->create_vector(), v0 = p.da->create_vector();
+  p.da->set_nodal(x0, 0, [](const Eigen::Vector3d &X) { return X; });
+  p.da->set_nodal(v0, 0, [&](const Eigen::Vector3d &X) {
+    return Eigen::Vector3d(omega.cross(X) + Eigen::Vector3d(0, 0, 0.1 * X.x() * (1 - X.x())));
+  });
+  Vector q(p.mech.coordinates()), v(p.mech.coordinates());
+  for (int b = 0; b < 3; ++b) {
+    const Vector qb = p.mech.body(b).placement(Vec3::Zero(), bodies::Mat3::Identity());
+    q.segment(p.mech.offset(b), 7) = qb;
+    v.segment(p.mech.offset(b), 7) = p.mech.body(b).placement_velocity(qb, Vec3::Zero(), omega);
+  }
+  p.da->set_small(x0, q);
+  p.da->set_small(v0, v);
+  dynamics::DistState s = p.da->initial_state(x0, v0, 0.0);
+  VecDestroy(&x0);
+  VecDestroy(&v0);
+  // Random nu (all entries) and dv (the coordinates), the same on any number of ranks up to the
+  // layout: each entry from its global number.
+  Vec nu = p.da->create_vector(), dv = p.da->create_vector(), cmask = p.da->create_vector(),
+      gv = p.da->create_vector(), rp = p.da->create_vector(), rm = p.da->create_vector();
+  p.da->coordinate_mask(cmask);
+  PetscInt lo, hi;
+  VecGetOwnershipRange(nu, &lo, &hi);
+  for (PetscInt i = lo; i < hi; ++i) {
+    std::mt19937 gen(static_cast<unsigned>(1000 + i));
+    std::uniform_real_distribution<double> u(-1, 1);
+    VecSetValue(nu, i, u(gen), INSERT_VALUES);
+    VecSetValue(dv, i, u(gen), INSERT_VALUES);
+  }
+  for (Vec x : {nu, dv}) {
+    VecAssemblyBegin(x);
+    VecAssemblyEnd(x);
+  }
+  VecPointwiseMult(dv, dv, cmask);
+  const double e = 1e-2;
+  dynamics::DistState sp = s, sm = s;
+  VecAXPY(sp.v, e, dv);
+  VecAXPY(sm.v, -e, dv);
+  p.da->start_rhs(sp, rp);
+  p.da->start_rhs(sm, rm);
+  VecAXPY(rp, -1.0, rm);
+  // nu on the coordinate entries (Q: the damping and the block's inertia terms), then on the
+  // constraint entries (gamma: the ties' and the joints' convective terms), each on its own so
+  // that neither hides the other.
+  Vec part = p.da->create_vector(), mask = p.da->create_vector();
+  for (const bool coordinates : {true, false}) {
+    VecCopy(cmask, mask);
+    if (!coordinates) {
+      VecScale(mask, -1.0);
+      VecShift(mask, 1.0);
+    }
+    VecPointwiseMult(part, nu, mask);
+    VecZeroEntries(gv);
+    p.da->start_velocity_transpose(s, part, gv);
+    PetscScalar analytic, fd;
+    VecDot(dv, gv, &analytic);
+    VecDot(part, rp, &fd);
+    fd /= 2 * e;
+    if (comm_rank(m.comm) == 0)
+      std::printf("start velocity transpose, nu on the %s: dv . gv = %.12e, central difference "
+                  "%.12e\n",
+                  coordinates ? "coordinates" : "constraints", static_cast<double>(analytic),
+                  static_cast<double>(fd));
+    EXPECT_NEAR(analytic, fd, 1e-9 * std::abs(fd)) << (coordinates ? "Q" : "gamma");
+  }
+  for (Vec *x : {&nu, &dv, &cmask, &gv, &rp, &rm, &part, &mask}) VecDestroy(x);
+}

@@ -52,6 +52,20 @@ namespace detail {
 struct AcfLayout; ///< the DOF numbers of every body's local nodes, the ties, the scatters
 }
 
+/// What the consistent start of DistributedAlpha did to the velocities, for its adjoint
+/// (docs/theory.md section 9.2): the rigid-body correction over the small part's frames and the
+/// ACF bodies' rigid velocity fields, and the elastic fallback's change dv of all velocities
+/// (null if the rigid-body correction sufficed). Owns dv.
+struct StartTrace {
+  VelocityCorrection rigid;
+  std::vector<RigidField> fields; ///< per ACF body
+  Vec fallback = nullptr;
+  StartTrace() = default;
+  StartTrace(const StartTrace &) = delete;
+  StartTrace &operator=(const StartTrace &) = delete;
+  ~StartTrace() { VecDestroy(&fallback); }
+};
+
 class DistributedAlpha {
 public:
   /// ACF bodies (sharing one communicator), the small mechanism (finalized, identical on every
@@ -103,7 +117,27 @@ public:
   /// [Q; gamma]; a = acc. What the correction did goes into `report` (if non-null).
   /// Collective; throws a collective flexopt::Error naming the violated constraints, an
   /// inverted element or a singular system.
-  DistState initial_state(Vec q0, Vec v0, double t0, StartReport *report = nullptr) const;
+  DistState initial_state(Vec q0, Vec v0, double t0, StartReport *report = nullptr,
+                          StartTrace *trace = nullptr) const;
+  /// r = [Q; gamma] at s (its positions and velocities): the right-hand side of the start's
+  /// acceleration system [M Phi_q^T; Phi_q 0] [acc; lambda] = [Q; gamma], with Q = f_g - f(x) -
+  /// f_d(x, v) on the ACF rows and -r(q, v, 0) (Mechanism::dynamics) on the small part's, gamma
+  /// the ties' D(p', s_j) p' and the small part's -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt.
+  /// Collective.
+  void start_rhs(const DistState &s, Vec r) const;
+  /// gv += (d[Q; gamma]/dv)^T nu at the consistent start s0, on the coordinate entries
+  /// (docs/theory.md section 9.2, stage 2): the ACF bodies' damping and the small part's
+  /// velocity Jacobian (velocity_transpose_multiply), the small part's convective terms
+  /// gamma_v^T nu = -2 (sum_i nu_i H_i) v - 2 Phi_qt^T nu, and the ties'
+  /// gamma_j = D(p', s_j) p', whose derivative 2 D(p', s_j) acts on the interface nodes'
+  /// Euler-parameter rates. nu: a vector of this layout (multipliers on the constraint
+  /// entries). Collective.
+  void start_velocity_transpose(const DistState &s0, Vec nu, Vec gv) const;
+  /// T^T g for the rigid-body correction of the start (section 9.2, stage 3): the gradient with
+  /// respect to its parameters (the columns of trace.rigid.T for the small part's frames, then
+  /// per ACF body sum_i [g_i; (x_i - c) x g_i] over its nodes) of a gradient g on the
+  /// coordinates. Replicated on every rank. Collective.
+  Vector rigid_parameters_transpose(const DistState &s0, const StartTrace &trace, Vec g) const;
   /// Advances s by h to `next`, halving the step (recursively, up to max_halvings) when Newton
   /// fails. Returns false (and fills `info`) if even the smallest substep fails. Collective.
   bool advance(const DistState &s, double h, DistState &next, StepInfo &info,
