@@ -15,37 +15,41 @@
 // for the transposed solve; at t_n for a transposed product), IJacobianP twice, one LU.
 //
 //   ts_adjoint_bench -nx 16 -ny 16 -steps 200 -dt 1e-3 [-dense] [-fd_check] [PETSc TS/SNES options]
-#include <petscts.h>
 #include <cmath>
+#include <petscts.h>
 #include <vector>
 
 struct Spring {
-  PetscInt a, b;     // mass indices; a = -1: anchored at (ax, ay)
-  PetscReal ax, ay;  // anchor position
-  PetscReal rest;    // rest length L_s
+  PetscInt a, b;    // mass indices; a = -1: anchored at (ax, ay)
+  PetscReal ax, ay; // anchor position
+  PetscReal rest;   // rest length L_s
 };
 
 struct Model {
-  PetscInt nm, n;  // masses, unknowns (4 nm)
+  PetscInt nm, n; // masses, unknowns (4 nm)
   std::vector<Spring> springs;
-  std::vector<PetscReal> X;  // rest positions, 2 per mass
-  std::vector<PetscReal> k;  // parameters: spring stiffnesses
+  std::vector<PetscReal> X; // rest positions, 2 per mass
+  std::vector<PetscReal> k; // parameters: spring stiffnesses
   PetscReal mass = 1.0, c = 10.0, g = 9.81, w = 1.0;
-  PetscBool dense = PETSC_FALSE;         // Jacobian storage: MATSEQDENSE or MATSEQAIJ
-  int phase = 0;                         // 0: forward run, 1: adjoint sweep (for the counters)
-  long nF[2] = {0, 0}, nJ[2] = {0, 0}, nJp[2] = {0, 0};  // IFunction/IJacobian/IJacobianP calls
+  PetscBool dense = PETSC_FALSE; // Jacobian storage: MATSEQDENSE or MATSEQAIJ
+  int phase = 0;                 // 0: forward run, 1: adjoint sweep (for the counters)
+  long nF[2] = {0, 0}, nJ[2] = {0, 0}, nJp[2] = {0, 0}; // IFunction/IJacobian/IJacobianP calls
 };
 
 // Geometry of spring s at displacement u: unit direction n, length l, extension d.
 static void SpringState(const Model &M, const Spring &s, const PetscScalar *y, PetscReal n[2],
                         PetscReal &l, PetscReal &d) {
   PetscReal xa[2], xb[2];
-  if (s.a < 0) { xa[0] = s.ax; xa[1] = s.ay; }
-  else for (int q = 0; q < 2; q++) xa[q] = M.X[2 * s.a + q] + PetscRealPart(y[4 * s.a + q]);
+  if (s.a < 0) {
+    xa[0] = s.ax;
+    xa[1] = s.ay;
+  } else
+    for (int q = 0; q < 2; q++) xa[q] = M.X[2 * s.a + q] + PetscRealPart(y[4 * s.a + q]);
   for (int q = 0; q < 2; q++) xb[q] = M.X[2 * s.b + q] + PetscRealPart(y[4 * s.b + q]);
   PetscReal e[2] = {xb[0] - xa[0], xb[1] - xa[1]};
   l = std::sqrt(e[0] * e[0] + e[1] * e[1]);
-  n[0] = e[0] / l; n[1] = e[1] / l;
+  n[0] = e[0] / l;
+  n[1] = e[1] / l;
   d = l - s.rest;
 }
 
@@ -64,14 +68,14 @@ static PetscErrorCode IFunction(TS, PetscReal, Vec Y, Vec Ydot, Vec F, void *ctx
       f[4 * i + q] = yd[4 * i + q] - y[4 * i + 2 + q];
       f[4 * i + 2 + q] = M.mass * yd[4 * i + 2 + q];
     }
-    f[4 * i + 3] += M.mass * M.g;  // - m g_y with g_y = -g
+    f[4 * i + 3] += M.mass * M.g; // - m g_y with g_y = -g
   }
   for (size_t j = 0; j < M.springs.size(); j++) {
     const Spring &s = M.springs[j];
     PetscReal n[2], l, d;
     SpringState(M, s, y, n, l, d);
     PetscReal T = M.k[j] * (d + M.c * d * d * d);
-    for (int q = 0; q < 2; q++) {  // F_v = ... - f: f_a = +T n, f_b = -T n
+    for (int q = 0; q < 2; q++) { // F_v = ... - f: f_a = +T n, f_b = -T n
       if (s.a >= 0) f[4 * s.a + 2 + q] -= T * n[q];
       f[4 * s.b + 2 + q] += T * n[q];
     }
@@ -194,22 +198,32 @@ static PetscErrorCode IntegrandJacP(TS, PetscReal, Vec, Mat A, void *) {
 }
 
 static void BuildModel(Model &M, PetscInt nx, PetscInt ny, PetscReal k0) {
-  M.nm = nx * ny; M.n = 4 * M.nm;
-  auto id = [&](PetscInt i, PetscInt j) { return (i - 1) * ny + j; };  // i = 1..nx
+  M.nm = nx * ny;
+  M.n = 4 * M.nm;
+  auto id = [&](PetscInt i, PetscInt j) { return (i - 1) * ny + j; }; // i = 1..nx
   M.X.resize(2 * M.nm);
   for (PetscInt i = 1; i <= nx; i++)
-    for (PetscInt j = 0; j < ny; j++) { M.X[2 * id(i, j)] = i; M.X[2 * id(i, j) + 1] = j; }
+    for (PetscInt j = 0; j < ny; j++) {
+      M.X[2 * id(i, j)] = i;
+      M.X[2 * id(i, j) + 1] = j;
+    }
   auto add = [&](PetscInt i0, PetscInt j0, PetscInt i1, PetscInt j1) {
-    Spring s;  // from (i0, j0) to (i1, j1), i1 >= 1
-    s.a = i0 == 0 ? -1 : id(i0, j0); s.b = id(i1, j1);
-    s.ax = i0; s.ay = j0;
+    Spring s; // from (i0, j0) to (i1, j1), i1 >= 1
+    s.a = i0 == 0 ? -1 : id(i0, j0);
+    s.b = id(i1, j1);
+    s.ax = i0;
+    s.ay = j0;
     s.rest = std::sqrt((PetscReal)((i1 - i0) * (i1 - i0) + (j1 - j0) * (j1 - j0)));
     M.springs.push_back(s);
   };
   for (PetscInt i = 1; i <= nx; i++)
     for (PetscInt j = 0; j < ny; j++) {
       add(i - 1, j, i, j);
-      if (j + 1 < ny) { add(i, j, i, j + 1); add(i - 1, j, i, j + 1); add(i - 1, j + 1, i, j); }
+      if (j + 1 < ny) {
+        add(i, j, i, j + 1);
+        add(i - 1, j, i, j + 1);
+        add(i - 1, j + 1, i, j);
+      }
     }
   // stiffnesses vary a little from spring to spring so that the gradient has structure
   for (size_t s = 0; s < M.springs.size(); s++) M.k.push_back(k0 * (1.0 + 0.2 * std::sin(0.7 * s)));
@@ -218,7 +232,7 @@ static void BuildModel(Model &M, PetscInt nx, PetscInt ny, PetscReal k0) {
 struct Result {
   PetscReal psi = 0, fwd_s = 0, adj_s = 0;
   PetscInt steps = 0, newton = 0;
-  double lu[2] = {0, 0}, solves[2] = {0, 0};  // LU factorizations and triangular solves
+  double lu[2] = {0, 0}, solves[2] = {0, 0}; // LU factorizations and triangular solves
   std::vector<PetscReal> grad;
   char traj[64] = "none";
 };
@@ -252,8 +266,10 @@ static PetscErrorCode Run(Model &M, PetscInt steps, PetscReal dt, bool adjoint, 
   PetscFunctionBeginUser;
   PetscCall(PetscLogStageGetId("Forward", &stage[0]));
   PetscCall(PetscLogStageGetId("Adjoint", &stage[1]));
-  if (M.dense) PetscCall(MatCreateSeqDense(PETSC_COMM_SELF, M.n, M.n, NULL, &J));
-  else PetscCall(MatCreateSeqAIJ(PETSC_COMM_SELF, M.n, M.n, 20, NULL, &J));
+  if (M.dense)
+    PetscCall(MatCreateSeqDense(PETSC_COMM_SELF, M.n, M.n, NULL, &J));
+  else
+    PetscCall(MatCreateSeqAIJ(PETSC_COMM_SELF, M.n, M.n, 20, NULL, &J));
   PetscCall(MatCreateSeqAIJ(PETSC_COMM_SELF, M.n, np, 8, NULL, &Jp));
   PetscCall(MatCreateSeqDense(PETSC_COMM_SELF, M.n, 1, NULL, &Qj));
   PetscCall(MatCreateSeqDense(PETSC_COMM_SELF, np, 1, NULL, &Qp));
@@ -267,14 +283,14 @@ static PetscErrorCode Run(Model &M, PetscInt steps, PetscReal dt, bool adjoint, 
   PetscCall(TSSetIJacobianP(ts, Jp, IJacobianP, &M));
   PetscCall(TSSetTimeStep(ts, dt));
   PetscCall(TSSetMaxSteps(ts, steps));
-  PetscCall(TSSetMaxTime(ts, steps * dt * 2));  // the step count ends the run
+  PetscCall(TSSetMaxTime(ts, steps * dt * 2)); // the step count ends the run
   PetscCall(TSSetExactFinalTime(ts, TS_EXACTFINALTIME_MATCHSTEP));
   TSAdapt adapt;
   PetscCall(TSGetAdapt(ts, &adapt));
   PetscCall(TSAdaptSetType(adapt, TSADAPTNONE));
   PetscCall(TSGetSNES(ts, &snes));
   PetscCall(SNESGetKSP(snes, &ksp));
-  PetscCall(KSPSetType(ksp, KSPPREONLY));  // direct solves only: one LU per Jacobian
+  PetscCall(KSPSetType(ksp, KSPPREONLY)); // direct solves only: one LU per Jacobian
   PetscCall(KSPGetPC(ksp, &pc));
   PetscCall(PCSetType(pc, PCLU));
   // terminal cost phi = u_y(tip): lambda(T) = dphi/dy = e_tip, mu(T) = dphi/dk = 0
@@ -284,7 +300,7 @@ static PetscErrorCode Run(Model &M, PetscInt steps, PetscReal dt, bool adjoint, 
   PetscCall(VecAssemblyEnd(lambda));
   PetscCall(VecZeroEntries(mu));
   PetscCall(TSSetCostGradients(ts, 1, &lambda, &mu));
-  PetscCall(TSCreateQuadratureTS(ts, PETSC_TRUE, &quad));  // integral accumulated forward
+  PetscCall(TSCreateQuadratureTS(ts, PETSC_TRUE, &quad)); // integral accumulated forward
   PetscCall(TSSetRHSFunction(quad, NULL, Integrand, &M));
   PetscCall(TSSetRHSJacobian(quad, Qj, Qj, IntegrandJac, &M));
   PetscCall(TSSetRHSJacobianP(quad, Qp, IntegrandJacP, &M));
@@ -347,9 +363,13 @@ static PetscErrorCode Run(Model &M, PetscInt steps, PetscReal dt, bool adjoint, 
     M.phase = 0;
   }
   PetscCall(TSDestroy(&ts));
-  PetscCall(MatDestroy(&J)); PetscCall(MatDestroy(&Jp));
-  PetscCall(MatDestroy(&Qj)); PetscCall(MatDestroy(&Qp));
-  PetscCall(VecDestroy(&y)); PetscCall(VecDestroy(&lambda)); PetscCall(VecDestroy(&mu));
+  PetscCall(MatDestroy(&J));
+  PetscCall(MatDestroy(&Jp));
+  PetscCall(MatDestroy(&Qj));
+  PetscCall(MatDestroy(&Qp));
+  PetscCall(VecDestroy(&y));
+  PetscCall(VecDestroy(&lambda));
+  PetscCall(VecDestroy(&mu));
   PetscFunctionReturn(0);
 }
 
@@ -359,7 +379,7 @@ int main(int argc, char **argv) {
   PetscBool fd = PETSC_FALSE;
   PetscLogStage st;
   PetscCall(PetscInitialize(&argc, &argv, NULL, NULL));
-  PetscCall(PetscLogDefaultBegin());  // event counts (factorizations, solves) per stage
+  PetscCall(PetscLogDefaultBegin()); // event counts (factorizations, solves) per stage
   PetscCall(PetscLogStageRegister("Forward", &st));
   PetscCall(PetscLogStageRegister("Adjoint", &st));
   PetscCall(PetscOptionsGetInt(NULL, NULL, "-nx", &nx, NULL));
@@ -373,14 +393,16 @@ int main(int argc, char **argv) {
   BuildModel(M, nx, ny, k0);
   Result R;
   PetscCall(Run(M, steps, dt, true, R));
-  PetscCall(PetscPrintf(PETSC_COMM_SELF,
-    "unknowns=%" PetscInt_FMT " params=%zu steps=%" PetscInt_FMT " trajectory=%s forward_s=%.5f "
-    "adjoint_s=%.5f ratio=%.3f newton_fwd=%" PetscInt_FMT " F_fwd=%ld F_adj=%ld J_fwd=%ld J_adj=%ld "
-    "Jp_adj=%ld lu_fwd=%.0f lu_adj=%.0f solves_fwd=%.0f solves_adj=%.0f psi=%.10g\n",
-    M.n, M.springs.size(), R.steps, R.traj, R.fwd_s, R.adj_s, R.adj_s / R.fwd_s, R.newton,
-    M.nF[0], M.nF[1], M.nJ[0], M.nJ[1], M.nJp[1], R.lu[0], R.lu[1], R.solves[0], R.solves[1],
-    R.psi));
-  if (fd) {  // central differences in 3 stiffnesses against the adjoint gradient
+  PetscCall(PetscPrintf(
+      PETSC_COMM_SELF,
+      "unknowns=%" PetscInt_FMT " params=%zu steps=%" PetscInt_FMT " trajectory=%s forward_s=%.5f "
+      "adjoint_s=%.5f ratio=%.3f newton_fwd=%" PetscInt_FMT
+      " F_fwd=%ld F_adj=%ld J_fwd=%ld J_adj=%ld "
+      "Jp_adj=%ld lu_fwd=%.0f lu_adj=%.0f solves_fwd=%.0f solves_adj=%.0f psi=%.10g\n",
+      M.n, M.springs.size(), R.steps, R.traj, R.fwd_s, R.adj_s, R.adj_s / R.fwd_s, R.newton,
+      M.nF[0], M.nF[1], M.nJ[0], M.nJ[1], M.nJp[1], R.lu[0], R.lu[1], R.solves[0], R.solves[1],
+      R.psi));
+  if (fd) { // central differences in 3 stiffnesses against the adjoint gradient
     PetscInt np = M.springs.size(), idx[3] = {0, np / 2, np - 1};
     for (PetscInt q = 0; q < 3; q++) {
       PetscInt j = idx[q];
@@ -393,8 +415,9 @@ int main(int argc, char **argv) {
       }
       M.k[j] = k;
       PetscReal fdg = (psi[0] - psi[1]) / (2 * h);
-      PetscCall(PetscPrintf(PETSC_COMM_SELF, "fd_check param=%" PetscInt_FMT " adjoint=%.10e fd=%.10e rel_err=%.2e\n",
-                            j, R.grad[j], fdg, std::fabs(R.grad[j] - fdg) / std::fabs(fdg)));
+      PetscCall(PetscPrintf(
+          PETSC_COMM_SELF, "fd_check param=%" PetscInt_FMT " adjoint=%.10e fd=%.10e rel_err=%.2e\n",
+          j, R.grad[j], fdg, std::fabs(R.grad[j] - fdg) / std::fabs(fdg)));
     }
   }
   PetscCall(PetscFinalize());
