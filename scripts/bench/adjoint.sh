@@ -19,7 +19,7 @@ bench_init adjoint "$flexopt"
 steps="${FLEXOPT_BENCH_ADJOINT_STEPS:-2000}"
 repeat="${FLEXOPT_BENCH_REPEAT:-3}"
 ranks="${FLEXOPT_BENCH_RANKS:-1}"
-bench_table "Newton | checkpoints | storage | steps | forward_s | adjoint_s | adjoint / forward | recomputed steps | (forward + adjoint) / forward | stored states [kB]"
+bench_table "Newton | checkpoints | storage | steps | forward_s | adjoint_s | adjoint / forward | recomputed steps | (forward + adjoint) / forward | stored states [kB] | peak memory [MiB]"
 for reuse in 0.1 0; do
   for variant in all:memory 32:memory 32:disk; do
     checkpoints=${variant%%:*}
@@ -38,23 +38,24 @@ for reuse in 0.1 0; do
         { cat "$scene/log"; exit 1; }
       rows+=("$(python3 - "$scene/out/summary.json" <<'EOF'
 import json, sys
-a = json.load(open(sys.argv[1]))["adjoint"]
+s = json.load(open(sys.argv[1]))
+a = s["adjoint"]
 f, b = a["forward_s"], a["adjoint_s"]
-print(f"{f:.4f} {b:.4f} {b / f:.3f} {a['recomputed_steps']} {(f + b) / f:.3f} {a['checkpoint_bytes'] / 1e3:.1f} {a['steps']}")
+print(f"{f:.4f} {b:.4f} {b / f:.3f} {a['recomputed_steps']} {(f + b) / f:.3f} {a['checkpoint_bytes'] / 1e3:.1f} {a['steps']} {s['peak_memory_mib']:.0f}")
 EOF
 )")
     done
     median=$(printf '%s\n' "${rows[@]}" | sort -t' ' -k3,3n | sed -n "$(( (repeat + 1) / 2 ))p")
-    read -r f b ratio rec total kb n <<< "$median"
+    read -r f b ratio rec total kb n peak <<< "$median"
     newton=$([ "$reuse" = 0 ] && echo "proper" || echo "kept ($reuse)")
-    echo "| $newton | $checkpoints | $storage | $n | $f | $b | $ratio | $rec | $total | $kb |" | tee -a "$results"
+    echo "| $newton | $checkpoints | $storage | $n | $f | $b | $ratio | $rec | $total | $kb | $peak |" | tee -a "$results"
   done
 done
 # ACF design body (tests/gradient/acf_pendulum: a soft hinged link, 50 steps of 2 ms) at about
 # 1k and 10k DOFs (Tet4 at 2.5 cm and 1 cm), every state kept, the case's kept Newton matrices.
 if [ "${FLEXOPT_BENCH_ACF:-1}" != 0 ]; then
-  { echo; echo "| ACF link | DOFs | steps | forward_s | adjoint_s | adjoint / forward | adjoint factorizations | stored states [MB] |"
-    echo "|---|---|---|---|---|---|---|---|"; } >> "$results"
+  { echo; echo "| ACF link | DOFs | steps | forward_s | adjoint_s | adjoint / forward | adjoint factorizations | stored states [MB] | peak memory [MiB] |"
+    echo "|---|---|---|---|---|---|---|---|---|"; } >> "$results"
   for size in 0.025 0.01; do
     scene="$work/acf_pendulum_$size"
     mkdir -p "$scene"
@@ -70,7 +71,7 @@ s = json.load(open(sys.argv[1]))
 a = s["adjoint"]
 dofs = sum(b.get("dofs", 0) for b in s["bodies"])
 f, b = a["forward_s"], a["adjoint_s"]
-print(f"| {sys.argv[2]} m Tet4 | {dofs} | {a['steps']} | {f:.3f} | {b:.3f} | {b / f:.2f} | {a['adjoint_factorizations']} | {a['checkpoint_bytes'] / 1e6:.1f} |")
+print(f"| {sys.argv[2]} m Tet4 | {dofs} | {a['steps']} | {f:.3f} | {b:.3f} | {b / f:.2f} | {a['adjoint_factorizations']} | {a['checkpoint_bytes'] / 1e6:.1f} | {s['peak_memory_mib']:.0f} |")
 EOF2
   done
 fi

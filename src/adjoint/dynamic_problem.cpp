@@ -174,10 +174,6 @@ std::unique_ptr<DynamicProblem> DynamicProblem::create(MPI_Comm comm, const io::
   const dynamics::SceneBody &dsb = p->scene_.bodies[static_cast<std::size_t>(p->design_body_)];
   p->mechanism_body_ = dsb.mechanism;
   p->acf_design_ = dsb.acf;
-  if (model == "rigid" && !p->scene_.acf.empty())
-    throw Error(d.where.str() + ": a rigid design body in a scene with ACF bodies is not built "
-                                "yet (its partials on the distributed backend)",
-                true);
   const mesh::DistributedMesh &m = p->scene_.meshes[static_cast<std::size_t>(p->design_body_)];
   p->field_ = std::make_unique<optimize::DesignField>(m, d);
   p->grad_physical_ = p->field_->filter().create_element_vector();
@@ -207,11 +203,11 @@ std::unique_ptr<DynamicProblem> DynamicProblem::create(MPI_Comm comm, const io::
     p->sensor_of_.push_back(sensor);
     if (r->type == "strain_energy_integral") {
       const std::string bm = io::simulated_model(c.body(r->body).model);
-      if (bm != "acf" || model != "acf")
+      if (bm != "acf")
         throw Error(r->where.str() + ": strain_energy_integral of body '" + r->body +
                         "' (simulated as " + bm +
-                        "): built for ACF bodies in a scene with an ACF design body (FFRF "
-                        "bodies follow; a rigid body has no strain energy)",
+                        "): built for ACF bodies (FFRF bodies follow; a rigid body has no strain "
+                        "energy)",
                     true);
     }
     if (sensor >= 0 && model == "acf") {
@@ -274,8 +270,8 @@ void DynamicProblem::evaluate(Vec x, bool gradients, optimize::Evaluation &out) 
   field_->stiffness_factors(s_, ds_);
   const std::size_t nr = specs_.size();
   element_gradient_.assign(nr, std::vector<double>(static_cast<std::size_t>(ne), 0.0));
-  if (acf_design_ >= 0)
-    evaluate_acf(gradients, out);
+  if (!scene_.acf.empty())
+    evaluate_distributed(gradients, out);
   else
     evaluate_rigid(gradients, out);
   if (!gradients) return;
@@ -315,17 +311,33 @@ void DynamicProblem::evaluate(Vec x, bool gradients, optimize::Evaluation &out) 
   }
 }
 
-void DynamicProblem::evaluate_rigid(bool gradients, optimize::Evaluation &out) {
+void DynamicProblem::set_rigid_design() {
   const mesh::DistributedMesh &m = mesh();
-  const PetscInt ne = m.local_elements();
   bodies::MassParameters local = bodies::MassParameters::Zero();
-  for (PetscInt e = 0; e < ne; ++e)
+  for (PetscInt e = 0; e < m.local_elements(); ++e)
     local += w_[static_cast<std::size_t>(e)] * element_theta_[static_cast<std::size_t>(e)];
   MPI_Allreduce(local.data(), theta_.data(), 10, MPI_DOUBLE, MPI_SUM, m.comm);
   dynamics::set_body_model(
       m.comm, case_, scene_, static_cast<std::size_t>(design_body_),
       std::make_shared<bodies::RigidBody>(case_.bodies[static_cast<std::size_t>(design_body_)].name,
                                           bodies::from_parameters(theta_, reference_)));
+}
+
+void DynamicProblem::add_rigid_element_gradients(const Matrix &G) {
+  // dPsi/dw_e = G . theta_e (+ m_e for the design body's mass), then dw/d(physical).
+  const PetscInt ne = mesh().local_elements();
+  for (std::size_t i = 0; i < specs_.size(); ++i) {
+    const io::ResponseSpec &r = *specs_[i];
+    Vector g = G.col(static_cast<Eigen::Index>(i));
+    if (r.type == "mass" && r.body == case_.design->body) g(0) += 1;
+    for (PetscInt e = 0; e < ne; ++e)
+      element_gradient_[i][static_cast<std::size_t>(e)] +=
+          dw_[static_cast<std::size_t>(e)] * g.dot(element_theta_[static_cast<std::size_t>(e)]);
+  }
+}
+
+void DynamicProblem::evaluate_rigid(bool gradients, optimize::Evaluation &out) {
+  set_rigid_design();
   dynamics::Mechanism &mech = scene_.mechanism;
 
   // Forward run (section 9.4): the records the backward sweep needs go to the store, all of
@@ -393,16 +405,7 @@ void DynamicProblem::evaluate_rigid(bool gradients, optimize::Evaluation &out) {
                              [&](const Vector &q, const Vector &v, const Vector &a, bool gravity,
                                  const Matrix &W) { return design_partials(q, v, a, gravity, W); });
   adjoint_s_ = wall_time() - t_adjoint;
-
-  // dPsi/dw_e = G . theta_e (+ m_e for the design body's mass), then dw/d(physical).
-  for (std::size_t i = 0; i < nr; ++i) {
-    const io::ResponseSpec &r = *specs_[i];
-    Vector g = G.col(static_cast<Eigen::Index>(i));
-    if (r.type == "mass" && r.body == case_.design->body) g(0) += 1;
-    for (PetscInt e = 0; e < ne; ++e)
-      element_gradient_[i][static_cast<std::size_t>(e)] =
-          dw_[static_cast<std::size_t>(e)] * g.dot(element_theta_[static_cast<std::size_t>(e)]);
-  }
+  add_rigid_element_gradients(G);
 }
 
 std::vector<char>

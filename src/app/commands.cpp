@@ -19,6 +19,7 @@
 #include <cmath>
 #include <cstdint>
 #include <filesystem>
+#include <sys/resource.h>
 
 namespace fs = std::filesystem;
 
@@ -69,6 +70,13 @@ io::Json base_summary(const Context &ctx, const Options &o, const io::Case &c) {
 
 void write_summary(const Context &ctx, const std::string &dir, io::Json &s, double t0) {
   s["wall_s"] = wall_time() - t0;
+  // The peak resident set of the largest rank (getrusage: KiB on Linux; MUMPS's and Gmsh's
+  // allocations included, which PETSc's memory counters miss).
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  double peak = static_cast<double>(usage.ru_maxrss) / 1024.0;
+  MPI_Allreduce(MPI_IN_PLACE, &peak, 1, MPI_DOUBLE, MPI_MAX, ctx.comm());
+  s["peak_memory_mib"] = peak;
   run_on_root(ctx.comm(), 0, [&] {
     io::write_file_atomic((fs::path(dir) / "summary.json").string(), s.dump() + "\n");
   });

@@ -101,8 +101,14 @@ private:
   /// The rigid design body on the dense backend (sections 9.1-9.5): responses into `out`,
   /// with gradients dPsi/d(physical density) into element_gradient_.
   void evaluate_rigid(bool gradients, optimize::Evaluation &out);
-  /// The ACF design body on the distributed backend (sections 9.6, 9.7), the same outputs.
-  void evaluate_acf(bool gradients, optimize::Evaluation &out);
+  /// A scene with ACF bodies on the distributed backend (sections 9.6, 9.7), its design body
+  /// ACF or rigid, the same outputs.
+  void evaluate_distributed(bool gradients, optimize::Evaluation &out);
+  /// The rigid design body's mass parameters theta from the mass factors, the body replaced.
+  void set_rigid_design();
+  /// element_gradient_ += dPsi/dw_e = G . theta_e (and the design body's own mass) times dw_e,
+  /// from G = dPsi/dtheta (10 x responses).
+  void add_rigid_element_gradients(const Matrix &G);
   /// Which main steps the forward run stores (all, or step 0, the binomial schedule's first
   /// descent and the last step, with the schedule).
   std::vector<char> plan_checkpoints(std::unique_ptr<BinomialSchedule> &schedule) const;

@@ -1,6 +1,7 @@
-// DynamicProblem with an ACF design body (docs/theory.md sections 9.6 and 9.7): the forward run
-// on the distributed backend with every state kept, the responses, the backward sweep with the
-// element partials, and the adjoint of the initial accelerations.
+// DynamicProblem on the distributed backend (docs/theory.md sections 9.6 and 9.7), for a scene
+// with ACF bodies whose design body is ACF (element partials) or rigid (mass-parameter partials
+// on the small part): the forward run with the states kept or checkpointed, the responses, the
+// backward sweep with the design partials, and the adjoint of the consistent start (9.2).
 #include "flexopt/adjoint/dist_sweep.hpp"
 #include "flexopt/adjoint/dynamic_problem.hpp"
 #include "flexopt/core/context.hpp"
@@ -14,16 +15,21 @@ namespace flexopt::adjoint {
 
 namespace {} // namespace
 
-void DynamicProblem::evaluate_acf(bool gradients, optimize::Evaluation &out) {
+void DynamicProblem::evaluate_distributed(bool gradients, optimize::Evaluation &out) {
   const mesh::DistributedMesh &m = mesh();
   const auto ne = static_cast<std::size_t>(m.local_elements());
-  const auto design = static_cast<std::size_t>(acf_design_);
-  bodies::AcfBody &body = *scene_.acf[design];
-  body.set_factors(s_, w_);
+  const bool acf = acf_design_ >= 0; // else a rigid design body in the small part
+  const auto design = static_cast<std::size_t>(acf ? acf_design_ : 0);
+  if (acf)
+    scene_.acf[design]->set_factors(s_, w_);
+  else
+    set_rigid_design();
+  bodies::AcfBody *body = acf ? scene_.acf[design].get() : nullptr;
+  const std::size_t nr = specs_.size();
+  Matrix G = Matrix::Zero(10, static_cast<Eigen::Index>(nr)); // rigid: dPsi/dtheta
   std::vector<const bodies::AcfBody *> list;
   for (const auto &a : scene_.acf) list.push_back(a.get());
   dynamics::Mechanism &mech = scene_.mechanism;
-  const std::size_t nr = specs_.size();
   const double h = case_.time.step;
 
   const double t_forward = wall_time();
@@ -88,7 +94,7 @@ void DynamicProblem::evaluate_acf(bool gradients, optimize::Evaluation &out) {
         double total = 0;
         MPI_Allreduce(&local, &total, 1, MPI_DOUBLE, MPI_SUM, m.comm);
         energy[i].push_back(total);
-        if (b == design) {
+        if (acf && b == design) {
           // Kept per step: the direct partial sum_n w_n U_e / s_e needs the weights (N known).
           energy_steps.insert(energy_steps.end(), Ue.begin(), Ue.end());
         }
@@ -112,11 +118,11 @@ void DynamicProblem::evaluate_acf(bool gradients, optimize::Evaluation &out) {
   }
   if (!finish_forward(t_forward, gradients, out)) return;
 
-  // Direct partials: the strain energy's sum_n w_n U_e / s_e, the mass's rho V_e.
+  // Direct partials of an ACF design body: the strain energy's sum_n w_n U_e / s_e, the mass's
+  // rho V_e (a rigid design body's mass: add_rigid_element_gradients).
   const std::vector<double> volume = fem::element_volumes(m);
-  const double density = body.material().density;
-  for (std::size_t i = 0; i < nr; ++i) {
-    if (strain_body[i] == acf_design_ && acf_design_ >= 0) {
+  for (std::size_t i = 0; i < nr && acf; ++i) {
+    if (strain_body[i] == acf_design_) {
       std::size_t column = 0; // energy_steps holds ne values per step for each such response
       for (std::size_t k = 0; k < i; ++k) column += strain_body[k] == acf_design_ ? 1 : 0;
       const std::size_t per_step =
@@ -128,7 +134,8 @@ void DynamicProblem::evaluate_acf(bool gradients, optimize::Evaluation &out) {
                                      energy_steps[n * per_step + column * ne + e];
     }
     if (specs_[i]->type == "mass" && specs_[i]->body == case_.design->body)
-      for (std::size_t e = 0; e < ne; ++e) element_gradient_[i][e] += dw_[e] * density * volume[e];
+      for (std::size_t e = 0; e < ne; ++e)
+        element_gradient_[i][e] += dw_[e] * body->material().density * volume[e];
   }
 
   // Backward sweep over every kept state (section 9.7), the element partials at each, for the
@@ -149,6 +156,7 @@ void DynamicProblem::evaluate_acf(bool gradients, optimize::Evaluation &out) {
   if (na == 0) { // no backward sweep: every gradient is the direct partial
     recomputed_ = 0;
     finish_adjoint(0);
+    if (!acf) add_rigid_element_gradients(G);
     return;
   }
   DistBackwardSweep sweep(da, static_cast<int>(na));
@@ -195,11 +203,22 @@ void DynamicProblem::evaluate_acf(bool gradients, optimize::Evaluation &out) {
   std::vector<std::vector<double>> d_modulus, d_mass, mu_d(na);
   std::vector<double> u, v, acc;
   std::vector<const double *> mu_ptr(na);
-  // G_e += ds mu . dR/ds_e + dw mu . dR/dw_e at state s for the multipliers mu (one per active
-  // response), in one element loop.
+  // The design partials mu . dR/dx at state s for the multipliers mu (one per active response):
+  // an ACF design body's G_e += ds mu . dR/ds_e + dw mu . dR/dw_e in one element loop; a rigid
+  // one's dPsi/dtheta += (dr/dtheta)^T mu_d on the small part.
   auto add_partials = [&](const dynamics::DistState &s, const std::vector<dynamics::DistState> &mu,
                           double sign) {
     if (na == 0) return;
+    if (!acf) {
+      const dynamics::State sm = da.small_state(s);
+      Matrix W(sm.q.size(), static_cast<Eigen::Index>(na));
+      for (std::size_t a = 0; a < na; ++a)
+        W.col(static_cast<Eigen::Index>(a)) = da.small_state(mu[a]).acc;
+      const Matrix P = design_partials(sm.q, sm.v, sm.acc, true, W);
+      for (std::size_t a = 0; a < na; ++a)
+        G.col(static_cast<Eigen::Index>(active[a])) += sign * P.col(static_cast<Eigen::Index>(a));
+      return;
+    }
     u = displacement(s, design);
     da.local_values(s.v, design, v);
     da.local_values(s.acc, design, acc);
@@ -207,7 +226,7 @@ void DynamicProblem::evaluate_acf(bool gradients, optimize::Evaluation &out) {
       da.local_values(mu[a].acc, design, mu_d[a]);
       mu_ptr[a] = mu_d[a].data();
     }
-    body.design_partials(u.data(), v.data(), acc.data(), mu_ptr, mech.gravity, d_modulus, d_mass);
+    body->design_partials(u.data(), v.data(), acc.data(), mu_ptr, mech.gravity, d_modulus, d_mass);
     for (std::size_t a = 0; a < na; ++a)
       for (std::size_t e = 0; e < ne; ++e)
         element_gradient_[active[a]][e] +=
@@ -242,21 +261,30 @@ void DynamicProblem::evaluate_acf(bool gradients, optimize::Evaluation &out) {
   // gv -= Phi_q^T nu_f,lambda) and the rigid-body correction v_r = v_given + T y (z = Pi T^T gv,
   // -(T z)^T dM (T y) on the design body's rigid velocity field).
   const bool fallback = trace.fallback != nullptr;
-  const bool rigid = trace.rigid.T.size() > 0 && trace.rigid.y.size() > 0 &&
-                     trace.rigid.y.cwiseAbs().maxCoeff() > 0;
+  const bool corrected = trace.rigid.T.size() > 0 && trace.rigid.y.size() > 0 &&
+                         trace.rigid.y.cwiseAbs().maxCoeff() > 0;
   Vec cmask = da.create_vector(), lmask = da.create_vector(), rhs = da.create_vector(),
       nu = da.create_vector(), gv = da.create_vector(), w = da.create_vector();
   da.coordinate_mask(cmask);
   FX_PETSC(VecSet(lmask, 1.0));
   FX_PETSC(VecAXPY(lmask, -1.0, cmask));
   std::vector<dynamics::DistState> minus_nu;
+  // Per active response: the fallback's multiplier nu_f and the rigid correction's z, at the
+  // design body's local nodes (ACF) or on the small part (rigid).
   std::vector<std::vector<double>> fallback_mu(na), field_mu(na);
+  Matrix fallback_small(mech.coordinates(), static_cast<Eigen::Index>(na)),
+      field_small(mech.coordinates(), static_cast<Eigen::Index>(na));
+  auto small_part = [&](Vec x) {
+    dynamics::DistState t = da.zero_state();
+    FX_PETSC(VecCopy(x, t.q));
+    return Vector(da.small_state(t).q);
+  };
   const Eigen::Index field0 =
-      rigid ? trace.rigid.T.cols() - 6 * static_cast<Eigen::Index>(trace.fields.size()) : 0;
+      corrected ? trace.rigid.T.cols() - 6 * static_cast<Eigen::Index>(trace.fields.size()) : 0;
   std::vector<double> xloc;
-  da.local_values(s0.q, design, xloc); // positions of the design body's local nodes
-  const Vec3 centre = rigid ? trace.fields[design].centre : Vec3::Zero();
-  // A rigid velocity field (du, dw) at the design body's local nodes.
+  if (acf) da.local_values(s0.q, design, xloc); // positions of the design body's local nodes
+  const Vec3 centre = corrected && acf ? trace.fields[design].centre : Vec3::Zero();
+  // A rigid velocity field (du, dw) at the ACF design body's local nodes.
   auto field_values = [&](const dynamics::Vector6 &p, std::vector<double> &out) {
     out.resize(xloc.size());
     for (std::size_t i = 0; i + 2 < xloc.size(); i += 3) {
@@ -267,6 +295,7 @@ void DynamicProblem::evaluate_acf(bool gradients, optimize::Evaluation &out) {
   };
   Mat A = da.acceleration_matrix(s0);
   for (std::size_t a = 0; a < na; ++a) {
+    const auto col = static_cast<Eigen::Index>(a);
     dynamics::DistState &g = gbar[a];
     for (Vec x : {g.q, g.v, g.a, g.acc, g.lambda}) FX_PETSC(VecScale(x, -1.0));
     FX_PETSC(VecWAXPY(rhs, 1.0, g.acc, g.a));
@@ -275,46 +304,69 @@ void DynamicProblem::evaluate_acf(bool gradients, optimize::Evaluation &out) {
     dynamics::DistState mu0 = da.zero_state();
     FX_PETSC(VecPointwiseMult(mu0.acc, nu, cmask));
     minus_nu.push_back(mu0);
-    if (!fallback && !rigid) continue;
+    if (!fallback && !corrected) continue;
     FX_PETSC(VecPointwiseMult(gv, g.v, cmask));
     da.start_velocity_transpose(s0, nu, gv);
     if (fallback) {
       da.solve_transpose(gv, nu); // gv is zero on the multiplier entries
       FX_PETSC(VecPointwiseMult(w, nu, cmask));
-      da.local_values(w, design, fallback_mu[a]);
+      if (acf)
+        da.local_values(w, design, fallback_mu[a]);
+      else
+        fallback_small.col(col) = small_part(w);
       FX_PETSC(VecPointwiseMult(w, nu, lmask));
       FX_PETSC(MatMultTranspose(A, w, rhs)); // [Phi_q^T nu_lambda; 0]
       FX_PETSC(VecAXPY(gv, -1.0, rhs));
     }
-    if (rigid) {
+    if (corrected) {
       const Vector z = trace.rigid.Pi * da.rigid_parameters_transpose(s0, trace, gv);
-      field_values(z.segment<6>(field0 + 6 * static_cast<Eigen::Index>(design)), field_mu[a]);
+      if (acf)
+        field_values(z.segment<6>(field0 + 6 * static_cast<Eigen::Index>(design)), field_mu[a]);
+      else
+        field_small.col(col) = trace.rigid.T * z;
     }
   }
   add_partials(s0, minus_nu, -1.0);
-  // -mu^T (dM/dw_e) u at the start for multiplier fields mu (one per active response) and one
-  // velocity field u: per element -dw_e mu_e^T M0_e u_e.
+  // -mu^T (dM/dx) u at the start for multipliers mu (one per active response) and one velocity
+  // change u: per element -dw_e mu_e^T M0_e u_e of an ACF design body, or -(dM/dtheta u)^T mu
+  // of a rigid one.
   auto add_mass_terms = [&](const std::vector<std::vector<double>> &mus,
                             const std::vector<double> &velocity) {
     std::vector<const double *> ptr(na);
     for (std::size_t a = 0; a < na; ++a) ptr[a] = mus[a].data();
     const std::vector<double> u0 = displacement(s0, design);
-    body.design_partials(u0.data(), nullptr, velocity.data(), ptr, Vec3::Zero(), d_modulus, d_mass);
+    body->design_partials(u0.data(), nullptr, velocity.data(), ptr, Vec3::Zero(), d_modulus,
+                          d_mass);
     for (std::size_t a = 0; a < na; ++a)
       for (std::size_t e = 0; e < ne; ++e) element_gradient_[active[a]][e] -= dw_[e] * d_mass[a][e];
   };
+  auto add_small_mass_terms = [&](const Matrix &mus, const Vector &velocity) {
+    const dynamics::State sm = da.small_state(s0);
+    const Matrix P = design_partials(sm.q, Vector::Zero(sm.q.size()), velocity, false, mus);
+    for (std::size_t a = 0; a < na; ++a)
+      G.col(static_cast<Eigen::Index>(active[a])) -= P.col(static_cast<Eigen::Index>(a));
+  };
   if (fallback) {
-    std::vector<double> dv;
-    da.local_values(trace.fallback, design, dv);
-    add_mass_terms(fallback_mu, dv);
+    if (acf) {
+      std::vector<double> dv;
+      da.local_values(trace.fallback, design, dv);
+      add_mass_terms(fallback_mu, dv);
+    } else {
+      add_small_mass_terms(fallback_small, small_part(trace.fallback));
+    }
   }
-  if (rigid) {
-    std::vector<double> uy;
-    field_values(trace.rigid.field[design], uy);
-    add_mass_terms(field_mu, uy);
+  if (corrected) {
+    if (acf) {
+      std::vector<double> uy;
+      field_values(trace.rigid.field[design], uy);
+      add_mass_terms(field_mu, uy);
+    } else {
+      add_small_mass_terms(field_small, trace.rigid.T * trace.rigid.y);
+    }
   }
   for (Vec *x : {&cmask, &lmask, &rhs, &nu, &gv, &w}) VecDestroy(x);
   finish_adjoint(sweep.steps() + 1); // one factorization per backward step, one at the start
+  if (!acf) add_rigid_element_gradients(G);
 }
 
 DistRecord DynamicProblem::recompute_dist(const dynamics::DistributedAlpha &da,
