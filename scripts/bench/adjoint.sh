@@ -9,7 +9,8 @@
 # Each line is the median of FLEXOPT_BENCH_REPEAT runs (default 3), measured in one run of
 # this script (the machine is shared: compare ratios, not seconds across days).
 #
-# Then the ACF design link (FLEXOPT_BENCH_ACF=0 leaves it out) at about 1k and 10k DOFs.
+# Then the ACF design link (FLEXOPT_BENCH_ACF=0 leaves it out) at about 1k and 10k DOFs, its
+# forward run with kept Newton matrices and by Newton's method proper.
 #
 #   scripts/bench/adjoint.sh     # ~ 2 min; results in build/bench/adjoint/results.md
 set -euo pipefail
@@ -52,27 +53,32 @@ EOF
   done
 done
 # ACF design body (tests/gradient/acf_pendulum: a soft hinged link, 50 steps of 2 ms) at about
-# 1k and 10k DOFs (Tet4 at 2.5 cm and 1 cm), every state kept, the case's kept Newton matrices.
+# 1k and 10k DOFs (Tet4 at 2.5 cm and 1 cm), every state kept, the forward run with the case's
+# kept Newton matrices and by Newton's method proper.
 if [ "${FLEXOPT_BENCH_ACF:-1}" != 0 ]; then
-  { echo; echo "| ACF link | DOFs | steps | forward_s | adjoint_s | adjoint / forward | adjoint factorizations | stored states [MB] | peak memory [MiB] |"
-    echo "|---|---|---|---|---|---|---|---|---|"; } >> "$results"
+  { echo; echo "| ACF link | Newton | DOFs | steps | forward_s | adjoint_s | adjoint / forward | forward factorizations | adjoint factorizations | stored states [MB] | peak memory [MiB] |"
+    echo "|---|---|---|---|---|---|---|---|---|---|---|"; } >> "$results"
   for size in 0.025 0.01; do
-    scene="$work/acf_pendulum_$size"
-    mkdir -p "$scene"
-    sed -e "s|geometry: ../../../meshes/|geometry: $root/meshes/|" \
-        -e "s|mesh: {size: 0.05, order: 1}|mesh: {size: $size, order: 1}|" \
-        "$root/tests/gradient/acf_pendulum/case.yaml" > "$scene/case.yaml"
-    echo "output: {every: 50}" >> "$scene/case.yaml"
-    mpirun -n "$ranks" "$flexopt" simulate "$scene" --gradient --out "$scene/out" > "$scene/log" 2>&1 ||
-      { cat "$scene/log"; exit 1; }
-    python3 - "$scene/out/summary.json" "$size" <<'EOF2' | tee -a "$results"
+    for reuse in 0.1 0; do
+      scene="$work/acf_pendulum_${size}_$reuse"
+      mkdir -p "$scene"
+      sed -e "s|geometry: ../../../meshes/|geometry: $root/meshes/|" \
+          -e "s|mesh: {size: 0.05, order: 1}|mesh: {size: $size, order: 1}|" \
+          -e "s|rho_inf: 0.8}|rho_inf: 0.8, newton_reuse: $reuse}|" \
+          "$root/tests/gradient/acf_pendulum/case.yaml" > "$scene/case.yaml"
+      echo "output: {every: 50}" >> "$scene/case.yaml"
+      mpirun -n "$ranks" "$flexopt" simulate "$scene" --gradient --out "$scene/out" > "$scene/log" 2>&1 ||
+        { cat "$scene/log"; exit 1; }
+      python3 - "$scene/out/summary.json" "$size" "$reuse" <<'EOF2' | tee -a "$results"
 import json, sys
 s = json.load(open(sys.argv[1]))
 a = s["adjoint"]
 dofs = sum(b.get("dofs", 0) for b in s["bodies"])
 f, b = a["forward_s"], a["adjoint_s"]
-print(f"| {sys.argv[2]} m Tet4 | {dofs} | {a['steps']} | {f:.3f} | {b:.3f} | {b / f:.2f} | {a['adjoint_factorizations']} | {a['checkpoint_bytes'] / 1e6:.1f} | {s['peak_memory_mib']:.0f} |")
+newton = "proper" if float(sys.argv[3]) == 0 else f"kept ({sys.argv[3]})"
+print(f"| {sys.argv[2]} m Tet4 | {newton} | {dofs} | {a['steps']} | {f:.3f} | {b:.3f} | {b / f:.2f} | {s['newton_factorizations_total']} | {a['adjoint_factorizations']} | {a['checkpoint_bytes'] / 1e6:.1f} | {s['peak_memory_mib']:.0f} |")
 EOF2
+    done
   done
 fi
 echo "wrote $results"

@@ -134,30 +134,4 @@ Matrix BackwardSweep::finish(const Matrix &dpsi0) const {
   return dpsi0.size() == 0 ? Matrix(-carry_) : Matrix(-dpsi0 - carry_);
 }
 
-Matrix backward_sweep(const dynamics::GeneralizedAlpha &ga, const Trajectory &tr, int responses,
-                      const std::function<Matrix(std::size_t)> &dpsi,
-                      const std::function<void(std::size_t, const Matrix &)> &on_step) {
-  if (tr.states.empty() || tr.h.size() != tr.states.size())
-    throw Error("backward_sweep: one step size per state is needed");
-  BackwardSweep sweep(ga, responses);
-  for (std::size_t k = tr.steps(); k >= 1; --k) {
-    const Matrix mu = sweep.step(tr.states[k], tr.h[k], dpsi(k));
-    if (on_step) on_step(k, mu);
-  }
-  return sweep.finish(dpsi(0));
-}
-
-std::vector<Vector> backward_sweep(const dynamics::GeneralizedAlpha &ga,
-                                   const std::vector<dynamics::State> &states, double h,
-                                   const std::vector<Vector> &dpsi) {
-  if (states.empty() || dpsi.size() != states.size())
-    throw Error("backward_sweep: one partial per state is needed");
-  Trajectory tr{states, std::vector<double>(states.size(), h)};
-  std::vector<Vector> mu(states.size());
-  mu[0] = backward_sweep(
-      ga, tr, 1, [&](std::size_t k) { return Matrix(dpsi[k]); },
-      [&](std::size_t k, const Matrix &m) { mu[k] = m.col(0); });
-  return mu;
-}
-
 } // namespace flexopt::adjoint

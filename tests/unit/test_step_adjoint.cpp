@@ -94,8 +94,9 @@ TEST(StepAdjoint, BackwardSweepGivesTheDerivativeOfATrajectoryResponse) {
   std::vector<Vector> dpsi(N + 1, Vector::Zero(4 * n + c));
   for (int k = 0; k <= N; ++k) dpsi[k].head(n) = weight(k) * cq;
   dpsi[N].segment(n, n) += dv;
-  const std::vector<Vector> mu = adjoint::backward_sweep(ga, states, h, dpsi);
-  const Vector grad = -mu[0].segment(n, n); // dPsi / dv_0
+  adjoint::BackwardSweep sweep(ga, 1);
+  for (int k = N; k >= 1; --k) sweep.step(states[static_cast<std::size_t>(k)], h, dpsi[k]);
+  const Vector grad = -sweep.finish(dpsi[0]).col(0).segment(n, n); // dPsi / dv_0
   const double eps = 1e-4;
   double worst = 0;
   for (int i = 0; i < n; ++i) {

@@ -1,16 +1,13 @@
 #pragma once
 /// \file One step of the discrete adjoint of generalized-alpha (docs/theory.md section 9): the
 /// transposed solve with dR/ds_{n+1} reduced to the transposed scaled Newton matrix, the
-/// coupling (dR_{n+1}/ds_n)^T mu to the previous state, and the backward sweep over a stored
-/// trajectory. Dense backend (replicated state vectors packed as [q, v, a, acc, lambda],
-/// dynamics::State::pack). The dynamics module does not include this module; it supplies the
-/// Jacobians (dynamics::GeneralizedAlpha::jacobian_blocks, residual).
+/// coupling (dR_{n+1}/ds_n)^T mu to the previous state, and the backward sweep step by step. Dense
+/// backend (replicated state vectors packed as [q, v, a, acc, lambda], dynamics::State::pack). The
+/// dynamics module does not include this module; it supplies the Jacobians
+/// (dynamics::GeneralizedAlpha::jacobian_blocks, residual).
 #include "flexopt/dynamics/generalized_alpha.hpp"
 
 #include <Eigen/LU>
-#include <functional>
-#include <memory>
-#include <vector>
 
 namespace flexopt::adjoint {
 
@@ -34,14 +31,6 @@ Vector step_adjoint(const Matrix &dR_dnext, const dynamics::AlphaParameters &par
 Matrix previous_coupling(const dynamics::AlphaParameters &par, double h, int n, int m,
                          const Matrix &mu);
 
-/// The states a forward run went through: states[0] the initial state, states[k] the end of
-/// step k of size h[k] (h[0] unused). Halved steps appear as their substeps (section 9.3).
-struct Trajectory {
-  std::vector<dynamics::State> states;
-  std::vector<double> h;
-  std::size_t steps() const { return states.empty() ? 0 : states.size() - 1; }
-};
-
 /// The backward sweep of section 9 step by step, in reverse order of the forward steps, for
 /// several responses at once (one column each): the multipliers carry the coupling to the
 /// previous state from one call to the next.
@@ -64,19 +53,5 @@ private:
   Eigen::PartialPivLU<Matrix> lu_;
   long long steps_ = 0, factorizations_ = 0;
 };
-
-/// The backward sweep of section 9 for several responses at once (one column each): from the
-/// partials dpsi(k) = (dPsi/ds_k)^T (packed like State::pack, 4n + m rows; may return an empty
-/// matrix for zero), computes the multipliers mu_k of the step residuals for k = N ... 1,
-/// handing each to on_step(k, mu_k) (may be null) as soon as it is known, and returns
-/// mu_0 = -(dPsi/ds_0)^T - (dR_1/ds_0)^T mu_1. Treating s_0 as free, dPsi/ds_0 = -mu_0^T.
-Matrix backward_sweep(const dynamics::GeneralizedAlpha &ga, const Trajectory &trajectory,
-                      int responses, const std::function<Matrix(std::size_t)> &dpsi,
-                      const std::function<void(std::size_t, const Matrix &)> &on_step);
-
-/// One response on a trajectory of equal steps h: returns mu_0 ... mu_N.
-std::vector<Vector> backward_sweep(const dynamics::GeneralizedAlpha &ga,
-                                   const std::vector<dynamics::State> &states, double h,
-                                   const std::vector<Vector> &dpsi);
 
 } // namespace flexopt::adjoint
