@@ -406,6 +406,30 @@ TEST(AcfMechanism, SameOnOneAndTwoRanks) {
   }
 }
 
+namespace {
+
+/// Placed positions x0 and given velocities v0 of the pendulum p (the caller destroys them):
+/// unrotated, spinning at omega about the world origin, the beam with an elastic bending rate
+/// 0.1 x (1 - x) along z that vanishes on both interface faces.
+void spinning_start(const AcfPendulum &p, const Vec3 &omega, Vec &x0, Vec &v0) {
+  x0 = p.da->create_vector();
+  v0 = p.da->create_vector();
+  p.da->set_nodal(x0, 0, [](const Eigen::Vector3d &X) { return X; });
+  p.da->set_nodal(v0, 0, [&](const Eigen::Vector3d &X) {
+    return Eigen::Vector3d(omega.cross(X) + Eigen::Vector3d(0, 0, 0.1 * X.x() * (1 - X.x())));
+  });
+  Vector q(p.mech.coordinates()), v(p.mech.coordinates());
+  for (int b = 0; b < 3; ++b) {
+    const Vector qb = p.mech.body(b).placement(Vec3::Zero(), bodies::Mat3::Identity());
+    q.segment(p.mech.offset(b), 7) = qb;
+    v.segment(p.mech.offset(b), 7) = p.mech.body(b).placement_velocity(qb, Vec3::Zero(), omega);
+  }
+  p.da->set_small(x0, q);
+  p.da->set_small(v0, v);
+}
+
+} // namespace
+
 // The consistent start keeps the given elastic velocities of an ACF body (docs/theory.md section
 // 6.4): the pendulum is given a spin about an axis through the world origin with a component
 // about x (the hinge at the clamp allows neither) and an elastic bending velocity that vanishes
@@ -416,22 +440,8 @@ TEST(AcfMechanism, StartKeepsElasticVelocities) {
   auto m = test_support::load_test_mesh("beam.geo", 0.05, 2);
   const AcfPendulum p(m, 2.1e11, 0.8);
   const Vec3 omega(0.3, 0, 2);
-  auto elastic = [](const Eigen::Vector3d &X) {
-    return Eigen::Vector3d(0, 0, 0.1 * X.x() * (1 - X.x()));
-  };
-  Vec x0 = p.da->create_vector(), v0 = p.da->create_vector();
-  p.da->set_nodal(x0, 0, [](const Eigen::Vector3d &X) { return X; });
-  p.da->set_nodal(v0, 0, [&](const Eigen::Vector3d &X) {
-    return Eigen::Vector3d(omega.cross(X) + elastic(X));
-  });
-  Vector q(p.mech.coordinates()), v(p.mech.coordinates());
-  for (int b = 0; b < 3; ++b) {
-    const Vector qb = p.mech.body(b).placement(Vec3::Zero(), bodies::Mat3::Identity());
-    q.segment(p.mech.offset(b), 7) = qb;
-    v.segment(p.mech.offset(b), 7) = p.mech.body(b).placement_velocity(qb, Vec3::Zero(), omega);
-  }
-  p.da->set_small(x0, q);
-  p.da->set_small(v0, v);
+  Vec x0, v0;
+  spinning_start(p, omega, x0, v0);
   dynamics::StartReport report;
   const dynamics::DistState s = p.da->initial_state(x0, v0, 0.0, &report);
   const std::vector<double> given = p.da->owned_values(v0, 0), now = p.da->owned_values(s.v, 0),
@@ -478,20 +488,8 @@ TEST(AcfMechanism, StartKeepsElasticVelocities) {
 TEST(AcfMechanism, StartVelocityTransposeIsTheDerivativeOfTheRightHandSide) {
   auto m = test_support::load_test_mesh("beam.geo", 0.05, 2);
   const AcfPendulum p(m, 2.1e11, 0.8, 1e-3);
-  const Vec3 omega(0.3, 0, 2);
-  Vec x0 = p.da->create_vector(), v0 = p.da->create_vector();
-  p.da->set_nodal(x0, 0, [](const Eigen::Vector3d &X) { return X; });
-  p.da->set_nodal(v0, 0, [&](const Eigen::Vector3d &X) {
-    return Eigen::Vector3d(omega.cross(X) + Eigen::Vector3d(0, 0, 0.1 * X.x() * (1 - X.x())));
-  });
-  Vector q(p.mech.coordinates()), v(p.mech.coordinates());
-  for (int b = 0; b < 3; ++b) {
-    const Vector qb = p.mech.body(b).placement(Vec3::Zero(), bodies::Mat3::Identity());
-    q.segment(p.mech.offset(b), 7) = qb;
-    v.segment(p.mech.offset(b), 7) = p.mech.body(b).placement_velocity(qb, Vec3::Zero(), omega);
-  }
-  p.da->set_small(x0, q);
-  p.da->set_small(v0, v);
+  Vec x0, v0;
+  spinning_start(p, Vec3(0.3, 0, 2), x0, v0);
   dynamics::DistState s = p.da->initial_state(x0, v0, 0.0);
   VecDestroy(&x0);
   VecDestroy(&v0);
