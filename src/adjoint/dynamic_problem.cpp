@@ -259,15 +259,23 @@ double DynamicProblem::response_value(std::size_t i) const {
   return sampled_[i].value;
 }
 
-void DynamicProblem::evaluate(Vec x, bool gradients, optimize::Evaluation &out) {
-  LogScope log("FxDynamicEvaluate");
-  ++evaluations_;
+void DynamicProblem::apply_design(Vec x) {
   field_->update(x);
-  const mesh::DistributedMesh &m = mesh();
-  const PetscInt ne = m.local_elements();
   // Mass factors w (section 9.1) and, for an ACF body, SIMP modulus factors s (section 9.6).
   field_->mass_factors(w_, dw_);
   field_->stiffness_factors(s_, ds_);
+  if (acf_design_ >= 0)
+    scene_.acf[static_cast<std::size_t>(acf_design_)]->set_factors(s_, w_);
+  else
+    set_rigid_design();
+}
+
+void DynamicProblem::evaluate(Vec x, bool gradients, optimize::Evaluation &out) {
+  LogScope log("FxDynamicEvaluate");
+  ++evaluations_;
+  apply_design(x);
+  const mesh::DistributedMesh &m = mesh();
+  const PetscInt ne = m.local_elements();
   const std::size_t nr = specs_.size();
   element_gradient_.assign(nr, std::vector<double>(static_cast<std::size_t>(ne), 0.0));
   if (!scene_.acf.empty())
@@ -337,7 +345,6 @@ void DynamicProblem::add_rigid_element_gradients(const Matrix &G) {
 }
 
 void DynamicProblem::evaluate_rigid(bool gradients, optimize::Evaluation &out) {
-  set_rigid_design();
   dynamics::Mechanism &mech = scene_.mechanism;
 
   // Forward run (section 9.4): the records the backward sweep needs go to the store, all of
@@ -364,11 +371,14 @@ void DynamicProblem::evaluate_rigid(bool gradients, optimize::Evaluation &out) {
             scene_, scene_.sensors[static_cast<std::size_t>(sensor_of_[i])], s.q));
   };
   sample(record.state);
+  if (observer_) observer_(0, dynamics::StepInfo{}, &record.state, nullptr);
   const double h = case_.time.step;
-  detail::forward_loop(ga, steps_, h, record, substep_sizes_, [&](long long j) {
-    sample(record.state);
-    if (gradients && keep[static_cast<std::size_t>(j)]) store->put(j, record);
-  });
+  detail::forward_loop(ga, steps_, h, record, substep_sizes_,
+                       [&](long long j, const dynamics::StepInfo &info) {
+                         sample(record.state);
+                         if (gradients && keep[static_cast<std::size_t>(j)]) store->put(j, record);
+                         if (observer_) observer_(j, info, &record.state, nullptr);
+                       });
   // The responses on the time grid.
   sampled_.assign(nr, SampledResponse{});
   for (std::size_t i = 0; i < nr; ++i)

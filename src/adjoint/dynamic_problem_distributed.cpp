@@ -20,10 +20,6 @@ void DynamicProblem::evaluate_distributed(bool gradients, optimize::Evaluation &
   const auto ne = static_cast<std::size_t>(m.local_elements());
   const bool acf = acf_design_ >= 0; // else a rigid design body in the small part
   const auto design = static_cast<std::size_t>(acf ? acf_design_ : 0);
-  if (acf)
-    scene_.acf[design]->set_factors(s_, w_);
-  else
-    set_rigid_design();
   bodies::AcfBody *body = acf ? scene_.acf[design].get() : nullptr;
   const std::size_t nr = specs_.size();
   Matrix G = Matrix::Zero(10, static_cast<Eigen::Index>(nr)); // rigid: dPsi/dtheta
@@ -104,10 +100,13 @@ void DynamicProblem::evaluate_distributed(bool gradients, optimize::Evaluation &
   sample(record.state);
   const dynamics::DistState s0 = record.state;
   if (gradients) store->put(0, record);
-  detail::forward_loop(da, steps_, h, record, substep_sizes_, [&](long long j) {
-    sample(record.state);
-    if (gradients && keep[static_cast<std::size_t>(j)]) store->put(j, record);
-  });
+  if (observer_) observer_(0, dynamics::StepInfo{}, nullptr, &record.state);
+  detail::forward_loop(da, steps_, h, record, substep_sizes_,
+                       [&](long long j, const dynamics::StepInfo &info) {
+                         sample(record.state);
+                         if (gradients && keep[static_cast<std::size_t>(j)]) store->put(j, record);
+                         if (observer_) observer_(j, info, nullptr, &record.state);
+                       });
   const auto N = static_cast<std::size_t>(steps_);
   sampled_.assign(nr, SampledResponse{});
   for (std::size_t i = 0; i < nr; ++i) {

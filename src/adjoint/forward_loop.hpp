@@ -12,7 +12,8 @@ namespace flexopt::adjoint::detail {
 
 /// Advances record.state (a state of `integrator`) by `steps` main steps of h: record.substeps
 /// holds the substeps of the last step (empty if it was whole), substep_sizes[j] their sizes;
-/// on_step(j) runs after main step j. Collective; throws a collective flexopt::Error if Newton
+/// on_step(j, info) runs after main step j (info: its Newton iterations, factorizations,
+/// halvings). Collective; throws a collective flexopt::Error if Newton
 /// fails.
 template <class Integrator, class Record, class OnStep>
 void forward_loop(const Integrator &integrator, long long steps, double h, Record &record,
@@ -34,7 +35,7 @@ void forward_loop(const Integrator &integrator, long long steps, double h, Recor
       substep_sizes[static_cast<std::size_t>(j)].push_back(sub.second);
     record.state = next;
     record.state.t = t_next;
-    on_step(j);
+    on_step(j, info);
   }
 }
 

@@ -98,6 +98,10 @@ public:
   virtual bodies::Vec3 sensor(const dynamics::BoundSensor &s) const = 0;
   /// Owned node positions of case body b and the elastic displacement field (empty: none).
   virtual std::vector<double> positions(std::size_t b, std::vector<double> &elastic) const = 0;
+  /// The state of a design's forward run at time t (its dense or distributed state; the other
+  /// pointer is null), in place of the backend's own: `simulate` writes its output from it.
+  virtual void set_state(const dynamics::State *dense, const dynamics::DistState *dist,
+                         double t) = 0;
   /// What the consistent start did to the given velocities.
   const dynamics::StartReport &start() const { return start_; }
 
@@ -117,6 +121,10 @@ public:
     next_.t = t;
     state_ = next_;
     return true;
+  }
+  void set_state(const dynamics::State *dense, const dynamics::DistState *, double t) override {
+    state_ = *dense;
+    state_.t = t;
   }
   const dynamics::State &mechanism_state() const override { return state_; }
   double tie_violation() const override { return 0; }
@@ -160,6 +168,11 @@ public:
     state_ = next_;
     small_ = da_.small_state(state_);
     return true;
+  }
+  void set_state(const dynamics::State *, const dynamics::DistState *dist, double t) override {
+    state_ = *dist;
+    state_.t = t;
+    small_ = da_.small_state(state_);
   }
   const dynamics::State &mechanism_state() const override { return small_; }
   double tie_violation() const override { return da_.tie_violation(state_); }
@@ -215,10 +228,11 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
   // response, and with --gradient their adjoint gradients (docs/theory.md section 9); the
   // motion below is that of this design.
   std::unique_ptr<adjoint::DynamicProblem> design;
+  Vec x = nullptr; // the design's variables
   dynamics::Scene built;
   if (c.design) {
     design = adjoint::DynamicProblem::create(ctx.comm(), c, dir);
-    Vec x = design->create_design_vector();
+    x = design->create_design_vector();
     if (o.design.empty()) {
       design->initial_design(x);
     } else {
@@ -243,29 +257,7 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
       }
       print0(ctx.comm(), "design: the densities of %s\n", o.design.c_str());
     }
-    optimize::Evaluation e;
-    design->evaluate(x, o.gradient, e);
-    FX_PETSC(VecDestroy(&x));
-    io::Json responses = io::Json::object();
-    const auto &names = design->response_names();
-    for (std::size_t i = 0; i < names.size(); ++i) {
-      const double v = i == 0 ? e.objective : e.constraints[i - 1];
-      const std::string key = i == 0 ? "objective" : "constraint" + std::to_string(i - 1);
-      responses[key] = v;
-      print0(ctx.comm(), "response %-12s %-28s %.10g\n", key.c_str(), names[i].c_str(), v);
-    }
-    s["responses"] = responses;
-    io::Json rn = io::Json::array();
-    for (const auto &n : names) rn.push_back(n);
-    s["response_names"] = rn;
-    if (o.gradient) {
-      const std::string file = detail::write_gradients(*design, e, dir);
-      io::Json a = io::Json::object();
-      design->describe(a);
-      s["adjoint"] = a;
-      print0(ctx.comm(), "gradient: forward run %.3f s, backward sweep %.3f s; wrote %s\n",
-             design->forward_seconds(), design->adjoint_seconds(), file.c_str());
-    }
+    design->apply_design(x); // the scene below is that of this design
   } else {
     built = dynamics::build_scene(ctx.comm(), c);
   }
@@ -416,10 +408,6 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
       if (!elastic.empty()) writer.node_vector(b, "elastic_displacement", elastic.data());
     }
   };
-  monitor();
-  sample(0.0);
-  frame(0.0);
-
   long long newton_total = 0, factorizations_total = 0;
   // -fx_newton_monitor: each step's Newton iterations, factorizations and increments.
   PetscBool newton_monitor = PETSC_FALSE;
@@ -430,24 +418,11 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
   FX_PETSC(PetscLogStageRegister("Time steps", &stage));
   FX_PETSC(PetscLogStagePush(stage));
   const double t_start = wall_time();
-  double last_print = t_start;
+  double last_print = t_start, t_end = t_start;
   double t_now = 0;
-  for (long long n = 0; n < steps; ++n) {
-    dynamics::StepInfo info;
-    const double t_next = static_cast<double>(n + 1) * h; // no drift of t over many steps
-    if (!run->advance(h, t_next, info)) {
-      std::ostringstream msg;
-      msg << "integrate: Newton did not converge in step " << n + 1 << " (t = " << t_now << " s -> "
-          << t_next << " s) after " << (1 << dynamics::NewtonSettings{}.max_halvings)
-          << "-fold step halving; increments of the last attempt:";
-      for (double v : info.increment) msg << ' ' << v;
-      msg << "; constraint residuals:";
-      for (double v : info.violation) msg << ' ' << v;
-      msg << ". Reduce time.step or check the scene (a singular configuration, a driver "
-             "demanding impossible motion).";
-      throw Error(msg.str(), true); // every rank fails here (collective Newton loop)
-    }
-    t_now = t_next;
+  // After main step n + 1 (the backend holds its state): the checks, the figures, the output.
+  auto after_step = [&](long long n, const dynamics::StepInfo &info) {
+    t_now = static_cast<double>(n + 1) * h;
     // Rows left out as redundant must stay satisfied: if one does not, it was only dependent
     // in the initial configuration (a singular position such as a dead point), not
     // structurally, and the mechanism is not what the case describes.
@@ -480,6 +455,7 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
     if (sample_every_step || is_frame) sample(t_now);
     if (is_frame) frame(t_now);
     const double now = wall_time();
+    t_end = now;
     if (now - last_print > 2.0 || n + 1 == steps) {
       const double rate = static_cast<double>(n + 1) / std::max(now - t_start, 1e-9);
       print0(ctx.comm(),
@@ -488,8 +464,68 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
              static_cast<double>(steps - n - 1) / rate);
       last_print = now;
     }
+  };
+  if (design) {
+    // The design's forward run (and, with --gradient, its backward sweep) is the integration:
+    // the output follows its states, so the design is integrated once.
+    design->set_observer([&](long long j, const dynamics::StepInfo &info,
+                             const dynamics::State *dense, const dynamics::DistState *dist) {
+      run->set_state(dense, dist, static_cast<double>(j) * h);
+      if (j == 0) {
+        monitor();
+        sample(0.0);
+        frame(0.0);
+      } else {
+        after_step(j - 1, info);
+      }
+    });
+    optimize::Evaluation e;
+    design->evaluate(x, o.gradient, e);
+    design->set_observer(nullptr);
+    FX_PETSC(VecDestroy(&x));
+    io::Json responses = io::Json::object();
+    const auto &names = design->response_names();
+    for (std::size_t i = 0; i < names.size(); ++i) {
+      const double v = i == 0 ? e.objective : e.constraints[i - 1];
+      const std::string key = i == 0 ? "objective" : "constraint" + std::to_string(i - 1);
+      responses[key] = v;
+      print0(ctx.comm(), "response %-12s %-28s %.10g\n", key.c_str(), names[i].c_str(), v);
+    }
+    s["responses"] = responses;
+    io::Json rn = io::Json::array();
+    for (const auto &n : names) rn.push_back(n);
+    s["response_names"] = rn;
+    if (o.gradient) {
+      const std::string file = detail::write_gradients(*design, e, dir);
+      io::Json a = io::Json::object();
+      design->describe(a);
+      s["adjoint"] = a;
+      print0(ctx.comm(), "gradient: forward run %.3f s, backward sweep %.3f s; wrote %s\n",
+             design->forward_seconds(), design->adjoint_seconds(), file.c_str());
+    }
+  } else {
+    monitor();
+    sample(0.0);
+    frame(0.0);
+    for (long long n = 0; n < steps; ++n) {
+      dynamics::StepInfo info;
+      const double t_next = static_cast<double>(n + 1) * h; // no drift of t over many steps
+      if (!run->advance(h, t_next, info)) {
+        std::ostringstream msg;
+        msg << "integrate: Newton did not converge in step " << n + 1 << " (t = " << t_now
+            << " s -> " << t_next << " s) after " << (1 << dynamics::NewtonSettings{}.max_halvings)
+            << "-fold step halving; increments of the last attempt:";
+        for (double v : info.increment) msg << ' ' << v;
+        msg << "; constraint residuals:";
+        for (double v : info.violation) msg << ' ' << v;
+        msg << ". Reduce time.step or check the scene (a singular configuration, a driver "
+               "demanding impossible motion).";
+        throw Error(msg.str(), true); // every rank fails here (collective Newton loop)
+      }
+      after_step(n, info);
+    }
   }
-  const double t_int = wall_time() - t_start;
+  const double t_int = t_end - t_start; // the forward run (a design's backward sweep apart)
   FX_PETSC(PetscLogStagePop());
   const std::string xdmf = writer.close();
   // The files' sizes as the file system reports them (-1 if it cannot).

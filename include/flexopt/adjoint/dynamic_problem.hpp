@@ -75,6 +75,18 @@ public:
   const mesh::DistributedMesh &mesh() const override;
   const std::vector<std::string> &response_names() const override { return names_; }
   void evaluate(Vec x, bool gradients, optimize::Evaluation &out) override;
+  /// A caller's view of the forward runs of evaluate (not of the recomputations from
+  /// checkpoints): after main step j the state on the dense backend (`dense`) or the
+  /// distributed one (`dist`; the other pointer is null) with the step's Newton figures; j = 0:
+  /// the consistent start (info empty). `simulate` writes its output from it, so that a design
+  /// is integrated once. Called on every rank.
+  using StepObserver =
+      std::function<void(long long j, const dynamics::StepInfo &info, const dynamics::State *dense,
+                         const dynamics::DistState *dist)>;
+  void set_observer(StepObserver observer) { observer_ = std::move(observer); }
+  /// Puts the design x into the scene as evaluate does (the ACF design body's element factors,
+  /// the rigid design body's mass parameters), without integrating. Collective.
+  void apply_design(Vec x);
   /// dofs, elements, design_variables, steps, forward_s, adjoint_s, checkpoints,
   /// recomputed_steps, checkpoint_bytes, evaluations.
   void describe(io::Json &summary) const override;
@@ -129,6 +141,7 @@ private:
 
   io::Case case_;
   dynamics::Scene scene_;
+  StepObserver observer_;
   std::unique_ptr<optimize::DesignField> field_;
   int design_body_ = -1;    ///< case body index
   int mechanism_body_ = -1; ///< its index in the mechanism
