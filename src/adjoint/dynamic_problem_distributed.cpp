@@ -13,8 +13,6 @@
 
 namespace flexopt::adjoint {
 
-namespace {} // namespace
-
 void DynamicProblem::evaluate_distributed(bool gradients, optimize::Evaluation &out) {
   const mesh::DistributedMesh &m = mesh();
   const auto ne = static_cast<std::size_t>(m.local_elements());
@@ -23,29 +21,16 @@ void DynamicProblem::evaluate_distributed(bool gradients, optimize::Evaluation &
   bodies::AcfBody *body = acf ? scene_.acf[design].get() : nullptr;
   const std::size_t nr = specs_.size();
   Matrix G = Matrix::Zero(10, static_cast<Eigen::Index>(nr)); // rigid: dPsi/dtheta
-  std::vector<const bodies::AcfBody *> list;
-  for (const auto &a : scene_.acf) list.push_back(a.get());
   dynamics::Mechanism &mech = scene_.mechanism;
   const double h = case_.time.step;
 
   const double t_forward = wall_time();
-  const dynamics::DistributedAlpha da(list, &mech, scene_.acf_interfaces, mech.gravity, par_,
-                                      newton_);
+  const dynamics::DistributedAlpha da(dynamics::acf_body_list(scene_), &mech, scene_.acf_interfaces,
+                                      mech.gravity, par_, newton_);
   dynamics::StartReport start;
   dynamics::StartTrace trace; // what the start did to the velocities (section 9.2)
   DistRecord record;
-  {
-    Vec x0, v0;
-    dynamics::acf_initial_vectors(scene_, da, x0, v0);
-    struct Destroy {
-      Vec &x, &v;
-      ~Destroy() {
-        VecDestroy(&x);
-        VecDestroy(&v);
-      }
-    } destroy{x0, v0};
-    record.state = da.initial_state(x0, v0, 0.0, &start, &trace);
-  }
+  record.state = dynamics::acf_initial_state(scene_, da, &start, &trace);
   // Which ACF body each strain energy response measures.
   std::vector<int> strain_body(nr, -1);
   for (std::size_t i = 0; i < nr; ++i)
@@ -61,9 +46,8 @@ void DynamicProblem::evaluate_distributed(bool gradients, optimize::Evaluation &
     return u;
   };
   samples_.assign(nr, {});
-  std::vector<std::vector<double>> energy(nr);         // U_n of strain responses
-  std::vector<std::vector<double>> energy_partial(nr); // sum_n w_n U_e,n (design body)
-  std::vector<double> energy_steps;                    // U_e at one step
+  std::vector<std::vector<double>> energy(nr); // U_n of strain responses
+  std::vector<double> energy_steps;            // U_e at one step
   std::unique_ptr<BinomialSchedule> schedule;
   std::vector<char> keep;
   std::unique_ptr<DistCheckpointStore> store;

@@ -148,18 +148,9 @@ public:
   /// Gravity acts on the ACF bodies as on the mechanism's.
   DistributedBackend(const dynamics::Scene &scene, dynamics::AlphaParameters par,
                      dynamics::NewtonSettings newton)
-      : scene_(scene), da_(acf_list(scene), &scene.mechanism, scene.acf_interfaces,
+      : scene_(scene), da_(dynamics::acf_body_list(scene), &scene.mechanism, scene.acf_interfaces,
                            scene.mechanism.gravity, par, newton) {
-    Vec x0, v0;
-    dynamics::acf_initial_vectors(scene, da_, x0, v0);
-    struct Destroy {
-      Vec &x, &v;
-      ~Destroy() {
-        VecDestroy(&x);
-        VecDestroy(&v);
-      }
-    } destroy{x0, v0}; // also when the initial state throws
-    state_ = da_.initial_state(x0, v0, 0.0, &start_);
+    state_ = dynamics::acf_initial_state(scene, da_, &start_);
     small_ = da_.small_state(state_);
   }
   bool advance(double h, double t, dynamics::StepInfo &info) override {
@@ -200,11 +191,6 @@ public:
   }
 
 private:
-  static std::vector<const bodies::AcfBody *> acf_list(const dynamics::Scene &scene) {
-    std::vector<const bodies::AcfBody *> list;
-    for (const auto &a : scene.acf) list.push_back(a.get());
-    return list;
-  }
   const dynamics::Scene &scene_;
   dynamics::DistributedAlpha da_;
   dynamics::DistState state_, next_;

@@ -515,9 +515,22 @@ void set_body_model(MPI_Comm comm, const io::Case &c, Scene &scene, std::size_t 
   connect(comm, c, scene, false);
 }
 
-void acf_initial_vectors(const Scene &scene, const DistributedAlpha &da, Vec &x0, Vec &v0) {
-  x0 = da.create_vector();
-  v0 = da.create_vector();
+std::vector<const bodies::AcfBody *> acf_body_list(const Scene &scene) {
+  std::vector<const bodies::AcfBody *> list;
+  for (const auto &a : scene.acf) list.push_back(a.get());
+  return list;
+}
+
+DistState acf_initial_state(const Scene &scene, const DistributedAlpha &da, StartReport *report,
+                            StartTrace *trace) {
+  Vec x0 = da.create_vector(), v0 = da.create_vector();
+  struct Destroy {
+    Vec &x, &v;
+    ~Destroy() {
+      VecDestroy(&x);
+      VecDestroy(&v);
+    }
+  } destroy{x0, v0}; // also when the initial state throws
   for (const SceneBody &sb : scene.bodies) {
     if (sb.acf < 0) continue;
     const auto k = static_cast<std::size_t>(sb.acf);
@@ -530,6 +543,7 @@ void acf_initial_vectors(const Scene &scene, const DistributedAlpha &da, Vec &x0
   }
   da.set_small(x0, scene.q0);
   da.set_small(v0, scene.v0);
+  return da.initial_state(x0, v0, 0.0, report, trace);
 }
 
 InterfaceFrame first_interface_frame(const Scene &scene, const SceneBody &body,

@@ -135,10 +135,14 @@ Scene build_scene(MPI_Comm comm, const io::Case &c);
 void set_body_model(MPI_Comm comm, const io::Case &c, Scene &scene, std::size_t b,
                     std::shared_ptr<bodies::Body> body);
 
-/// The initial positions and velocities of a scene with ACF bodies in the layout of `da` (built
-/// on the scene's ACF bodies, mechanism and interfaces): every ACF body placed rigidly, the
-/// mechanism's coordinates from q0, v0. The caller destroys x0 and v0. Collective.
-void acf_initial_vectors(const Scene &scene, const DistributedAlpha &da, Vec &x0, Vec &v0);
+/// The scene's ACF bodies, in order (DistributedAlpha's list).
+std::vector<const bodies::AcfBody *> acf_body_list(const Scene &scene);
+/// The consistent state at t = 0 of a scene with ACF bodies on `da` (built on the scene's ACF
+/// bodies, mechanism and interfaces): every ACF body placed as its initial placement and
+/// elastic fields say, the mechanism's coordinates from q0, v0, then
+/// DistributedAlpha::initial_state (report and trace as there). Collective.
+DistState acf_initial_state(const Scene &scene, const DistributedAlpha &da,
+                            StartReport *report = nullptr, StartTrace *trace = nullptr);
 
 /// The frame of an ACF body's first interface node at the mechanism state `small`: origin r_I,
 /// rotation A_I, the interface centroid c_I (mesh coordinates). The elastic displacement of a
