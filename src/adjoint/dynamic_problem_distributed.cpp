@@ -196,7 +196,7 @@ void DynamicProblem::evaluate_distributed(bool gradients, optimize::Evaluation &
       const dynamics::State sm = da.small_state(s);
       Matrix W(sm.q.size(), static_cast<Eigen::Index>(na));
       for (std::size_t a = 0; a < na; ++a)
-        W.col(static_cast<Eigen::Index>(a)) = da.small_state(mu[a]).acc;
+        W.col(static_cast<Eigen::Index>(a)) = da.small_values(mu[a].acc);
       const Matrix P = design_partials(sm.q, sm.v, sm.acc, true, W);
       for (std::size_t a = 0; a < na; ++a)
         G.col(static_cast<Eigen::Index>(active[a])) += sign * P.col(static_cast<Eigen::Index>(a));
@@ -257,24 +257,14 @@ void DynamicProblem::evaluate_distributed(bool gradients, optimize::Evaluation &
   std::vector<std::vector<double>> fallback_mu(na), field_mu(na);
   Matrix fallback_small(mech.coordinates(), static_cast<Eigen::Index>(na)),
       field_small(mech.coordinates(), static_cast<Eigen::Index>(na));
-  auto small_part = [&](Vec x) {
-    dynamics::DistState t = da.zero_state();
-    FX_PETSC(VecCopy(x, t.q));
-    return Vector(da.small_state(t).q);
-  };
   const Eigen::Index field0 =
       corrected ? trace.rigid.T.cols() - 6 * static_cast<Eigen::Index>(trace.fields.size()) : 0;
-  std::vector<double> xloc;
-  if (acf) da.local_values(s0.q, design, xloc); // positions of the design body's local nodes
   const Vec3 centre = corrected && acf ? trace.fields[design].centre : Vec3::Zero();
   // A rigid velocity field (du, dw) at the ACF design body's local nodes.
   auto field_values = [&](const dynamics::Vector6 &p, std::vector<double> &out) {
-    out.resize(xloc.size());
-    for (std::size_t i = 0; i + 2 < xloc.size(); i += 3) {
-      const Vec3 d =
-          p.head<3>() + p.tail<3>().cross(Vec3(xloc[i], xloc[i + 1], xloc[i + 2]) - centre);
-      for (int k = 0; k < 3; ++k) out[i + static_cast<std::size_t>(k)] = d(k);
-    }
+    FX_PETSC(VecZeroEntries(w));
+    da.add_rigid_field(s0, design, p, centre, w);
+    da.local_values(w, design, out);
   };
   Mat A = da.acceleration_matrix(s0);
   for (std::size_t a = 0; a < na; ++a) {
@@ -296,7 +286,7 @@ void DynamicProblem::evaluate_distributed(bool gradients, optimize::Evaluation &
       if (acf)
         da.local_values(w, design, fallback_mu[a]);
       else
-        fallback_small.col(col) = small_part(w);
+        fallback_small.col(col) = da.small_values(w);
       FX_PETSC(VecPointwiseMult(w, nu, lmask));
       FX_PETSC(MatMultTranspose(A, w, rhs)); // [Phi_q^T nu_lambda; 0]
       FX_PETSC(VecAXPY(gv, -1.0, rhs));
@@ -335,7 +325,7 @@ void DynamicProblem::evaluate_distributed(bool gradients, optimize::Evaluation &
       da.local_values(trace.fallback, design, dv);
       add_mass_terms(fallback_mu, dv);
     } else {
-      add_small_mass_terms(fallback_small, small_part(trace.fallback));
+      add_small_mass_terms(fallback_small, da.small_values(trace.fallback));
     }
   }
   if (corrected) {

@@ -833,23 +833,14 @@ DistState DistributedAlpha::initial_state(Vec q0, Vec v0, double t0, StartReport
       trace->rigid = c;
       trace->fields = fields;
     }
-    PetscScalar *v;
-    const PetscScalar *x;
-    FX_PETSC(VecGetArray(s.v, &v));
-    FX_PETSC(VecGetArrayRead(s.q, &x));
-    if (root)
+    if (root) {
+      PetscScalar *v;
+      FX_PETSC(VecGetArray(s.v, &v));
       for (int k = 0; k < L.small_n; ++k) v[L.small_coord0 - L.start + k] += c.dv(k);
-    for (std::size_t b = 0; b < bodies_.size(); ++b) {
-      const Vec3 du = c.field[b].head<3>(), dw = c.field[b].tail<3>();
-      const PetscInt base = L.offset[b] - L.start;
-      for (PetscInt i = 0; i < bodies_[b]->mesh().owned_nodes; ++i) {
-        const Vec3 xi(x[base + 3 * i], x[base + 3 * i + 1], x[base + 3 * i + 2]);
-        const Vec3 d = du + dw.cross(xi - fields[b].centre);
-        for (int k = 0; k < 3; ++k) v[base + 3 * i + k] += d(k);
-      }
+      FX_PETSC(VecRestoreArray(s.v, &v));
     }
-    FX_PETSC(VecRestoreArrayRead(s.q, &x));
-    FX_PETSC(VecRestoreArray(s.v, &v));
+    for (std::size_t b = 0; b < bodies_.size(); ++b)
+      add_rigid_field(s, b, c.field[b], fields[b].centre, s.v);
     sm = small_state(s);
   }
   rep.rigid_residual = velocity_violation(s, sm);
@@ -876,6 +867,38 @@ DistState DistributedAlpha::initial_state(Vec q0, Vec v0, double t0, StartReport
   FX_PETSC(VecPointwiseMult(s.lambda, dz_, lmask_));
   FX_PETSC(VecCopy(s.acc, s.a));
   return s;
+}
+
+void DistributedAlpha::add_rigid_field(const DistState &s, std::size_t b, const Vector6 &p,
+                                       const Vec3 &centre, Vec v) const {
+  const detail::AcfLayout &L = *layout_;
+  const Vec3 du = p.head<3>(), dw = p.tail<3>();
+  const PetscInt base = L.offset[b] - L.start;
+  PetscScalar *va;
+  const PetscScalar *x;
+  FX_PETSC(VecGetArray(v, &va));
+  FX_PETSC(VecGetArrayRead(s.q, &x));
+  for (PetscInt i = 0; i < bodies_[b]->mesh().owned_nodes; ++i) {
+    const Vec3 d =
+        du + dw.cross(Vec3(x[base + 3 * i], x[base + 3 * i + 1], x[base + 3 * i + 2]) - centre);
+    for (int k = 0; k < 3; ++k) va[base + 3 * i + k] += d(k);
+  }
+  FX_PETSC(VecRestoreArrayRead(s.q, &x));
+  FX_PETSC(VecRestoreArray(v, &va));
+}
+
+Vector DistributedAlpha::small_values(Vec v) const {
+  const detail::AcfLayout &L = *layout_;
+  const int n = small_ ? small_->coordinates() : 0;
+  Vector out(n);
+  if (comm_rank(comm_) == 0 && n > 0) {
+    const PetscScalar *a;
+    FX_PETSC(VecGetArrayRead(v, &a));
+    for (int i = 0; i < n; ++i) out(i) = a[L.small_coord0 - L.start + i];
+    FX_PETSC(VecRestoreArrayRead(v, &a));
+  }
+  MPI_Bcast(out.data(), n, MPI_DOUBLE, 0, comm_);
+  return out;
 }
 
 void DistributedAlpha::start_rhs(const DistState &s, Vec r) const {

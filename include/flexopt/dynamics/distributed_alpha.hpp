@@ -133,6 +133,12 @@ public:
   /// Euler-parameter rates. nu: a vector of this layout (multipliers on the constraint
   /// entries). Collective.
   void start_velocity_transpose(const DistState &s0, Vec nu, Vec gv) const;
+  /// v += du + dw x (x_i - c) at the owned nodes x_i (positions of s) of ACF body b: the rigid
+  /// velocity field p = (du, dw) about c. Not collective.
+  void add_rigid_field(const DistState &s, std::size_t b, const Vector6 &p, const Vec3 &centre,
+                       Vec v) const;
+  /// The small part's coordinate entries of v, on every rank. Collective.
+  Vector small_values(Vec v) const;
   /// T^T g for the rigid-body correction of the start (section 9.2, stage 3): the gradient with
   /// respect to its parameters (the columns of trace.rigid.T for the small part's frames, then
   /// per ACF body sum_i [g_i; (x_i - c) x g_i] over its nodes) of a gradient g on the
