@@ -18,7 +18,7 @@ namespace flexopt::adjoint {
 using bodies::Vec3;
 
 Matrix initial_state_adjoint(const dynamics::GeneralizedAlpha &ga, const dynamics::State &s0,
-                             const Vector &v_given, const Matrix &gbar,
+                             const dynamics::StartTrace &trace, const Matrix &gbar,
                              const ResidualPartials &partials) {
   const dynamics::Mechanism &mech = ga.mechanism();
   const int n = mech.coordinates(), m = mech.constraints();
@@ -57,18 +57,16 @@ Matrix initial_state_adjoint(const dynamics::GeneralizedAlpha &ga, const dynamic
     mech.add_constraint_hessian(s0.q, t0, Vector(nu_lambda.col(c)), H);
     gv.col(c) -= 2 * H * s0.v;
   }
-  // The velocity correction, as the forward start made it: first the rigid-body velocities,
-  // v_r = v_given + T y; then, if they cannot satisfy the joints, the elastic fallback
-  // v_0 = v_r + dv with [M J^T; J 0] [dv; mu] = [0; -(J v_r + Phi_t)] (section 9.2):
+  // The velocity correction, as the forward start made it (trace): first the rigid-body
+  // velocities, v_r = v_given + T y; then, if they could not satisfy the joints, the elastic
+  // fallback v_0 = v_r + dv with [M J^T; J 0] [dv; mu] = [0; -(J v_r + Phi_t)] (section 9.2):
   // nu = A^-T [gv; 0], dPsi/dx += -nu_v^T dM dv, and gv_r = gv - J^T nu_lambda.
-  const dynamics::VelocityCorrection vc =
-      dynamics::rigid_velocity_correction(mech, s0.q, v_given, t0);
-  if (m > 0 && vc.residual > dynamics::kVelocityTolerance * (1 + vc.scale)) {
-    const Vector dv = s0.v - (vc.dv.size() > 0 ? Vector(v_given + vc.dv) : v_given);
+  const dynamics::VelocityCorrection &vc = trace.rigid;
+  if (trace.fallback.size() > 0) {
     Matrix rhs_v = Matrix::Zero(n + m, r);
     rhs_v.topRows(n) = gv;
     const Matrix nu_v = lu.solve(rhs_v);
-    G += partials(s0.q, Vector::Zero(n), dv, false, -nu_v.topRows(n));
+    G += partials(s0.q, Vector::Zero(n), trace.fallback, false, -nu_v.topRows(n));
     gv -= J.transpose() * nu_v.bottomRows(m);
   }
   // The rigid correction v_r = v_given + T y: dy = -Pi dW y, dW = T^T dM T (also for joints that
@@ -351,8 +349,8 @@ void DynamicProblem::evaluate_rigid(bool gradients, optimize::Evaluation &out) {
   // them or those of the binomial schedule's first descent; every main step's sensor samples.
   const double t_forward = wall_time();
   const dynamics::GeneralizedAlpha ga(mech, par_, newton_);
-  dynamics::StartReport start;
-  StepRecord record{ga.initial_state(scene_.q0, scene_.v0, 0.0, &start), {}};
+  dynamics::StartTrace trace; // what the start did to the velocities (section 9.2)
+  StepRecord record{ga.initial_state(scene_.q0, scene_.v0, 0.0, nullptr, &trace), {}};
   const dynamics::State s0 = record.state;
   std::unique_ptr<BinomialSchedule> schedule;
   std::vector<char> keep;
@@ -411,7 +409,7 @@ void DynamicProblem::evaluate_rigid(bool gradients, optimize::Evaluation &out) {
   checkpoint_bytes_ = store->peak_bytes();
   adjoint_factorizations_ = sweep.factorizations();
   const Matrix mu0 = sweep.finish(state_partials(0, s0));
-  G += initial_state_adjoint(ga, s0, scene_.v0, -mu0,
+  G += initial_state_adjoint(ga, s0, trace, -mu0,
                              [&](const Vector &q, const Vector &v, const Vector &a, bool gravity,
                                  const Matrix &W) { return design_partials(q, v, a, gravity, W); });
   adjoint_s_ = wall_time() - t_adjoint;

@@ -27,10 +27,9 @@ void DynamicProblem::evaluate_distributed(bool gradients, optimize::Evaluation &
   const double t_forward = wall_time();
   const dynamics::DistributedAlpha da(dynamics::acf_body_list(scene_), &mech, scene_.acf_interfaces,
                                       mech.gravity, par_, newton_);
-  dynamics::StartReport start;
-  dynamics::StartTrace trace; // what the start did to the velocities (section 9.2)
+  dynamics::DistStartTrace trace; // what the start did to the velocities (section 9.2)
   DistRecord record;
-  record.state = dynamics::acf_initial_state(scene_, da, &start, &trace);
+  record.state = dynamics::acf_initial_state(scene_, da, nullptr, &trace);
   // Which ACF body each strain energy response measures.
   std::vector<int> strain_body(nr, -1);
   for (std::size_t i = 0; i < nr; ++i)

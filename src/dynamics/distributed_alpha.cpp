@@ -769,7 +769,7 @@ void DistributedAlpha::add_small(Vec v, const Vector &values) const {
 }
 
 DistState DistributedAlpha::initial_state(Vec q0, Vec v0, double t0, StartReport *report,
-                                          StartTrace *trace) const {
+                                          DistStartTrace *trace) const {
   const detail::AcfLayout &L = *layout_;
   const bool root = comm_rank(comm_) == 0;
   DistState s;
@@ -988,8 +988,8 @@ void DistributedAlpha::start_velocity_transpose(const DistState &s0, Vec nu, Vec
   }
 }
 
-Vector DistributedAlpha::rigid_parameters_transpose(const DistState &s0, const StartTrace &trace,
-                                                    Vec g) const {
+Vector DistributedAlpha::rigid_parameters_transpose(const DistState &s0,
+                                                    const DistStartTrace &trace, Vec g) const {
   const detail::AcfLayout &L = *layout_;
   const auto k = trace.rigid.T.cols();
   const Eigen::Index field0 = k - 6 * static_cast<Eigen::Index>(trace.fields.size());

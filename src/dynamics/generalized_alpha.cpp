@@ -156,7 +156,7 @@ GeneralizedAlpha::GeneralizedAlpha(const Mechanism &mechanism, AlphaParameters p
 }
 
 State GeneralizedAlpha::initial_state(const Vector &q0, const Vector &v0, double t0,
-                                      StartReport *report) const {
+                                      StartReport *report, StartTrace *trace) const {
   const int n = mech_.coordinates(), m = mech_.constraints();
   State s;
   s.t = t0;
@@ -198,6 +198,7 @@ State GeneralizedAlpha::initial_state(const Vector &q0, const Vector &v0, double
   StartReport rep;
   rep.kinetic_given = 0.5 * v0.dot(M * v0);
   const VelocityCorrection rigid = rigid_velocity_correction(mech_, s.q, v0, t0);
+  if (trace) *trace = StartTrace{rigid, Vector()};
   s.v = v0 + rigid.dv;
   rep.rigid_residual = rigid.residual;
   rep.given_violation = rigid.scale;
@@ -216,8 +217,10 @@ State GeneralizedAlpha::initial_state(const Vector &q0, const Vector &v0, double
     mech_.constraint_time_terms(s.q, s.v, t0, phi_t, phi_tt, phi_qt_v);
     Vector rhs = Vector::Zero(n + m);
     rhs.tail(m) = -(J * s.v + phi_t);
-    s.v += lu.solve(rhs).head(n);
+    const Vector dv = lu.solve(rhs).head(n);
+    s.v += dv;
     rep.elastic_corrected = true;
+    if (trace) trace->fallback = dv;
   }
   rep.kinetic = 0.5 * s.v.dot(M * s.v);
   if (report) *report = rep;

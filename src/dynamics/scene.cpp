@@ -522,7 +522,7 @@ std::vector<const bodies::AcfBody *> acf_body_list(const Scene &scene) {
 }
 
 DistState acf_initial_state(const Scene &scene, const DistributedAlpha &da, StartReport *report,
-                            StartTrace *trace) {
+                            DistStartTrace *trace) {
   Vec x0 = da.create_vector(), v0 = da.create_vector();
   struct Destroy {
     Vec &x, &v;

@@ -32,11 +32,11 @@ using ResidualPartials = std::function<Matrix(const Vector &q, const Vector &v, 
 
 /// The adjoint of the consistent initial state (docs/theory.md section 9.2): from
 /// gbar = dPsi/ds_0 (packed like State::pack, one column per response; = -mu_0 of the sweep),
-/// the state s0 that GeneralizedAlpha::initial_state computed from the velocities v_given,
-/// returns dPsi/dtheta through the accelerations, multipliers and the velocity correction.
-/// Throws flexopt::Error if the start needed the elastic velocity fallback (not differentiated).
+/// the state s0 that GeneralizedAlpha::initial_state computed and its `trace` (what the start
+/// did to the velocities), returns dPsi/dtheta through the accelerations, multipliers and the
+/// velocity corrections (the rigid-body one and the elastic fallback).
 Matrix initial_state_adjoint(const dynamics::GeneralizedAlpha &ga, const dynamics::State &s0,
-                             const Vector &v_given, const Matrix &gbar,
+                             const dynamics::StartTrace &trace, const Matrix &gbar,
                              const ResidualPartials &partials);
 
 /// A response of a dynamic analysis on the time grid (docs/theory.md section 9.3): the sensor

@@ -56,14 +56,14 @@ struct AcfLayout; ///< the DOF numbers of every body's local nodes, the ties, th
 /// (docs/theory.md section 9.2): the rigid-body correction over the small part's frames and the
 /// ACF bodies' rigid velocity fields, and the elastic fallback's change dv of all velocities
 /// (null if the rigid-body correction sufficed). Owns dv.
-struct StartTrace {
+struct DistStartTrace {
   VelocityCorrection rigid;
   std::vector<RigidField> fields; ///< per ACF body
   Vec fallback = nullptr;
-  StartTrace() = default;
-  StartTrace(const StartTrace &) = delete;
-  StartTrace &operator=(const StartTrace &) = delete;
-  ~StartTrace() { VecDestroy(&fallback); }
+  DistStartTrace() = default;
+  DistStartTrace(const DistStartTrace &) = delete;
+  DistStartTrace &operator=(const DistStartTrace &) = delete;
+  ~DistStartTrace() { VecDestroy(&fallback); }
 };
 
 class DistributedAlpha {
@@ -118,7 +118,7 @@ public:
   /// Collective; throws a collective flexopt::Error naming the violated constraints, an
   /// inverted element or a singular system.
   DistState initial_state(Vec q0, Vec v0, double t0, StartReport *report = nullptr,
-                          StartTrace *trace = nullptr) const;
+                          DistStartTrace *trace = nullptr) const;
   /// r = [Q; gamma] at s (its positions and velocities): the right-hand side of the start's
   /// acceleration system [M Phi_q^T; Phi_q 0] [acc; lambda] = [Q; gamma], with Q = f_g - f(x) -
   /// f_d(x, v) on the ACF rows and -r(q, v, 0) (Mechanism::dynamics) on the small part's, gamma
@@ -143,7 +143,7 @@ public:
   /// respect to its parameters (the columns of trace.rigid.T for the small part's frames, then
   /// per ACF body sum_i [g_i; (x_i - c) x g_i] over its nodes) of a gradient g on the
   /// coordinates. Replicated on every rank. Collective.
-  Vector rigid_parameters_transpose(const DistState &s0, const StartTrace &trace, Vec g) const;
+  Vector rigid_parameters_transpose(const DistState &s0, const DistStartTrace &trace, Vec g) const;
   /// Advances s by h to `next`, halving the step (recursively, up to max_halvings) when Newton
   /// fails. Returns false (and fills `info`) if even the smallest substep fails. Collective.
   bool advance(const DistState &s, double h, DistState &next, StepInfo &info,

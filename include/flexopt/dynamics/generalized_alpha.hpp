@@ -4,6 +4,7 @@
 /// after Arnold & Brüls (2007), with consistent initial conditions and Newton's method on the
 /// exact iteration matrix, whose factorization is kept across iterations and steps while the
 /// iterations contract fast enough (simplified Newton; docs/theory.md section 6.4).
+#include "flexopt/dynamics/consistent_start.hpp"
 #include "flexopt/dynamics/mechanism.hpp"
 
 #include <memory>
@@ -81,6 +82,14 @@ struct StartReport {
   double given_violation = 0;
 };
 
+/// What the consistent start did to the velocities, for its adjoint (docs/theory.md section
+/// 9.2): the rigid-body correction, and the elastic fallback's change dv of all velocities
+/// (empty if the rigid-body correction sufficed).
+struct StartTrace {
+  VelocityCorrection rigid;
+  Vector fallback;
+};
+
 /// What one step did, for progress output and failure messages.
 struct StepInfo {
   int iterations = 0;     ///< Newton iterations (all attempts)
@@ -103,11 +112,11 @@ public:
   /// Phi_q v + Phi_t = 0 with the least change of kinetic energy, the elastic ones kept
   /// (rigid_velocity_correction; should the joints need elastic velocities, a mass-weighted
   /// correction of all velocities follows); then acc and lambda from the acceleration-level
-  /// equations, a = acc. What the correction did goes into `report` (if non-null). Throws a
-  /// collective flexopt::Error naming the violated rows when the projection fails or leaves a
-  /// redundant row violated.
-  State initial_state(const Vector &q0, const Vector &v0, double t0,
-                      StartReport *report = nullptr) const;
+  /// equations, a = acc. What the correction did goes into `report` and `trace` (if non-null).
+  /// Throws a collective flexopt::Error naming the violated rows when the projection fails or
+  /// leaves a redundant row violated.
+  State initial_state(const Vector &q0, const Vector &v0, double t0, StartReport *report = nullptr,
+                      StartTrace *trace = nullptr) const;
 
   /// Advances s by h to `next`, halving the step (recursively, up to max_halvings) when Newton
   /// fails. Returns false (and fills `info`) if even the smallest substep fails. If the step

@@ -142,7 +142,7 @@ std::vector<const bodies::AcfBody *> acf_body_list(const Scene &scene);
 /// elastic fields say, the mechanism's coordinates from q0, v0, then
 /// DistributedAlpha::initial_state (report and trace as there). Collective.
 DistState acf_initial_state(const Scene &scene, const DistributedAlpha &da,
-                            StartReport *report = nullptr, StartTrace *trace = nullptr);
+                            StartReport *report = nullptr, DistStartTrace *trace = nullptr);
 
 /// The frame of an ACF body's first interface node at the mechanism state `small`: origin r_I,
 /// rotation A_I, the interface centroid c_I (mesh coordinates). The elastic displacement of a
