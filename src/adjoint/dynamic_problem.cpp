@@ -295,7 +295,7 @@ void DynamicProblem::evaluate(Vec x, bool gradients, optimize::Evaluation &out) 
       for (PetscInt e = 0; e < ne; ++e) g[e] = element_gradient_[i][static_cast<std::size_t>(e)];
       FX_PETSC(VecRestoreArray(grad_physical_, &g));
     }
-    field_->pull_back(grad_physical_, i == 0 ? out.d_objective : out.d_constraints[i - 1]);
+    field_->pull_back(grad_physical_, out.gradient(i));
   }
   // A response that the densities cannot move (a kinematic response of a fully driven rigid
   // mechanism, say) has a gradient of round-off: say so once, rather than let an optimizer
@@ -303,8 +303,8 @@ void DynamicProblem::evaluate(Vec x, bool gradients, optimize::Evaluation &out) 
   if (!zero_gradient_warned_) {
     for (std::size_t i = 0; i < nr; ++i) {
       PetscReal g = 0;
-      FX_PETSC(VecNorm(i == 0 ? out.d_objective : out.d_constraints[i - 1], NORM_INFINITY, &g));
-      const double value = i == 0 ? out.objective : out.constraints[i - 1];
+      FX_PETSC(VecNorm(out.gradient(i), NORM_INFINITY, &g));
+      const double value = out.value(i);
       if (g <= 1e-12 * std::max(std::abs(value), 1e-300)) {
         print0(m.comm,
                "adjoint: warning: %s does not depend on the densities (max |dPsi/dx| = %.2e, "
@@ -439,8 +439,7 @@ bool DynamicProblem::finish_forward(double t_forward, bool gradients, optimize::
   const double forward = wall_time() - t_forward;
   forward_total_s_ += forward;
   out.constraints.assign(case_.constraints.size(), 0.0);
-  for (std::size_t i = 0; i < specs_.size(); ++i)
-    (i == 0 ? out.objective : out.constraints[i - 1]) = response_value(i);
+  for (std::size_t i = 0; i < specs_.size(); ++i) out.value(i) = response_value(i);
   if (gradients) forward_s_ = forward;
   return gradients;
 }

@@ -36,7 +36,7 @@ std::string write_gradients(const optimize::DesignProblem &problem, const optimi
   for (std::size_t i = 0; i < problem.response_names().size(); ++i) {
     std::fill(cells.begin(), cells.end(), 0.0);
     const PetscScalar *g;
-    Vec gv = i == 0 ? e.d_objective : e.d_constraints[i - 1];
+    Vec gv = e.gradient(i);
     FX_PETSC(VecGetArrayRead(gv, &g));
     for (std::size_t k = 0; k < elements.size(); ++k)
       cells[static_cast<std::size_t>(elements[k])] = g[k];
@@ -512,8 +512,7 @@ int run_check_gradient(const Context &ctx, const Options &o, const io::Case &c, 
   const std::vector<double> r0 = response_values(base);
   const std::string gradient_file = detail::write_gradients(*problem, base, dir);
   std::vector<double> slope(nr);
-  for (std::size_t i = 0; i < nr; ++i)
-    FX_PETSC(VecDot(i == 0 ? base.d_objective : base.d_constraints[i - 1], direction, &slope[i]));
+  for (std::size_t i = 0; i < nr; ++i) FX_PETSC(VecDot(base.gradient(i), direction, &slope[i]));
 
   // Taylor test: |R(x0 + h d) - R(x0) - h g.d| = O(h^2) if g is the gradient.
   const std::vector<double> steps{1e-1, 1e-2, 1e-3, 1e-4, 1e-5};
@@ -627,7 +626,7 @@ int run_check_gradient(const Context &ctx, const Options &o, const io::Case &c, 
     for (std::size_t i = 0; i < nr; ++i) {
       if (local >= 0) {
         const PetscScalar *g;
-        Vec gv = i == 0 ? base.d_objective : base.d_constraints[i - 1];
+        Vec gv = base.gradient(i);
         FX_PETSC(VecGetArrayRead(gv, &g));
         adjoint[i] = g[local];
         FX_PETSC(VecRestoreArrayRead(gv, &g));

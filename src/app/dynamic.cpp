@@ -472,7 +472,7 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
     io::Json responses = io::Json::object();
     const auto &names = design->response_names();
     for (std::size_t i = 0; i < names.size(); ++i) {
-      const double v = i == 0 ? e.objective : e.constraints[i - 1];
+      const double v = e.value(i);
       const std::string key = i == 0 ? "objective" : "constraint" + std::to_string(i - 1);
       responses[key] = v;
       print0(ctx.comm(), "response %-12s %-28s %.10g\n", key.c_str(), names[i].c_str(), v);

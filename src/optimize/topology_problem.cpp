@@ -142,8 +142,6 @@ void TopologyProblem::response_gradient(const io::ResponseSpec &r, std::size_t i
 
 void TopologyProblem::evaluate(Vec x, bool gradients, Evaluation &out) {
   LogScope log("FxTopologyEvaluate");
-  const mesh::DistributedMesh &m = mesh();
-  const io::DesignSpec &d = *case_.design;
   field_->update(x);
 
   // SIMP: s = e_min + rho~^p (1 - e_min) on design elements; solid (s = 1) elsewhere.
@@ -158,7 +156,7 @@ void TopologyProblem::evaluate(Vec x, bool gradients, Evaluation &out) {
   out.constraints.assign(case_.constraints.size(), 0.0);
   for (std::size_t i = 0; i < specs.size(); ++i) {
     const double v = response_value(*specs[i], i);
-    (i == 0 ? out.objective : out.constraints[i - 1]) = v;
+    out.value(i) = v;
   }
   if (!gradients) return;
   if (!out.d_objective) {
@@ -168,7 +166,7 @@ void TopologyProblem::evaluate(Vec x, bool gradients, Evaluation &out) {
   }
   for (std::size_t i = 0; i < specs.size(); ++i) {
     response_gradient(*specs[i], i, grad_physical_); // d/d(physical density)
-    field_->pull_back(grad_physical_, i == 0 ? out.d_objective : out.d_constraints[i - 1]);
+    field_->pull_back(grad_physical_, out.gradient(i));
   }
 }
 

@@ -37,10 +37,6 @@ const io::Case &pendulum() {
   return c;
 }
 
-Vec gradient_of(const optimize::Evaluation &e, std::size_t i) {
-  return i == 0 ? e.d_objective : e.d_constraints[i - 1];
-}
-
 } // namespace
 
 TEST(DynamicAdjoint, RigidPendulumIsScaleInvariant) {
@@ -56,12 +52,12 @@ TEST(DynamicAdjoint, RigidPendulumIsScaleInvariant) {
   p->evaluate(xc, false, scaled);
   const auto &names = p->response_names();
   for (std::size_t i = 0; i < names.size(); ++i) {
-    const double value = i == 0 ? e.objective : e.constraints[i - 1];
-    const double value_scaled = i == 0 ? scaled.objective : scaled.constraints[i - 1];
+    const double value = e.value(i);
+    const double value_scaled = scaled.value(i);
     PetscScalar dot = 0;
     PetscReal scale = 0;
-    VecDot(x, gradient_of(e, i), &dot);
-    VecPointwiseMult(xg, x, gradient_of(e, i));
+    VecDot(x, e.gradient(i), &dot);
+    VecPointwiseMult(xg, x, e.gradient(i));
     VecNorm(xg, NORM_1, &scale);
     const bool degree_one =
         names[i].find("mass") != std::string::npos || names[i].find("volume") != std::string::npos;
@@ -104,11 +100,11 @@ TEST(DynamicAdjoint, AcfPendulumIsScaleInvariant) {
   p->evaluate(x, true, e);
   const auto &names = p->response_names();
   for (std::size_t i = 0; i < names.size(); ++i) {
-    const double value = i == 0 ? e.objective : e.constraints[i - 1];
+    const double value = e.value(i);
     PetscScalar dot = 0;
     PetscReal scale = 0;
-    VecDot(x, gradient_of(e, i), &dot);
-    VecPointwiseMult(xg, x, gradient_of(e, i));
+    VecDot(x, e.gradient(i), &dot);
+    VecPointwiseMult(xg, x, e.gradient(i));
     VecNorm(xg, NORM_1, &scale);
     const bool degree_one = names[i].find("mass") != std::string::npos ||
                             names[i].find("volume") != std::string::npos ||
@@ -140,16 +136,16 @@ TEST(DynamicAdjoint, GradientDoesNotDependOnTheRankCount) {
   for (std::size_t k = 0; k < one->design_tags().size(); ++k) index[one->design_tags()[k]] = k;
   for (std::size_t i = 0; i < world->response_names().size(); ++i) {
     const PetscScalar *gw, *g1;
-    VecGetArrayRead(gradient_of(ew, i), &gw);
-    VecGetArrayRead(gradient_of(e1, i), &g1);
+    VecGetArrayRead(ew.gradient(i), &gw);
+    VecGetArrayRead(e1.gradient(i), &g1);
     double gmax = 0, diff = 0;
     for (std::size_t k = 0; k < world->design_tags().size(); ++k) {
       const double b = g1[index.at(world->design_tags()[k])];
       gmax = std::max(gmax, std::abs(b));
       diff = std::max(diff, std::abs(gw[k] - b));
     }
-    VecRestoreArrayRead(gradient_of(ew, i), &gw);
-    VecRestoreArrayRead(gradient_of(e1, i), &g1);
+    VecRestoreArrayRead(ew.gradient(i), &gw);
+    VecRestoreArrayRead(e1.gradient(i), &g1);
     MPI_Allreduce(MPI_IN_PLACE, &gmax, 1, MPI_DOUBLE, MPI_MAX, PETSC_COMM_WORLD);
     MPI_Allreduce(MPI_IN_PLACE, &diff, 1, MPI_DOUBLE, MPI_MAX, PETSC_COMM_WORLD);
     EXPECT_LE(diff, 1e-9 * gmax) << world->response_names()[i];
@@ -178,10 +174,10 @@ void check_checkpoints(const std::string &name) {
     for (std::size_t i = 0; i < p->response_names().size(); ++i) {
       const PetscScalar *a;
       PetscInt n = 0;
-      VecGetLocalSize(gradient_of(e, i), &n);
-      VecGetArrayRead(gradient_of(e, i), &a);
+      VecGetLocalSize(e.gradient(i), &n);
+      VecGetArrayRead(e.gradient(i), &a);
       g.emplace_back(a, a + n);
-      VecRestoreArrayRead(gradient_of(e, i), &a);
+      VecRestoreArrayRead(e.gradient(i), &a);
     }
     VecDestroy(&x);
     return g;

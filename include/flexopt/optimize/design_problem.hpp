@@ -20,6 +20,11 @@ struct Evaluation {
   std::vector<double> constraints; ///< response values (the bound is in the spec)
   Vec d_objective = nullptr;
   std::vector<Vec> d_constraints;
+  /// Response i: 0 the objective, i >= 1 constraint i - 1 (the order of response_names).
+  double &value(std::size_t i) { return i == 0 ? objective : constraints[i - 1]; }
+  double value(std::size_t i) const { return i == 0 ? objective : constraints[i - 1]; }
+  Vec &gradient(std::size_t i) { return i == 0 ? d_objective : d_constraints[i - 1]; }
+  Vec gradient(std::size_t i) const { return i == 0 ? d_objective : d_constraints[i - 1]; }
   Evaluation() = default;
   Evaluation(const Evaluation &) = delete;
   Evaluation &operator=(const Evaluation &) = delete;
