@@ -455,6 +455,43 @@ void geometric_stiffness_impl(ElementType type, const ShapeTable &tab, const Ele
     }
 }
 
+template <int NN>
+void geometric_stiffness_load_impl(ElementType type, const ShapeTable &tab, const ElementCoords &X,
+                                   const Eigen::Ref<const Eigen::MatrixXd> &psi,
+                                   const Eigen::Ref<const Eigen::MatrixXd> &Gbar, double lambda,
+                                   double mu, double det_min, ElementVector &f) {
+  const Eigen::Matrix<double, NN, 3> Xn = X.rowwise() - X.row(0); // see jacobian()
+  const auto n = psi.cols();
+  Eigen::Matrix<double, NN, 3> F = Eigen::Matrix<double, NN, 3>::Zero();
+  Eigen::Matrix<double, NN, 3, Eigen::RowMajor> G;
+  std::vector<Eigen::Matrix3d> H(static_cast<std::size_t>(n));
+  for (int q = 0; q < tab.num_points; ++q) {
+    const Eigen::Map<const Eigen::Matrix<double, NN, 3, Eigen::RowMajor>> dN(&tab.dN[q * NN * 3]);
+    const Eigen::Matrix3d J = Xn.transpose() * dN;
+    const double det = J.determinant();
+    if (!(det > det_min))
+      throw_degenerate("element_geometric_stiffness_load", type, X, det, det_min);
+    G.noalias() = dN * J.inverse();
+    // H_k(i, j) = d psi_k,i / dx_j.
+    for (Eigen::Index k = 0; k < n; ++k) {
+      const Eigen::Map<const Eigen::Matrix<double, NN, 3, Eigen::RowMajor>> P(psi.col(k).data());
+      H[static_cast<std::size_t>(k)].noalias() = P.transpose() * G;
+    }
+    Eigen::Matrix3d T = Eigen::Matrix3d::Zero();
+    for (Eigen::Index k = 0; k < n; ++k) {
+      Eigen::Matrix3d W = Eigen::Matrix3d::Zero();
+      for (Eigen::Index l = 0; l < n; ++l) W += Gbar(k, l) * H[static_cast<std::size_t>(l)];
+      T.noalias() += H[static_cast<std::size_t>(k)].transpose() * W;
+    }
+    T = 0.5 * (T + T.transpose()).eval();
+    const Eigen::Matrix3d Z = lambda * T.trace() * Eigen::Matrix3d::Identity() + 2.0 * mu * T;
+    F.noalias() += (tab.weights[q] * det) * (G * Z);
+  }
+  f.resize(3 * NN);
+  for (int a = 0; a < NN; ++a)
+    for (int i = 0; i < 3; ++i) f[3 * a + i] = F(a, i);
+}
+
 /// Signed sum_q w_q det J_q N_a(q) (into nodal weights) and sum_q w_q det J_q (returned), with the
 /// degenerate check if `where` is non-null.
 double integrate_shape(ElementType type, const ShapeTable &tab, const ElementCoords &X,
@@ -875,6 +912,36 @@ ElementMatrix element_geometric_stiffness(ElementType type, const ElementCoords 
     break;
   }
   return K;
+}
+
+ElementVector element_geometric_stiffness_load(ElementType type, const ElementCoords &X,
+                                               const IsotropicMaterial &mat,
+                                               const Eigen::Ref<const Eigen::MatrixXd> &psi,
+                                               const Eigen::Ref<const Eigen::MatrixXd> &Gbar) {
+  check_coords(type, X, "element_geometric_stiffness_load");
+  const int n = nodes_per_element(type);
+  if (psi.rows() != 3 * n || Gbar.rows() != psi.cols() || Gbar.cols() != psi.cols())
+    throw Error(std::string("element_geometric_stiffness_load: ") + element_name(type) + " needs " +
+                std::to_string(3 * n) +
+                " rows per vector and a square Gbar of their "
+                "count");
+  mat.validate();
+  const double h = size_scale(X);
+  const double det_min = kDegenerateTol * h * h * h;
+  const ShapeTable &tab = volume_table(type, kernel_degree(type, X, h, Integrand::Stiffness));
+  ElementVector f;
+  switch (type) {
+  case ElementType::Tet4:
+    geometric_stiffness_load_impl<4>(type, tab, X, psi, Gbar, mat.lambda(), mat.mu(), det_min, f);
+    break;
+  case ElementType::Tet10:
+    geometric_stiffness_load_impl<10>(type, tab, X, psi, Gbar, mat.lambda(), mat.mu(), det_min, f);
+    break;
+  case ElementType::Hex8:
+    geometric_stiffness_load_impl<8>(type, tab, X, psi, Gbar, mat.lambda(), mat.mu(), det_min, f);
+    break;
+  }
+  return f;
 }
 
 double von_mises(const Voigt &s) {

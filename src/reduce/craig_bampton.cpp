@@ -15,7 +15,7 @@ CraigBamptonBasis::~CraigBamptonBasis() {
 
 void craig_bampton(const mesh::DistributedMesh &mesh, Mat K, Mat M,
                    const std::vector<std::string> &interfaces, int fixed_modes,
-                   CraigBamptonBasis &out) {
+                   CraigBamptonBasis &out, const CraigBamptonOptions &options) {
   LogScope log("FxCraigBampton");
   if (interfaces.empty())
     throw Error("Craig-Bampton: a flexible body needs at least one interface (its frame)", true);
@@ -48,7 +48,10 @@ void craig_bampton(const mesh::DistributedMesh &mesh, Mat K, Mat M,
     out.M.resize(0, 0);
     return;
   }
-  out.interior = std::make_shared<ClampedProblem>(K, M, constrained, fixed_modes, "cb_");
+  out.interface_dofs = constrained;
+  out.next_eigenvalue = std::numeric_limits<double>::quiet_NaN();
+  out.interior = std::make_shared<ClampedProblem>(K, M, constrained, fixed_modes, "cb_",
+                                                  options.tolerance, options.next_eigenvalue);
   ClampedProblem &clamped = *out.interior;
   // Static modes: prescribed rigid motion u_D of interface k, the others clamped.
   std::vector<Vec> rhs(ns), x(ns);
@@ -107,6 +110,7 @@ void craig_bampton(const mesh::DistributedMesh &mesh, Mat K, Mat M,
   if (fixed_modes > 0) {
     ModalResult modes;
     clamped.lowest_modes(modes);
+    out.next_eigenvalue = modes.next_eigenvalue;
     for (int i = 0; i < fixed_modes; ++i) {
       out.fixed_eigenvalues.push_back(modes.eigenvalues[static_cast<std::size_t>(i)]);
       // Take the vector over instead of copying it.

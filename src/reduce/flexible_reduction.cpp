@@ -1,5 +1,6 @@
 #include "flexopt/reduce/flexible_reduction.hpp"
 
+#include "flexopt/core/context.hpp"
 #include "flexopt/core/error.hpp"
 #include "flexopt/core/log.hpp"
 #include "flexopt/fem/assembly.hpp"
@@ -7,6 +8,9 @@
 #include "flexopt/reduce/craig_bampton.hpp"
 #include "flexopt/reduce/geometric_stiffness.hpp"
 #include "flexopt/reduce/modal.hpp"
+#include "flexopt/reduce/reduction_adjoint.hpp"
+
+#include <cstdio>
 
 namespace flexopt::reduce {
 
@@ -49,21 +53,49 @@ FlexibleReduction::~FlexibleReduction() {
 
 void reduce_flexible_body(const mesh::DistributedMesh &mesh, const fem::IsotropicMaterial &material,
                           const std::vector<std::string> &interfaces, int fixed_modes,
-                          bool geometric_stiffening, FlexibleReduction &out, FrameCondition frame) {
+                          bool geometric_stiffening, FlexibleReduction &out, FrameCondition frame,
+                          const ElementFactors *design) {
   LogScope log("FxFlexReduce");
   if (frame == FrameCondition::Chord && (interfaces.size() < 2 || geometric_stiffening))
     throw Error("FFRF reduction: the chord frame needs a second interface and no centrifugal "
                 "geometric stiffening",
                 true);
-  Mat K, M;
-  fem::assemble_stiffness_and_mass(mesh, material, K, M);
+  Mat K = fem::create_matrix(mesh), M = fem::create_matrix(mesh);
+  const std::vector<double> none;
+  const std::vector<double> &s = design ? design->stiffness : none;
+  const std::vector<double> &w = design ? design->mass : none;
+  fem::assemble_stiffness(mesh, material, s, K);
+  fem::assemble_mass(mesh, material.density, w, M);
   CraigBamptonBasis cb;
-  craig_bampton(mesh, K, M, interfaces, fixed_modes, cb);
+  CraigBamptonOptions options;
+  if (design) {
+    options.tolerance = 1e-13;
+    options.next_eigenvalue = true;
+  }
+  craig_bampton(mesh, K, M, interfaces, fixed_modes, cb, options);
   // With a single interface (the frame), the Craig-Bampton problem (every interface clamped) is
   // the frame-clamped one of the geometric stiffness: its factorization is kept for those solves
-  // (one MUMPS factorization instead of two), otherwise released now.
+  // (one MUMPS factorization instead of two), otherwise released now (a design body keeps it for
+  // its adjoint).
   const bool share_factorization = geometric_stiffening && interfaces.size() == 1;
-  if (!share_factorization) cb.interior.reset();
+  if (!share_factorization && !design) cb.interior.reset();
+  std::shared_ptr<ReductionAdjointData> keep;
+  if (design) {
+    keep = std::make_shared<ReductionAdjointData>();
+    keep->material = material;
+    keep->factors = *design;
+    keep->static_modes = cb.static_modes;
+    keep->fixed_eigenvalues = cb.fixed_eigenvalues;
+    keep->next_eigenvalue = cb.next_eigenvalue;
+    keep->interface_dofs = cb.interface_dofs;
+    keep->interior = cb.interior;
+    for (Vec v : cb.vectors) {
+      Vec c;
+      FX_PETSC(VecDuplicate(v, &c));
+      FX_PETSC(VecCopy(v, c));
+      keep->vectors.push_back(c);
+    }
+  }
   out.static_modes = cb.static_modes;
   out.fixed_modes = cb.fixed_modes;
   out.centroids = cb.centroids;
@@ -121,11 +153,45 @@ void reduce_flexible_body(const mesh::DistributedMesh &mesh, const fem::Isotropi
   if (geometric_stiffening) {
     const auto G = centrifugal_geometric_stiffness(
         mesh, material, K, M, interfaces.front(), out.origin, out.basis,
-        share_factorization ? cb.interior.get() : nullptr);
+        share_factorization ? cb.interior.get() : nullptr, s, keep ? &keep->loads : nullptr);
     out.geometric.assign(G.begin(), G.end());
+    if (keep && share_factorization) keep->loads.frame = cb.interior;
   }
-  FX_PETSC(MatDestroy(&K));
-  FX_PETSC(MatDestroy(&M));
+  out.adjoint = keep;
+  if (keep) {
+    keep->Y = Y;
+    keep->T = T;
+    keep->R = R;
+    keep->K = K;
+    keep->M = M;
+  } else {
+    FX_PETSC(MatDestroy(&K));
+    FX_PETSC(MatDestroy(&M));
+  }
+}
+
+void check_modal_cut(const FlexibleReduction &r, const std::string &body, MPI_Comm comm) {
+  if (!r.adjoint || r.fixed_modes == 0) return;
+  const double lo = r.adjoint->fixed_eigenvalues.back(), hi = r.adjoint->next_eigenvalue;
+  const double gap = (hi - lo) / lo;
+  char line[512];
+  std::snprintf(line, sizeof line,
+                "FFRF body '%s': fixed-interface modes %d and %d have %.9g Hz and %.9g Hz "
+                "(relative gap %.2e)",
+                body.c_str(), r.fixed_modes, r.fixed_modes + 1, frequency_hz(lo), frequency_hz(hi),
+                gap);
+  if (!(gap > 1e-8))
+    throw Error(std::string(line) +
+                    ": a repeated eigenvalue is split by reduction.modes, and the reduced model "
+                    "is not differentiable with respect to the densities there; use " +
+                    std::to_string(r.fixed_modes + 1) + " or " + std::to_string(r.fixed_modes - 1) +
+                    " modes",
+                true);
+  if (gap < 1e-2)
+    print0(comm,
+           "%s: a close pair at the cut of reduction.modes; the gradient holds for designs that "
+           "keep the order (another modes count avoids it)\n",
+           line);
 }
 
 Eigen::MatrixXd owned_basis_values(const FlexibleReduction &r, PetscInt owned_nodes) {

@@ -46,11 +46,15 @@ Eigen::MatrixXd centrifugal_stiffening(const std::array<Eigen::MatrixXd, 6> &G,
   return sum;
 }
 
-std::array<Eigen::MatrixXd, 6>
-centrifugal_geometric_stiffness(const mesh::DistributedMesh &mesh,
-                                const fem::IsotropicMaterial &material, Mat K, Mat M,
-                                const std::string &frame_interface, const Eigen::Vector3d &origin,
-                                const std::vector<Vec> &basis, ClampedProblem *frame_clamped) {
+CentrifugalLoadStates::~CentrifugalLoadStates() {
+  for (Vec &v : u) VecDestroy(&v);
+}
+
+std::array<Eigen::MatrixXd, 6> centrifugal_geometric_stiffness(
+    const mesh::DistributedMesh &mesh, const fem::IsotropicMaterial &material, Mat K, Mat M,
+    const std::string &frame_interface, const Eigen::Vector3d &origin,
+    const std::vector<Vec> &basis, ClampedProblem *frame_clamped,
+    const std::vector<double> &modulus_factor, CentrifugalLoadStates *keep) {
   LogScope log("FxGeomStiffness");
   const int n = static_cast<int>(basis.size());
   std::array<Eigen::MatrixXd, 6> G;
@@ -67,9 +71,9 @@ centrifugal_geometric_stiffness(const mesh::DistributedMesh &mesh,
 
   // The body clamped at its frame: one factorization for the six load cases (the caller's if
   // it has one).
-  std::unique_ptr<ClampedProblem> own;
+  std::shared_ptr<ClampedProblem> own;
   if (!frame_clamped) {
-    own = std::make_unique<ClampedProblem>(K, M, frame, 0, "gs_");
+    own = std::make_shared<ClampedProblem>(K, M, frame, 0, "gs_");
     frame_clamped = own.get();
   }
 
@@ -123,11 +127,18 @@ centrifugal_geometric_stiffness(const mesh::DistributedMesh &mesh,
     FX_PETSC(VecCopy(u[static_cast<std::size_t>(c)], ug));
     FX_PETSC(VecGhostUpdateBegin(ug, INSERT_VALUES, SCATTER_FORWARD));
     FX_PETSC(VecGhostUpdateEnd(ug, INSERT_VALUES, SCATTER_FORWARD));
-    fem::assemble_geometric_stiffness(mesh, material, ug, Ks);
+    fem::assemble_geometric_stiffness(mesh, material, modulus_factor, ug, Ks);
     G[static_cast<std::size_t>(c)] = project(Ks, basis);
   }
   FX_PETSC(MatDestroy(&Ks));
   FX_PETSC(VecDestroy(&ug));
+  if (keep) {
+    for (Vec &v : keep->u) FX_PETSC(VecDestroy(&v));
+    keep->u = u;
+    u.clear();
+    keep->frame = own;
+    keep->frame_dofs = frame;
+  }
   destroy();
   return G;
 }

@@ -43,7 +43,7 @@ IS free_dofs(Mat K, std::vector<PetscInt> fixed) {
 
 /// Krylov-Schur for the `count` eigenvalues of (Kf, Mf) nearest `shift`, shift-and-invert with
 /// MUMPS Cholesky, then the -eps_* / -st_* options.
-EPS create_eps(Mat Kf, Mat Mf, int count, double shift) {
+EPS create_eps(Mat Kf, Mat Mf, int count, double shift, double tolerance = 1e-10) {
   MPI_Comm comm;
   FX_PETSC(PetscObjectGetComm(reinterpret_cast<PetscObject>(Kf), &comm));
   EPS eps;
@@ -53,7 +53,7 @@ EPS create_eps(Mat Kf, Mat Mf, int count, double shift) {
   FX_PETSC(EPSSetDimensions(eps, count, PETSC_DEFAULT, PETSC_DEFAULT));
   // Relative to the eigenvalue; the residuals come out far below (the Ritz values of the
   // shift-and-invert operator converge quickly at the low end of the spectrum).
-  FX_PETSC(EPSSetTolerances(eps, 1e-10, 1000));
+  FX_PETSC(EPSSetTolerances(eps, tolerance, 1000));
   FX_PETSC(EPSSetWhichEigenpairs(eps, EPS_TARGET_REAL));
   FX_PETSC(EPSSetTarget(eps, shift));
   // Purification (one more solve per eigenvector) is for a singular B; M restricted to the free
@@ -75,14 +75,16 @@ EPS create_eps(Mat Kf, Mat Mf, int count, double shift) {
 
 /// The `count` lowest converged eigenpairs of `eps` (ascending), mapped from the free DOFs `is`
 /// into full-size vectors of K's layout (zero on the fixed DOFs).
-void extract_modes(EPS eps, Mat K, Mat Kf, IS is, int count, ModalResult &result) {
+void extract_modes(EPS eps, Mat K, Mat Kf, IS is, int count, ModalResult &result,
+                   bool next = false) {
   PetscInt nconv = 0, its = 0;
   FX_PETSC(EPSGetConverged(eps, &nconv));
   FX_PETSC(EPSGetIterationNumber(eps, &its));
   result.iterations = static_cast<int>(its);
-  if (nconv < count)
+  const int needed = count + (next ? 1 : 0);
+  if (nconv < needed)
     throw Error("modal analysis: SLEPc converged only " + std::to_string(nconv) + " of " +
-                    std::to_string(count) + " eigenpairs (try -eps_max_it or -eps_ncv)",
+                    std::to_string(needed) + " eigenpairs (try -eps_max_it or -eps_ncv)",
                 true);
 
   std::vector<double> lambda(static_cast<std::size_t>(nconv));
@@ -97,6 +99,9 @@ void extract_modes(EPS eps, Mat K, Mat Kf, IS is, int count, ModalResult &result
     return lambda[static_cast<std::size_t>(a)] < lambda[static_cast<std::size_t>(b)];
   });
 
+  if (next)
+    result.next_eigenvalue =
+        lambda[static_cast<std::size_t>(order[static_cast<std::size_t>(count)])];
   Vec xf;
   FX_PETSC(MatCreateVecs(Kf, &xf, nullptr));
   for (int k = 0; k < count; ++k) {
@@ -130,8 +135,8 @@ void solve_modes(Mat K, Mat M, const std::vector<PetscInt> &fixed_dofs, int coun
 }
 
 ClampedProblem::ClampedProblem(Mat K, Mat M, const std::vector<PetscInt> &clamped, int modes,
-                               const char *prefix)
-    : K_(K), modes_(modes) {
+                               const char *prefix, double tolerance, bool next)
+    : K_(K), modes_(modes), next_(next && modes > 0) {
   free_ = free_dofs(K, clamped);
   FX_PETSC(MatCreateSubMatrix(K, free_, free_, MAT_INITIAL_MATRIX, &Kf_));
   // The clamped surfaces hold the body: K_ff is positive definite, so MUMPS can factor without
@@ -141,7 +146,7 @@ ClampedProblem::ClampedProblem(Mat K, Mat M, const std::vector<PetscInt> &clampe
     FX_PETSC(MatCreateSubMatrix(M, free_, free_, MAT_INITIAL_MATRIX, &Mf_));
     // Shift 0: the shift-and-invert operator is K_ff^-1 M_ff, and SLEPc factors K_ff itself
     // (no K - sigma M is formed), which the static solves then reuse.
-    eps_ = create_eps(Kf_, Mf_, modes_, 0.0);
+    eps_ = create_eps(Kf_, Mf_, modes_ + (next_ ? 1 : 0), 0.0, tolerance);
     FX_PETSC(EPSSetUp(eps_)); // the factorization
     ST st;
     FX_PETSC(EPSGetST(eps_, &st));
@@ -229,7 +234,7 @@ void ClampedProblem::solve(const std::vector<Vec> &b, const std::vector<Vec> &x,
 void ClampedProblem::lowest_modes(ModalResult &result) {
   if (!eps_) return;
   FX_PETSC(EPSSolve(eps_));
-  extract_modes(eps_, K_, Kf_, free_, modes_, result);
+  extract_modes(eps_, K_, Kf_, free_, modes_, result, next_);
 }
 
 Eigen::MatrixXd project(Mat A, const std::vector<Vec> &vectors) {

@@ -585,6 +585,29 @@ TEST(GeometricStiffness, UniformStressGivesVolumeTimesTraceOfH2SigmaH2T) {
               worst);
 }
 
+TEST(GeometricStiffness, LoadIsTheDerivativeOfTheReducedPairing) {
+  // element_geometric_stiffness_load(psi, G) . u = sum_kl G_kl psi_k^T K_sigma(u) psi_l for any
+  // u (K_sigma is linear in u), for random vectors psi and a symmetric G: the identity the
+  // adjoint of the reduced geometric stiffness rests on (docs/theory.md section 10, step 1).
+  std::mt19937 rng(17);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  for (const TestElement &el : test_elements()) {
+    const int n = el.X.rows();
+    Eigen::MatrixXd psi(3 * n, 3), G(3, 3);
+    for (int i = 0; i < psi.size(); ++i) psi.data()[i] = u(rng);
+    for (int i = 0; i < G.size(); ++i) G.data()[i] = u(rng);
+    G = 0.5 * (G + G.transpose()).eval();
+    const ElementVector f = element_geometric_stiffness_load(el.type, el.X, kSteel, psi, G);
+    for (int trial = 0; trial < 3; ++trial) {
+      ElementVector ue(3 * n);
+      for (int i = 0; i < 3 * n; ++i) ue[i] = u(rng);
+      const ElementMatrix Ks = element_geometric_stiffness(el.type, el.X, kSteel, ue);
+      const double pairing = (G.cwiseProduct(psi.transpose() * Ks * psi)).sum();
+      EXPECT_NEAR(f.dot(ue), pairing, 1e-12 * (Ks * psi).cwiseAbs().sum()) << el.name;
+    }
+  }
+}
+
 TEST(GeometricStiffness, MatchesTheQuadratureOfPointStresses) {
   // Independent reference for a non-uniform stress (random nodal displacements): the stress from
   // element_stress at each point of the documented stiffness rule, and the textbook sum

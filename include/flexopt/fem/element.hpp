@@ -151,6 +151,17 @@ Voigt element_stress(ElementType type, const ElementCoords &X, const IsotropicMa
 /// for a wrong u_e size, an invalid material, or a degenerate or inverted element.
 ElementMatrix element_geometric_stiffness(ElementType type, const ElementCoords &X,
                                           const IsotropicMaterial &mat, const ElementVector &u_e);
+/// The derivative with respect to u_e of sum_kl Gbar_kl psi_k^T K_sigma(u_e) psi_l, for the n
+/// element vectors psi_k (the columns of `psi`, 3 nodes_per_element rows, node-major) and a
+/// symmetric n x n `Gbar`: the "pseudo-load" of the adjoint of a reduced geometric stiffness
+/// (docs/theory.md section 10, step 1). Since K_sigma is linear in u_e, this is the internal force
+/// int_e B^T (D : T) dV of the stress-like tensor T = sum_kl Gbar_kl sym(H_k^T H_l), H_k = grad
+/// psi_k, on element_geometric_stiffness's rule (modulus factor 1). Throws as
+/// element_geometric_stiffness.
+ElementVector element_geometric_stiffness_load(ElementType type, const ElementCoords &X,
+                                               const IsotropicMaterial &mat,
+                                               const Eigen::Ref<const Eigen::MatrixXd> &psi,
+                                               const Eigen::Ref<const Eigen::MatrixXd> &Gbar);
 /// von Mises equivalent stress [Pa] of a Voigt stress:
 /// sqrt(((sxx-syy)^2 + (syy-szz)^2 + (szz-sxx)^2) / 2 + 3 (syz^2 + sxz^2 + sxy^2)).
 double von_mises(const Voigt &sigma);

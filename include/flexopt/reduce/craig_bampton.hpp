@@ -9,6 +9,7 @@
 #include "flexopt/reduce/modal.hpp"
 
 #include <Eigen/Dense>
+#include <limits>
 #include <memory>
 #include <petscmat.h>
 #include <string>
@@ -23,6 +24,11 @@ struct CraigBamptonBasis {
   /// tz, rx, ry, rz), then the fixed-interface modes (M-orthonormal among themselves).
   std::vector<Vec> vectors;
   std::vector<double> fixed_eigenvalues; ///< omega^2 of the fixed-interface modes [rad^2/s^2]
+  /// omega^2 of the first fixed-interface mode left out (CraigBamptonOptions::next_eigenvalue),
+  /// else NaN.
+  double next_eigenvalue = std::numeric_limits<double>::quiet_NaN();
+  /// The owned DOFs of every interface surface (repeats possible): the clamped set.
+  std::vector<PetscInt> interface_dofs;
   Eigen::MatrixXd K, M; ///< reduced stiffness and mass V^T K V, V^T M V (replicated)
   std::vector<Eigen::Vector3d> centroids; ///< area-weighted centroid of each interface surface
   /// The factorization of K with every interface clamped that built the basis, kept for further
@@ -43,8 +49,14 @@ struct CraigBamptonBasis {
 /// fixed-interface modes (reduce::ClampedProblem; -eps_* / -st_* options; the static solves fall
 /// back to their own factorization, options prefix `cb_`, if options move the shift off 0).
 /// Collective; throws a collective flexopt::Error for a missing surface or a failed solve.
+/// `tolerance` is SLEPc's relative tolerance of the fixed-interface modes; `next_eigenvalue`
+/// also converges the first mode left out (for the gap at the cut, docs/theory.md section 10).
+struct CraigBamptonOptions {
+  double tolerance = 1e-10;
+  bool next_eigenvalue = false;
+};
 void craig_bampton(const mesh::DistributedMesh &mesh, Mat K, Mat M,
                    const std::vector<std::string> &interfaces, int fixed_modes,
-                   CraigBamptonBasis &out);
+                   CraigBamptonBasis &out, const CraigBamptonOptions &options = {});
 
 } // namespace flexopt::reduce

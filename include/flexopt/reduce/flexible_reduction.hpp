@@ -9,6 +9,7 @@
 #include "flexopt/reduce/ffrf_invariants.hpp"
 
 #include <Eigen/Dense>
+#include <memory>
 #include <petscvec.h>
 #include <string>
 #include <vector>
@@ -22,6 +23,14 @@ namespace flexopt::reduce {
 /// elastically. The chord frame is the classical pinned-pinned choice for a link between two
 /// joints.
 enum class FrameCondition { Clamped, Chord };
+
+/// The element factors of a design body (one per local element): its stiffness is
+/// sum_e stiffness_e K_e and its mass sum_e mass_e M_e (docs/theory.md section 10).
+struct ElementFactors {
+  std::vector<double> stiffness, mass;
+};
+
+struct ReductionAdjointData; // reduce/reduction_adjoint.hpp
 
 struct FlexibleReduction {
   int static_modes = 0; ///< 6 per interface after the first
@@ -39,6 +48,9 @@ struct FlexibleReduction {
   std::vector<Eigen::Matrix3Xd> translation, rotation;
   /// Centrifugal geometric stiffness per unit s_c(omega) (6 matrices) or empty.
   std::vector<Eigen::MatrixXd> geometric;
+  /// What the adjoint of the reduction needs (the matrices, the factorizations, the
+  /// Craig-Bampton vectors): kept by a design body's reduction only, else null.
+  std::shared_ptr<ReductionAdjointData> adjoint;
   int size() const { return static_cast<int>(basis.size()); }
 
   FlexibleReduction() = default;
@@ -49,11 +61,21 @@ struct FlexibleReduction {
 
 /// Reduces the body meshed as `mesh` with material `material` (interfaces: physical surfaces;
 /// the frame sits on the first, `frame`; the chord frame needs two interfaces and no geometric
-/// stiffening). Collective; throws collective flexopt::Errors (missing surface, failed solve).
+/// stiffening). With `design` (a design body), K and M carry its element factors, the
+/// fixed-interface modes are solved to 1e-13 with the next eigenvalue (the cut of
+/// check_modal_cut), and `out.adjoint` keeps what reduction_adjoint needs. Collective; throws
+/// collective flexopt::Errors (missing surface, failed solve).
 void reduce_flexible_body(const mesh::DistributedMesh &mesh, const fem::IsotropicMaterial &material,
                           const std::vector<std::string> &interfaces, int fixed_modes,
                           bool geometric_stiffening, FlexibleReduction &out,
-                          FrameCondition frame = FrameCondition::Clamped);
+                          FrameCondition frame = FrameCondition::Clamped,
+                          const ElementFactors *design = nullptr);
+
+/// For a design body's reduction: throws a collective flexopt::Error naming `body` and both
+/// frequencies if the last kept fixed-interface eigenvalue and the next are equal (relative gap
+/// <= 1e-8: the reduced model is not differentiable there), prints a warning on rank 0 below
+/// 1 % (docs/theory.md section 10, "The cut"). Does nothing without adjoint data or modes.
+void check_modal_cut(const FlexibleReduction &r, const std::string &body, MPI_Comm comm);
 
 /// The basis vectors' values at the owned nodes: a (3 owned_nodes) x n matrix, node-major.
 Eigen::MatrixXd owned_basis_values(const FlexibleReduction &r, PetscInt owned_nodes);

@@ -20,6 +20,7 @@
 
 #include <Eigen/Dense>
 #include <array>
+#include <memory>
 #include <petscmat.h>
 #include <string>
 #include <vector>
@@ -58,10 +59,25 @@ Eigen::Matrix3d centrifugal_load_matrix(int c);
 ///
 /// Collective. Throws a collective flexopt::Error for a missing frame surface, an invalid
 /// material or a failed solve (e.g. a frame surface that does not hold the body).
+///
+/// `modulus_factor` (one per local element, empty: 1) scales the elements' stress as it scales
+/// their stiffness in K (a design body). If `keep` is given it receives what the adjoint of G_c
+/// needs (docs/theory.md section 10, step 1): the six displacements u_c and, unless
+/// `frame_clamped` was given, the factorization of the frame-clamped K.
+struct CentrifugalLoadStates {
+  std::vector<Vec> u;                    ///< u_c, c = xx ... xy (full size, zero on the frame)
+  std::shared_ptr<ClampedProblem> frame; ///< null if the caller's factorization was used
+  std::vector<PetscInt> frame_dofs;      ///< the frame surface's owned DOFs
+  CentrifugalLoadStates() = default;
+  CentrifugalLoadStates(const CentrifugalLoadStates &) = delete;
+  CentrifugalLoadStates &operator=(const CentrifugalLoadStates &) = delete;
+  ~CentrifugalLoadStates();
+};
 std::array<Eigen::MatrixXd, 6> centrifugal_geometric_stiffness(
     const mesh::DistributedMesh &mesh, const fem::IsotropicMaterial &material, Mat K, Mat M,
     const std::string &frame_interface, const Eigen::Vector3d &origin,
-    const std::vector<Vec> &basis, ClampedProblem *frame_clamped = nullptr);
+    const std::vector<Vec> &basis, ClampedProblem *frame_clamped = nullptr,
+    const std::vector<double> &modulus_factor = {}, CentrifugalLoadStates *keep = nullptr);
 
 /// sum_c s_c(omega) G_c: the stiffening of the reduced stiffness at the body-frame angular
 /// velocity omega [rad/s]. Not collective.

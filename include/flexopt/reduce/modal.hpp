@@ -1,6 +1,7 @@
 #pragma once
 /// \file Natural frequencies and mode shapes: K phi = omega^2 M phi with SLEPc.
 #include <Eigen/Dense>
+#include <limits>
 #include <petscksp.h>
 #include <petscmat.h>
 #include <slepceps.h>
@@ -14,6 +15,8 @@ struct ModalResult {
                                    ///< may make rigid-body values slightly negative)
   std::vector<Vec> modes;          ///< full-size mode shapes (zero on fixed DOFs), M-orthonormal
   int iterations = 0;              ///< Krylov-Schur restarts
+  /// The eigenvalue after the last one returned, if it was asked for (else NaN).
+  double next_eigenvalue = std::numeric_limits<double>::quiet_NaN();
   ~ModalResult();
   ModalResult() = default;
   ModalResult(const ModalResult &) = delete;
@@ -40,7 +43,10 @@ void solve_modes(Mat K, Mat M, const std::vector<PetscInt> &fixed_dofs, int coun
 /// K_ff must be positive definite: the clamped DOFs hold the body. Collective.
 class ClampedProblem {
 public:
-  ClampedProblem(Mat K, Mat M, const std::vector<PetscInt> &clamped, int modes, const char *prefix);
+  /// `tolerance`: SLEPc's relative tolerance (the -eps_tol option still overrides it);
+  /// `next`: also converge the eigenpair after the `modes` lowest (ModalResult::next_eigenvalue).
+  ClampedProblem(Mat K, Mat M, const std::vector<PetscInt> &clamped, int modes, const char *prefix,
+                 double tolerance = 1e-10, bool next = false);
   ~ClampedProblem();
   ClampedProblem(const ClampedProblem &) = delete;
   ClampedProblem &operator=(const ClampedProblem &) = delete;
@@ -54,6 +60,8 @@ public:
   /// The lowest `modes` eigenpairs K phi = omega^2 M phi with phi = 0 on the clamped DOFs
   /// (full-size, M-orthonormal), ascending.
   void lowest_modes(ModalResult &result);
+  /// The free DOFs (owned global numbers).
+  IS free_set() const { return free_; }
 
 private:
   IS free_ = nullptr;
@@ -61,6 +69,7 @@ private:
   EPS eps_ = nullptr;
   KSP ksp_ = nullptr; ///< the factorization of K_ff used by solve (the EPS's when shared)
   int modes_ = 0;
+  bool next_ = false;
 };
 
 /// The reduced matrix V^T A V of the full-size `vectors` V (symmetrized; every rank gets the same
