@@ -73,6 +73,73 @@ FfrfBody::FfrfBody(std::string name, FfrfModel model)
   }
 }
 
+void FfrfBody::model_cotangent(const ConstVectorRef &q, const ConstVectorRef &v,
+                               const ConstVectorRef &a, const Vec3 &gravity,
+                               const ConstVectorRef &mu, FfrfModel &bar) const {
+  const int n = n_;
+  auto &ib = bar.invariants;
+  if (ib.D.cols() != n) {
+    ib = reduce::FfrfInvariants{};
+    ib.D.setZero(3, n);
+    ib.S1.assign(static_cast<std::size_t>(n), Mat3::Zero());
+    ib.S2.assign(static_cast<std::size_t>(n),
+                 std::vector<Mat3>(static_cast<std::size_t>(n), Mat3::Zero()));
+    bar.stiffness.setZero(n, n);
+    bar.damping.setZero(n, n);
+    bar.geometric.assign(stiffening() ? 6 : 0, Matrix::Zero(n, n));
+  }
+  const Mat3 I3 = Mat3::Identity();
+  const Vec4 p = q.segment<4>(3), vp = v.segment<4>(3), ap = a.segment<4>(3);
+  const auto z = q.tail(n), zd = v.tail(n), zdd = a.tail(n);
+  const Mat3 A = rotation(p);
+  const Mat34 G = gbar_matrix(p);
+  const Vec3 w = 2 * G * vp, wd = 2 * G * ap;
+  const Vec3 rho = a.head<3>() - gravity, rb = A.transpose() * rho;
+  // The multipliers of F_r (in the frame: mb), of F_w (mw = 2 Gbar mu_p) and of F_z.
+  const Vec3 mr = mu.head<3>(), mb = A.transpose() * mr, mw = 2 * G * mu.segment<4>(3);
+  const auto mz = mu.tail(n);
+  ib.mass += mr.dot(rho);
+  // d = d0 + D zeta: in F_r (A (w' x d + w x (w x d))) and F_w (d x rb).
+  const Vec3 dbar = mb.cross(wd) + mb.dot(w) * w - w.squaredNorm() * mb + rb.cross(mw);
+  ib.d0 += dbar;
+  ib.D.noalias() += dbar * z.transpose();
+  // D itself: A (D zeta'' + 2 w x D zeta') in F_r, D^T rb in F_z.
+  ib.D.noalias() += mb * zdd.transpose() + 2 * mb.cross(w) * zd.transpose() + rb * mz.transpose();
+  // J = tr(S) I - S: J w' + w x J w in F_w; S = S0 + sum_k z_k (S1_k + S1_k^T) + sum_kl z_k z_l
+  // S2_kl.
+  const Mat3 Jbar = mw * wd.transpose() + mw.cross(w) * w.transpose();
+  const Mat3 Sbar = Jbar.trace() * I3 - Jbar;
+  ib.S0 += Sbar;
+  for (int k = 0; k < n; ++k) {
+    ib.S1[static_cast<std::size_t>(k)] += z(k) * (Sbar + Sbar.transpose());
+    for (int l = 0; l < n; ++l)
+      ib.S2[static_cast<std::size_t>(k)][static_cast<std::size_t>(l)] += z(k) * z(l) * Sbar;
+  }
+  // C_k = S1_k + sum_l z_l S2_lk: axial(C_k) z''_k and 2 (tr P I - P^T) w (P = sum_k z'_k C_k)
+  // in F_w; axial(C_k) . w' and -(tr C_k |w|^2 - w^T C_k w) in F_z. (a . axial(B) = <skew(a)^T,
+  // B>.)
+  const Mat3 Pbar = 2 * mw.dot(w) * I3 - 2 * w * mw.transpose();
+  const Mat3 cw = w.squaredNorm() * I3 - w * w.transpose();
+  const Mat3 skw = skew(mw).transpose(), skwd = skew(wd).transpose(), skww = skew(w).transpose();
+  for (int k = 0; k < n; ++k) {
+    const Mat3 Cbar = zdd(k) * skw + zd(k) * Pbar + mz(k) * skwd - mz(k) * cw;
+    ib.S1[static_cast<std::size_t>(k)] += Cbar;
+    for (int l = 0; l < n; ++l) {
+      Mat3 &S2 = ib.S2[static_cast<std::size_t>(l)][static_cast<std::size_t>(k)];
+      S2 += z(l) * Cbar;
+      // 2 w . h_k, h_k = sum_l z'_l axial(S2_lk); M_zz(l, k) = tr S2_lk.
+      S2 += 2 * mz(k) * zd(l) * skww + mz(l) * zdd(k) * I3;
+    }
+  }
+  bar.stiffness.noalias() += mz * z.transpose();
+  bar.damping.noalias() += mz * zd.transpose();
+  if (stiffening()) {
+    const Eigen::Matrix<double, 6, 1> sc = reduce::centrifugal_coefficients(w);
+    for (int c = 0; c < 6; ++c)
+      bar.geometric[static_cast<std::size_t>(c)].noalias() += sc(c) * (mz * z.transpose());
+  }
+}
+
 void FfrfBody::couplings(const ConstVectorRef &z, Mat9N &Cv, Mat3N &Cm, Mat3 &S) const {
   const int n = n_;
   Cv.resize(9, n);

@@ -181,6 +181,62 @@ TEST(FfrfBody, ExactJacobians) {
   }
 }
 
+// The residual is linear in every field of the model, so (d res/d model)^T mu paired with a
+// model direction delta is exactly mu^T res evaluated with the model delta: the identity the
+// dynamic adjoint of an FFRF design body uses (docs/theory.md section 10.1). Random directions
+// (every entry, asymmetric S1, S2, K, C, G included) at random states; only round-off differs.
+TEST(FfrfBody, ModelCotangentIsTheTransposeOfTheResidual) {
+  const int n = 3;
+  for (bool stiffening : {false, true}) {
+    const bodies::FfrfBody body("flex", model_of(random_particles(7, n), stiffening));
+    bodies::FfrfModel delta;
+    delta.invariants.mass = 1.7;
+    delta.invariants.d0 = Vec3::Random();
+    delta.invariants.D = Matrix::Random(3, n);
+    delta.invariants.S0 = Mat3::Random();
+    for (int k = 0; k < n; ++k) {
+      delta.invariants.S1.push_back(Mat3::Random());
+      delta.invariants.S2.emplace_back();
+      for (int l = 0; l < n; ++l) delta.invariants.S2.back().push_back(Mat3::Random());
+    }
+    delta.stiffness = Matrix::Random(n, n);
+    delta.damping = Matrix::Random(n, n);
+    if (stiffening)
+      for (int c = 0; c < 6; ++c) delta.geometric.push_back(Matrix::Random(n, n));
+    const bodies::FfrfBody direction("delta", delta);
+    for (int trial = 0; trial < 3; ++trial) {
+      Vector q, v, a;
+      random_state(n, q, v, a);
+      const Vec3 g(0.3, -9.81, 0.2);
+      const Vector mu = Vector::Random(7 + n);
+      bodies::FfrfModel bar;
+      body.model_cotangent(q, v, a, g, mu, bar);
+      Vector r(7 + n);
+      direction.residual(q, v, a, g, r, nullptr, nullptr, nullptr);
+      const auto &b = bar.invariants;
+      const auto &d = delta.invariants;
+      double pairing = b.mass * d.mass + b.d0.dot(d.d0) + b.D.cwiseProduct(d.D).sum() +
+                       b.S0.cwiseProduct(d.S0).sum() +
+                       bar.stiffness.cwiseProduct(delta.stiffness).sum() +
+                       bar.damping.cwiseProduct(delta.damping).sum();
+      for (int k = 0; k < n; ++k) {
+        pairing +=
+            b.S1[static_cast<std::size_t>(k)].cwiseProduct(d.S1[static_cast<std::size_t>(k)]).sum();
+        for (int l = 0; l < n; ++l)
+          pairing +=
+              b.S2[static_cast<std::size_t>(k)][static_cast<std::size_t>(l)]
+                  .cwiseProduct(d.S2[static_cast<std::size_t>(k)][static_cast<std::size_t>(l)])
+                  .sum();
+      }
+      for (std::size_t c = 0; c < bar.geometric.size(); ++c)
+        pairing += bar.geometric[c].cwiseProduct(delta.geometric[c]).sum();
+      const double expected = mu.dot(r);
+      EXPECT_NEAR(pairing, expected, 1e-12 * mu.cwiseAbs().dot(r.cwiseAbs()) + 1e-12)
+          << "stiffening " << stiffening;
+    }
+  }
+}
+
 // The FFRF equations of motion equal d'Alembert's sum over the particles. The particle
 // accelerations come from a fourth-order difference in time (h = 1e-3: error ~1e-10 x the
 // sixth derivative, ~1e-8 here), so the check is 1e-6 relative.

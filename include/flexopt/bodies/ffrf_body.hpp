@@ -49,6 +49,12 @@ public:
   void residual(const ConstVectorRef &q, const ConstVectorRef &v, const ConstVectorRef &a,
                 const Vec3 &gravity, Eigen::Ref<Vector> res, Matrix *K, Matrix *C,
                 Matrix *M) const override;
+  /// bar += (d res / d model)^T mu: the residual is linear in every field of the model, so this
+  /// is mu^T res with the model replaced by a direction, as a cotangent of the model's shape
+  /// (docs/theory.md section 10.1; bar's fields are sized and zeroed if empty). The origin has
+  /// no cotangent (geometry).
+  void model_cotangent(const ConstVectorRef &q, const ConstVectorRef &v, const ConstVectorRef &a,
+                       const Vec3 &gravity, const ConstVectorRef &mu, FfrfModel &bar) const;
   /// T + 1/2 zeta^T K zeta - g . (m r + A d(zeta)). The work of the geometric-stiffening
   /// forces (which depend on omega) is not a potential and is not included.
   double energy(const ConstVectorRef &q, const ConstVectorRef &v,
