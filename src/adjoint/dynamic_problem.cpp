@@ -5,6 +5,7 @@
 #include "flexopt/core/expression.hpp"
 #include "flexopt/core/log.hpp"
 #include "flexopt/dynamics/consistent_start.hpp"
+#include "flexopt/fem/probe.hpp"
 #include "forward_loop.hpp"
 
 #include <Eigen/LU>
@@ -157,12 +158,28 @@ std::unique_ptr<DynamicProblem> DynamicProblem::create(MPI_Comm comm, const io::
   const io::DesignSpec &d = *c.design;
   const io::BodySpec &body = c.body(d.body);
   const std::string model = io::simulated_model(body.model);
-  if (model != "rigid" && model != "acf")
+  if (model != "rigid" && model != "acf" && model != "ffrf")
     throw Error(d.where.str() + ": design.body '" + d.body + "' is simulated as " + model +
-                    ": design sensitivities of " + model +
-                    " bodies are not built yet (this version: rigid and ACF design bodies; FFRF "
-                    "follows)",
+                    ": design sensitivities are built for rigid, FFRF and ACF bodies",
                 true);
+  if (model == "ffrf") {
+    // What the FFRF design body's adjoint does not differentiate yet: say so before computing.
+    std::string missing;
+    if (body.interfaces.size() > 1 || body.reduction.frame == "chord")
+      missing = "the joints at interfaces that move elastically (a second interface, or the "
+                "chord frame)";
+    else if (!body.initial.elastic_displacement[0].empty() ||
+             !body.initial.elastic_velocity[0].empty())
+      missing = "initial elastic fields";
+    else
+      for (const io::BodySpec &b : c.bodies)
+        if (io::simulated_model(b.model) == "acf") missing = "scenes with ACF bodies";
+    if (!missing.empty())
+      throw Error(d.where.str() + ": design.body '" + d.body + "' is an FFRF body with " + missing +
+                      ", whose design sensitivities are not built yet (FFRF design bodies: one "
+                      "interface, clamped frame, no ACF bodies in the scene)",
+                  true);
+  }
   std::unique_ptr<DynamicProblem> p(new DynamicProblem());
   p->case_ = c;
   p->scratch_ = scratch;
@@ -172,6 +189,9 @@ std::unique_ptr<DynamicProblem> DynamicProblem::create(MPI_Comm comm, const io::
   const dynamics::SceneBody &dsb = p->scene_.bodies[static_cast<std::size_t>(p->design_body_)];
   p->mechanism_body_ = dsb.mechanism;
   p->acf_design_ = dsb.acf;
+  p->ffrf_design_ = model == "ffrf";
+  p->basis_ =
+      c.adjoint.basis == "fixed" ? reduce::BasisDerivative::Fixed : reduce::BasisDerivative::Exact;
   const mesh::DistributedMesh &m = p->scene_.meshes[static_cast<std::size_t>(p->design_body_)];
   p->field_ = std::make_unique<optimize::DesignField>(m, d);
   p->grad_physical_ = p->field_->filter().create_element_vector();
@@ -199,6 +219,15 @@ std::unique_ptr<DynamicProblem> DynamicProblem::create(MPI_Comm comm, const io::
       for (std::size_t k = 0; k < p->scene_.sensors.size(); ++k)
         if (p->scene_.sensors[k].name == r->sensor) sensor = static_cast<int>(k);
     p->sensor_of_.push_back(sensor);
+    p->sensor_location_.emplace_back();
+    p->sensor_frames_.emplace_back();
+    if (sensor >= 0 && p->ffrf_design_) {
+      const dynamics::BoundSensor &s = p->scene_.sensors[static_cast<std::size_t>(sensor)];
+      if (s.acf_body < 0 && s.body == p->mechanism_body_ && s.quantity != "rotation_angle")
+        p->sensor_location_.back() = std::make_unique<fem::PointLocation>(
+            fem::locate(m, {s.point.x(), s.point.y(), s.point.z()},
+                        r->where.str() + ": sensor '" + s.name + "' point"));
+    }
     if (r->type == "strain_energy_integral") {
       const std::string bm = io::simulated_model(c.body(r->body).model);
       if (bm != "acf")
@@ -231,10 +260,82 @@ const mesh::DistributedMesh &DynamicProblem::mesh() const {
   return scene_.meshes[static_cast<std::size_t>(design_body_)];
 }
 
+namespace {
+
+/// The FfrfModel cotangent of an n-coordinate body packed into a vector (mass, d0, D, S0, S1,
+/// S2, stiffness, damping, then the 6 geometric matrices if `stiffening`) and back.
+int packed_size(int n, bool stiffening) {
+  return 1 + 3 + 3 * n + 9 + 9 * n + 9 * n * n + 2 * n * n + (stiffening ? 6 * n * n : 0);
+}
+
+template <class F> void visit_packed(int n, bool stiffening, bodies::FfrfModel &m, F &&f) {
+  auto &inv = m.invariants;
+  f(&inv.mass, 1);
+  f(inv.d0.data(), 3);
+  f(inv.D.data(), 3 * n);
+  f(inv.S0.data(), 9);
+  for (auto &S : inv.S1) f(S.data(), 9);
+  for (auto &row : inv.S2)
+    for (auto &S : row) f(S.data(), 9);
+  f(m.stiffness.data(), n * n);
+  f(m.damping.data(), n * n);
+  if (stiffening)
+    for (auto &G : m.geometric) f(G.data(), n * n);
+}
+
+Vector pack(bodies::FfrfModel &m, int n, bool stiffening) {
+  Vector out(packed_size(n, stiffening));
+  Eigen::Index at = 0;
+  visit_packed(n, stiffening, m, [&](double *x, int len) {
+    out.segment(at, len) = Eigen::Map<const Vector>(x, len);
+    at += len;
+  });
+  return out;
+}
+
+bodies::FfrfModel unpack(const Vector &v, int n, bool stiffening) {
+  bodies::FfrfModel m;
+  m.invariants.D.setZero(3, n);
+  m.invariants.S1.assign(static_cast<std::size_t>(n), bodies::Mat3::Zero());
+  m.invariants.S2.assign(
+      static_cast<std::size_t>(n),
+      std::vector<bodies::Mat3>(static_cast<std::size_t>(n), bodies::Mat3::Zero()));
+  m.stiffness.setZero(n, n);
+  m.damping.setZero(n, n);
+  if (stiffening) m.geometric.assign(6, Matrix::Zero(n, n));
+  Eigen::Index at = 0;
+  visit_packed(n, stiffening, m, [&](double *x, int len) {
+    Eigen::Map<Vector>(x, len) = v.segment(at, len);
+    at += len;
+  });
+  return m;
+}
+
+} // namespace
+
+int DynamicProblem::design_parameters() const {
+  if (!ffrf_design_) return 10;
+  const auto &body = dynamic_cast<const bodies::FfrfBody &>(scene_.mechanism.body(mechanism_body_));
+  return packed_size(body.coordinates() - 7, body.stiffening());
+}
+
 Matrix DynamicProblem::design_partials(const Vector &q, const Vector &v, const Vector &a,
                                        bool gravity, const Matrix &W) const {
   const dynamics::Mechanism &mech = scene_.mechanism;
   const int o = mech.offset(mechanism_body_);
+  if (ffrf_design_) {
+    const auto &body = dynamic_cast<const bodies::FfrfBody &>(mech.body(mechanism_body_));
+    const int nb = body.coordinates(), n = nb - 7;
+    Matrix G(packed_size(n, body.stiffening()), W.cols());
+    for (Eigen::Index c = 0; c < W.cols(); ++c) {
+      bodies::FfrfModel bar;
+      const Vector mu = W.col(c).segment(o, nb);
+      body.model_cotangent(q.segment(o, nb), v.segment(o, nb), a.segment(o, nb),
+                           gravity ? mech.gravity : Vec3::Zero(), mu, bar);
+      G.col(c) = pack(bar, n, body.stiffening());
+    }
+    return G;
+  }
   const auto &body = dynamic_cast<const bodies::RigidBody &>(mech.body(mechanism_body_));
   const bodies::RigidBody::Vec7 qb = q.segment<7>(o), vb = v.segment<7>(o), ab = a.segment<7>(o);
   const Eigen::Matrix<double, 7, 10> P =
@@ -246,7 +347,7 @@ double DynamicProblem::response_value(std::size_t i) const {
   const io::ResponseSpec &r = *specs_[i];
   if (r.type == "volume_fraction") return field_->volume_fraction();
   if (r.type == "mass") {
-    if (r.body == case_.design->body && acf_design_ < 0) return theta_(0);
+    if (r.body == case_.design->body && acf_design_ < 0 && !ffrf_design_) return theta_(0);
     for (std::size_t b = 0; b < case_.bodies.size(); ++b)
       if (case_.bodies[b].name == r.body) {
         const dynamics::SceneBody &sb = scene_.bodies[b];
@@ -262,10 +363,17 @@ void DynamicProblem::apply_design(Vec x) {
   // Mass factors w (section 9.1) and, for an ACF body, SIMP modulus factors s (section 9.6).
   field_->mass_factors(w_, dw_);
   field_->stiffness_factors(s_, ds_);
-  if (acf_design_ >= 0)
+  if (acf_design_ >= 0) {
     scene_.acf[static_cast<std::size_t>(acf_design_)]->set_factors(s_, w_);
-  else
+  } else if (ffrf_design_) {
+    const double t0 = wall_time();
+    reduction_ = dynamics::set_ffrf_design(mesh().comm, case_, scene_,
+                                           static_cast<std::size_t>(design_body_),
+                                           reduce::ElementFactors{s_, w_});
+    reduction_s_ = wall_time() - t0;
+  } else {
     set_rigid_design();
+  }
 }
 
 void DynamicProblem::evaluate(Vec x, bool gradients, optimize::Evaluation &out) {
@@ -362,11 +470,19 @@ void DynamicProblem::evaluate_rigid(bool gradients, optimize::Evaluation &out) {
   }
   const std::size_t nr = specs_.size();
   samples_.assign(nr, {});
+  for (auto &f : sensor_frames_) f.clear();
+  const int od = mech.offset(mechanism_body_), nd = mech.size(mechanism_body_);
   auto sample = [&](const dynamics::State &s) {
-    for (std::size_t i = 0; i < nr; ++i)
-      if (sensor_of_[i] >= 0)
-        samples_[i].push_back(dynamics::sensor_value(
-            scene_, scene_.sensors[static_cast<std::size_t>(sensor_of_[i])], s.q));
+    for (std::size_t i = 0; i < nr; ++i) {
+      if (sensor_of_[i] < 0) continue;
+      const dynamics::BoundSensor &bs = scene_.sensors[static_cast<std::size_t>(sensor_of_[i])];
+      samples_[i].push_back(dynamics::sensor_value(scene_, bs, s.q));
+      if (sensor_location_[i])
+        sensor_frames_[i].emplace_back(bs.quantity == "elastic_displacement"
+                                           ? bodies::Mat3::Identity()
+                                           : bodies::rotation(s.q.segment<4>(od + 3)),
+                                       s.q.segment(od + 7, nd - 7));
+    }
   };
   sample(record.state);
   if (observer_) observer_(0, dynamics::StepInfo{}, &record.state, nullptr);
@@ -388,7 +504,7 @@ void DynamicProblem::evaluate_rigid(bool gradients, optimize::Evaluation &out) {
   const int n = mech.coordinates();
   const int cols = static_cast<int>(nr);
   BackwardSweep sweep(ga, cols);
-  Matrix G = Matrix::Zero(10, cols); // dPsi/dtheta
+  Matrix G = Matrix::Zero(design_parameters(), cols); // dPsi/dtheta
   auto backward = [&](const dynamics::State &s, double dt, const Matrix &dpsi) {
     const Matrix mu = sweep.step(s, dt, dpsi);
     G += design_partials(s.q, s.v, s.acc, true, mu.middleRows(3 * n, n));
@@ -413,7 +529,85 @@ void DynamicProblem::evaluate_rigid(bool gradients, optimize::Evaluation &out) {
                              [&](const Vector &q, const Vector &v, const Vector &a, bool gravity,
                                  const Matrix &W) { return design_partials(q, v, a, gravity, W); });
   adjoint_s_ = wall_time() - t_adjoint;
-  add_rigid_element_gradients(G);
+  if (ffrf_design_)
+    add_ffrf_element_gradients(G);
+  else
+    add_rigid_element_gradients(G);
+}
+
+void DynamicProblem::add_ffrf_element_gradients(const Matrix &G) {
+  const io::BodySpec &spec = case_.bodies[static_cast<std::size_t>(design_body_)];
+  const auto &body = dynamic_cast<const bodies::FfrfBody &>(scene_.mechanism.body(mechanism_body_));
+  const int n = body.coordinates() - 7;
+  const mesh::DistributedMesh &m = mesh();
+  std::vector<reduce::ReductionCotangent> bars;
+  std::vector<std::size_t> columns; // the responses that depend on the design body
+  std::vector<Vec> owned;
+  for (std::size_t i = 0; i < specs_.size(); ++i) {
+    const io::ResponseSpec &r = *specs_[i];
+    bodies::FfrfModel bar = unpack(G.col(static_cast<Eigen::Index>(i)), n, body.stiffening());
+    bool used = !G.col(static_cast<Eigen::Index>(i)).isZero(0);
+    if (r.type == "mass" && r.body == case_.design->body) {
+      bar.invariants.mass += 1;
+      used = true;
+    }
+    reduce::ReductionCotangent c;
+    // C_r = a M_r + b K_r.
+    c.K = bar.stiffness + spec.rayleigh[1] * bar.damping;
+    c.M = spec.rayleigh[0] * bar.damping;
+    c.invariants = bar.invariants;
+    c.geometric = bar.geometric;
+    if (sensor_location_[i] && n > 0) {
+      // The sensor's basis S = Psi(X_s): dPsi/dS = sum_n A_n^T dPsi/dy_n zeta_n^T (minus the
+      // value at q0 for a displacement), then Psi-bar_k = N(X_s) S-bar(:, k).
+      Matrix Sbar = Matrix::Zero(3, n);
+      const auto &frames = sensor_frames_[i];
+      Vec3 sum = Vec3::Zero();
+      for (std::size_t k = 0; k < frames.size(); ++k) {
+        Sbar += frames[k].first.transpose() * sampled_[i].dy[k] * frames[k].second.transpose();
+        sum += sampled_[i].dy[k];
+      }
+      const dynamics::BoundSensor &bs = scene_.sensors[static_cast<std::size_t>(sensor_of_[i])];
+      if (bs.quantity == "displacement") {
+        const int o = scene_.mechanism.offset(mechanism_body_);
+        Sbar -= bodies::rotation(scene_.q0.segment<4>(o + 3)).transpose() * sum *
+                scene_.q0.segment(o + 7, n).transpose();
+      }
+      if (!Sbar.isZero(0)) {
+        for (int k = 0; k < n; ++k) {
+          Vec v;
+          FX_PETSC(VecDuplicate(reduction_->basis.front(), &v));
+          FX_PETSC(VecZeroEntries(v));
+          fem::add_point_functional(m, *sensor_location_[i], {Sbar(0, k), Sbar(1, k), Sbar(2, k)},
+                                    v);
+          c.basis.push_back(v);
+          owned.push_back(v);
+        }
+        used = true;
+      }
+    }
+    if (!used) continue;
+    bars.push_back(std::move(c));
+    columns.push_back(i);
+  }
+  std::vector<std::vector<double>> s_hat, w_hat;
+  const double t0 = wall_time();
+  try {
+    const reduce::ReductionAdjointStats stats =
+        reduce::reduction_adjoint(m, *reduction_, bars, basis_, s_hat, w_hat);
+    reduction_cg_iterations_ = stats.cg_iterations;
+  } catch (const Error &) {
+    for (Vec &v : owned) VecDestroy(&v);
+    throw;
+  }
+  reduction_adjoint_s_ = wall_time() - t0;
+  for (Vec &v : owned) FX_PETSC(VecDestroy(&v));
+  const PetscInt ne = m.local_elements();
+  for (std::size_t c = 0; c < columns.size(); ++c)
+    for (PetscInt e = 0; e < ne; ++e) {
+      const auto k = static_cast<std::size_t>(e);
+      element_gradient_[columns[c]][k] += ds_[k] * s_hat[c][k] + dw_[k] * w_hat[c][k];
+    }
 }
 
 std::vector<char>
@@ -491,6 +685,12 @@ void DynamicProblem::describe(io::Json &s) const {
   s["recomputed_steps"] = recomputed_;
   s["adjoint_factorizations"] = adjoint_factorizations_;
   s["newton_reuse"] = newton_.reuse_contraction;
+  if (ffrf_design_) {
+    s["reduction_s"] = reduction_s_; // of the last design
+    s["reduction_adjoint_s"] = reduction_adjoint_s_;
+    s["reduction_adjoint_cg_iterations"] = reduction_cg_iterations_;
+    s["basis_derivative"] = case_.adjoint.basis;
+  }
   s["checkpoint_bytes"] = checkpoint_bytes_;
 }
 

@@ -208,6 +208,33 @@ void add_acf_body(MPI_Comm comm, const io::BodySpec &spec, const io::MaterialSpe
          names.empty() ? "none" : names.c_str());
 }
 
+/// The reduction of an FFRF body's mesh (with a design body's element factors, if given).
+std::shared_ptr<reduce::FlexibleReduction> reduce_ffrf_body(const mesh::DistributedMesh &m,
+                                                            const io::BodySpec &spec,
+                                                            const io::MaterialSpec &mat,
+                                                            const reduce::ElementFactors *design) {
+  auto red = std::make_shared<reduce::FlexibleReduction>();
+  reduce::reduce_flexible_body(m, fem::IsotropicMaterial{mat.E, mat.nu, mat.density},
+                               spec.interfaces, spec.reduction.modes,
+                               spec.reduction.geometric_stiffening, *red,
+                               spec.reduction.frame == "chord" ? reduce::FrameCondition::Chord
+                                                               : reduce::FrameCondition::Clamped,
+                               design);
+  if (design) reduce::check_modal_cut(*red, spec.name, m.comm);
+  return red;
+}
+
+/// What the FFRF body takes from its reduction.
+bodies::FfrfModel ffrf_model(const reduce::FlexibleReduction &red, const io::BodySpec &spec) {
+  bodies::FfrfModel model;
+  model.invariants = red.invariants;
+  model.stiffness = red.K;
+  model.damping = rayleigh(red, spec.rayleigh);
+  model.geometric = red.geometric;
+  model.origin = red.origin;
+  return model;
+}
+
 /// An FFRF body: its mesh reduced (in parallel) to the floating frame and the Craig-Bampton
 /// basis, its initial elastic coordinates projected onto the basis.
 void add_ffrf_body(MPI_Comm comm, const io::BodySpec &spec, const io::MaterialSpec &mat,
@@ -219,20 +246,9 @@ void add_ffrf_body(MPI_Comm comm, const io::BodySpec &spec, const io::MaterialSp
                 true);
   scene.meshes.push_back(mesh::load_body_mesh(comm, spec));
   const mesh::DistributedMesh &m = scene.meshes.back();
-  auto red = std::make_shared<reduce::FlexibleReduction>();
   const double t0 = wall_time();
-  reduce::reduce_flexible_body(m, fem::IsotropicMaterial{mat.E, mat.nu, mat.density},
-                               spec.interfaces, spec.reduction.modes,
-                               spec.reduction.geometric_stiffening, *red,
-                               spec.reduction.frame == "chord" ? reduce::FrameCondition::Chord
-                                                               : reduce::FrameCondition::Clamped);
-  bodies::FfrfModel model;
-  model.invariants = red->invariants;
-  model.stiffness = red->K;
-  model.damping = rayleigh(*red, spec.rayleigh);
-  model.geometric = red->geometric;
-  model.origin = red->origin;
-  auto body = std::make_shared<bodies::FfrfBody>(spec.name, std::move(model));
+  const auto red = reduce_ffrf_body(m, spec, mat, nullptr);
+  auto body = std::make_shared<bodies::FfrfBody>(spec.name, ffrf_model(*red, spec));
   for (std::size_t i = 0; i < spec.interfaces.size(); ++i)
     sb.interfaces[spec.interfaces[i]] = red->centroids[i];
   scene.owned_modes.push_back(reduce::owned_basis_values(*red, m.owned_nodes));
@@ -513,6 +529,24 @@ void set_body_model(MPI_Comm comm, const io::Case &c, Scene &scene, std::size_t 
   if (mb < 0) throw Error("set_body_model: body '" + c.bodies[b].name + "' is an ACF body", true);
   scene.mechanism.bodies[static_cast<std::size_t>(mb)] = std::move(body);
   connect(comm, c, scene, false);
+}
+
+std::shared_ptr<const reduce::FlexibleReduction>
+set_ffrf_design(MPI_Comm comm, const io::Case &c, Scene &scene, std::size_t b,
+                const reduce::ElementFactors &factors) {
+  const io::BodySpec &spec = c.bodies.at(b);
+  SceneBody &sb = scene.bodies.at(b);
+  if (!sb.reduction)
+    throw Error("set_ffrf_design: body '" + spec.name + "' is not an FFRF body", true);
+  const mesh::DistributedMesh &m = scene.meshes[b];
+  const double t0 = wall_time();
+  const auto red = reduce_ffrf_body(m, spec, c.material(spec.material), &factors);
+  sb.reduction = red;
+  scene.owned_modes[b] = reduce::owned_basis_values(*red, m.owned_nodes);
+  scene.reduction_seconds[b] = wall_time() - t0;
+  set_body_model(comm, c, scene, b,
+                 std::make_shared<bodies::FfrfBody>(spec.name, ffrf_model(*red, spec)));
+  return red;
 }
 
 std::vector<const bodies::AcfBody *> acf_body_list(const Scene &scene) {

@@ -7,10 +7,12 @@
 /// consistent initial state.
 #include "flexopt/adjoint/checkpoints.hpp"
 #include "flexopt/adjoint/step_adjoint.hpp"
+#include "flexopt/bodies/ffrf_body.hpp"
 #include "flexopt/bodies/rigid_body.hpp"
 #include "flexopt/dynamics/scene.hpp"
 #include "flexopt/io/case.hpp"
 #include "flexopt/optimize/design_problem.hpp"
+#include "flexopt/reduce/reduction_adjoint.hpp"
 
 #include <functional>
 #include <memory>
@@ -121,6 +123,12 @@ private:
   /// element_gradient_ += dPsi/dw_e = G . theta_e (and the design body's own mass) times dw_e,
   /// from G = dPsi/dtheta (10 x responses).
   void add_rigid_element_gradients(const Matrix &G);
+  /// The FFRF design body (section 10): element_gradient_ += ds_e s_hat_e + dw_e w_hat_e from
+  /// G = (d r/d model)^T mu summed over the steps (packed FfrfModel cotangents, one column per
+  /// response), the damping's Rayleigh split, the mass response and the sensors' bases.
+  void add_ffrf_element_gradients(const Matrix &G);
+  /// Rows of the design partials: 10 mass parameters (rigid) or the packed FfrfModel.
+  int design_parameters() const;
   /// Which main steps the forward run stores (all, or step 0, the binomial schedule's first
   /// descent and the last step, with the schedule).
   std::vector<char> plan_checkpoints(std::unique_ptr<BinomialSchedule> &schedule) const;
@@ -150,6 +158,17 @@ private:
   std::vector<double> w_, dw_;                        ///< mass factors, per local element
   std::vector<double> s_, ds_; ///< SIMP modulus factors (ACF design body), per local element
   int acf_design_ = -1;        ///< the design body's index in scene_.acf (-1: rigid)
+  bool ffrf_design_ = false;   ///< the design body is an FFRF body
+  /// The FFRF design body's reduction at the last design (with its adjoint data).
+  std::shared_ptr<const reduce::FlexibleReduction> reduction_;
+  reduce::BasisDerivative basis_ = reduce::BasisDerivative::Exact;
+  /// Per response: the location of its sensor's point on the FFRF design body's mesh (null if
+  /// the sensor is elsewhere or has no basis), and per main step the sensor's frame rotation A_n
+  /// and elastic coordinates zeta_n, for dPsi/dS = sum_n A_n^T dPsi/dy_n zeta_n^T.
+  std::vector<std::unique_ptr<fem::PointLocation>> sensor_location_;
+  std::vector<std::vector<std::pair<bodies::Mat3, Vector>>> sensor_frames_;
+  double reduction_s_ = 0, reduction_adjoint_s_ = 0;
+  int reduction_cg_iterations_ = 0;
   /// Per response: dPsi/d(physical density) of every local element (the volume fraction's
   /// from the design field).
   std::vector<std::vector<double>> element_gradient_;

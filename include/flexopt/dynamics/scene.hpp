@@ -19,7 +19,8 @@
 
 namespace flexopt::reduce {
 struct FlexibleReduction;
-}
+struct ElementFactors;
+} // namespace flexopt::reduce
 
 namespace flexopt::dynamics {
 
@@ -134,6 +135,15 @@ Scene build_scene(MPI_Comm comm, const io::Case &c);
 /// properties, say) and the scene is connected again; no mesh is touched. Collective.
 void set_body_model(MPI_Comm comm, const io::Case &c, Scene &scene, std::size_t b,
                     std::shared_ptr<bodies::Body> body);
+
+/// Reduces the FFRF body b again with a design body's element factors (its stiffness and mass
+/// per element, docs/theory.md section 10; the reduction keeps its adjoint data), and replaces
+/// its reduction, basis values and body model, then connects the scene again (joint maps and
+/// sensor bases from the new basis). Returns the new reduction. Collective; throws a collective
+/// flexopt::Error if the modes count splits a repeated eigenvalue (reduce::check_modal_cut).
+std::shared_ptr<const reduce::FlexibleReduction>
+set_ffrf_design(MPI_Comm comm, const io::Case &c, Scene &scene, std::size_t b,
+                const reduce::ElementFactors &factors);
 
 /// The scene's ACF bodies, in order (DistributedAlpha's list).
 std::vector<const bodies::AcfBody *> acf_body_list(const Scene &scene);
