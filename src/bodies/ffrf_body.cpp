@@ -31,6 +31,24 @@ Vec9 vec(const Mat3 &B) {
   return Eigen::Map<const Vec9>(B.data());
 }
 
+/// The frame's kinematics at (q, v, a) (docs/theory.md section 7.3): rotation A(p), Gbar(p),
+/// omega = 2 Gbar p', omega' = 2 Gbar p'', rho = r'' - g and rho_b = A^T rho.
+struct FrameKinematics {
+  Mat3 A;
+  Mat34 G;
+  Vec3 w, wd, rho, rb;
+  FrameKinematics(const ConstVectorRef &q, const ConstVectorRef &v, const ConstVectorRef &a,
+                  const Vec3 &gravity) {
+    const Vec4 p = q.segment<4>(3);
+    A = rotation(p);
+    G = gbar_matrix(p);
+    w = 2 * G * v.segment<4>(3);
+    wd = 2 * G * a.segment<4>(3);
+    rho = a.head<3>() - gravity;
+    rb = A.transpose() * rho;
+  }
+};
+
 } // namespace
 
 FfrfBody::FfrfBody(std::string name, FfrfModel model)
@@ -89,12 +107,11 @@ void FfrfBody::model_cotangent(const ConstVectorRef &q, const ConstVectorRef &v,
     bar.geometric.assign(stiffening() ? 6 : 0, Matrix::Zero(n, n));
   }
   const Mat3 I3 = Mat3::Identity();
-  const Vec4 p = q.segment<4>(3), vp = v.segment<4>(3), ap = a.segment<4>(3);
+  const FrameKinematics f(q, v, a, gravity);
+  const Mat3 &A = f.A;
+  const Mat34 &G = f.G;
+  const Vec3 &w = f.w, &wd = f.wd, &rho = f.rho, &rb = f.rb;
   const auto z = q.tail(n), zd = v.tail(n), zdd = a.tail(n);
-  const Mat3 A = rotation(p);
-  const Mat34 G = gbar_matrix(p);
-  const Vec3 w = 2 * G * vp, wd = 2 * G * ap;
-  const Vec3 rho = a.head<3>() - gravity, rb = A.transpose() * rho;
   // The multipliers of F_r (in the frame: mb), of F_w (mw = 2 Gbar mu_p) and of F_z.
   const Vec3 mr = mu.head<3>(), mb = A.transpose() * mr, mw = 2 * G * mu.segment<4>(3);
   const auto mz = mu.tail(n);
@@ -163,12 +180,12 @@ void FfrfBody::residual(const ConstVectorRef &q, const ConstVectorRef &v, const 
   const int n = n_;
   const auto &inv = model_.invariants;
   const Mat3 I3 = Mat3::Identity();
-  const Vec4 p = q.segment<4>(3), vp = v.segment<4>(3), ap = a.segment<4>(3);
+  const FrameKinematics f(q, v, a, gravity);
+  const Mat3 &A = f.A;
+  const Mat34 &G = f.G;
+  const Vec3 &w = f.w, &wd = f.wd, &rho = f.rho, &rb = f.rb;
   const auto z = q.tail(n), zd = v.tail(n), zdd = a.tail(n);
-  const Mat3 A = rotation(p);
-  const Mat34 G = gbar_matrix(p);
-  const Vec3 w = 2 * G * vp, wd = 2 * G * ap;
-  const Vec3 rho = a.head<3>() - gravity, rb = A.transpose() * rho;
+  const Vec4 p = q.segment<4>(3), vp = v.segment<4>(3), ap = a.segment<4>(3);
   const Vec3 d = inv.first_moment(z);
   // C_k = S1[k] + sum_l zeta_l S2[l][k] (sum m u_i Psi_jk^T), c_k = axial(C_k),
   // P = sum_k zeta'_k C_k, h_k = sum_l zeta'_l g_lk.
