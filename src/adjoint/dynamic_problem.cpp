@@ -165,19 +165,15 @@ std::unique_ptr<DynamicProblem> DynamicProblem::create(MPI_Comm comm, const io::
   if (model == "ffrf") {
     // What the FFRF design body's adjoint does not differentiate yet: say so before computing.
     std::string missing;
-    if (body.interfaces.size() > 1 || body.reduction.frame == "chord")
-      missing = "the joints at interfaces that move elastically (a second interface, or the "
-                "chord frame)";
-    else if (!body.initial.elastic_displacement[0].empty() ||
-             !body.initial.elastic_velocity[0].empty())
+    if (!body.initial.elastic_displacement[0].empty() || !body.initial.elastic_velocity[0].empty())
       missing = "initial elastic fields";
     else
       for (const io::BodySpec &b : c.bodies)
         if (io::simulated_model(b.model) == "acf") missing = "scenes with ACF bodies";
     if (!missing.empty())
       throw Error(d.where.str() + ": design.body '" + d.body + "' is an FFRF body with " + missing +
-                      ", whose design sensitivities are not built yet (FFRF design bodies: one "
-                      "interface, clamped frame, no ACF bodies in the scene)",
+                      ", whose design sensitivities are not built yet (FFRF design bodies: no "
+                      "initial elastic fields, no ACF bodies in the scene)",
                   true);
   }
   std::unique_ptr<DynamicProblem> p(new DynamicProblem());
@@ -228,14 +224,21 @@ std::unique_ptr<DynamicProblem> DynamicProblem::create(MPI_Comm comm, const io::
             fem::locate(m, {s.point.x(), s.point.y(), s.point.z()},
                         r->where.str() + ": sensor '" + s.name + "' point"));
     }
+    p->strain_body_.push_back(-1);
     if (r->type == "strain_energy_integral") {
       const std::string bm = io::simulated_model(c.body(r->body).model);
-      if (bm != "acf")
+      if (bm == "rigid")
         throw Error(r->where.str() + ": strain_energy_integral of body '" + r->body +
-                        "' (simulated as " + bm +
-                        "): built for ACF bodies (FFRF bodies follow; a rigid body has no strain "
-                        "energy)",
+                        "': a rigid body has no strain energy (ACF and FFRF bodies have)",
                     true);
+      if (bm == "ffrf" && !p->scene_.acf.empty())
+        throw Error(r->where.str() + ": strain_energy_integral of FFRF body '" + r->body +
+                        "' in a scene with ACF bodies is not built yet (ACF bodies' strain "
+                        "energy is, and FFRF bodies' in scenes without ACF bodies)",
+                    true);
+      if (bm == "ffrf")
+        for (std::size_t b = 0; b < c.bodies.size(); ++b)
+          if (c.bodies[b].name == r->body) p->strain_body_.back() = p->scene_.bodies[b].mechanism;
     }
     if (sensor >= 0 && model == "acf") {
       const dynamics::BoundSensor &s = p->scene_.sensors[static_cast<std::size_t>(sensor)];
@@ -472,7 +475,24 @@ void DynamicProblem::evaluate_rigid(bool gradients, optimize::Evaluation &out) {
   samples_.assign(nr, {});
   for (auto &f : sensor_frames_) f.clear();
   const int od = mech.offset(mechanism_body_), nd = mech.size(mechanism_body_);
+  // FFRF strain energies U_n = 1/2 zeta^T K_r zeta, summed with the trapezoid weights as the
+  // steps come (their number is known), and sum_n w_n 1/2 zeta_n zeta_n^T for the design body.
+  strain_kbar_.assign(nr, Matrix());
+  std::vector<double> strain_value(nr, 0.0);
+  long long sampled_steps = 0;
   auto sample = [&](const dynamics::State &s) {
+    const double w = trapezoid_weight(static_cast<std::size_t>(sampled_steps++),
+                                      static_cast<std::size_t>(steps_));
+    for (std::size_t i = 0; i < nr; ++i) {
+      if (strain_body_[i] < 0) continue;
+      const auto &body = dynamic_cast<const bodies::FfrfBody &>(mech.body(strain_body_[i]));
+      const Vector z = s.q.segment(mech.offset(strain_body_[i]) + 7, body.coordinates() - 7);
+      strain_value[i] += w * 0.5 * z.dot(body.data().stiffness * z);
+      if (strain_body_[i] == mechanism_body_ && ffrf_design_) {
+        if (strain_kbar_[i].size() == 0) strain_kbar_[i].setZero(z.size(), z.size());
+        strain_kbar_[i] += w * 0.5 * z * z.transpose();
+      }
+    }
     for (std::size_t i = 0; i < nr; ++i) {
       if (sensor_of_[i] < 0) continue;
       const dynamics::BoundSensor &bs = scene_.sensors[static_cast<std::size_t>(sensor_of_[i])];
@@ -495,8 +515,10 @@ void DynamicProblem::evaluate_rigid(bool gradients, optimize::Evaluation &out) {
                        });
   // The responses on the time grid.
   sampled_.assign(nr, SampledResponse{});
-  for (std::size_t i = 0; i < nr; ++i)
+  for (std::size_t i = 0; i < nr; ++i) {
     if (sensor_of_[i] >= 0) sampled_[i] = sampled_response(*specs_[i], samples_[i], h);
+    if (strain_body_[i] >= 0) sampled_[i].value = strain_value[i];
+  }
   if (!finish_forward(t_forward, gradients, out)) return;
 
   // Backward sweep for all responses at once (one column each), main step by main step.
@@ -552,8 +574,12 @@ void DynamicProblem::add_ffrf_element_gradients(const Matrix &G) {
       used = true;
     }
     reduce::ReductionCotangent c;
-    // C_r = a M_r + b K_r.
+    // C_r = a M_r + b K_r; a strain energy integral's own sum_n w_n 1/2 zeta_n zeta_n^T.
     c.K = bar.stiffness + spec.rayleigh[1] * bar.damping;
+    if (strain_kbar_[i].size() > 0) {
+      c.K += strain_kbar_[i];
+      used = true;
+    }
     c.M = spec.rayleigh[0] * bar.damping;
     c.invariants = bar.invariants;
     c.geometric = bar.geometric;
@@ -593,8 +619,8 @@ void DynamicProblem::add_ffrf_element_gradients(const Matrix &G) {
   std::vector<std::vector<double>> s_hat, w_hat;
   const double t0 = wall_time();
   try {
-    const reduce::ReductionAdjointStats stats =
-        reduce::reduction_adjoint(m, *reduction_, bars, basis_, s_hat, w_hat);
+    const reduce::ReductionAdjointStats stats = reduce::reduction_adjoint(
+        m, *reduction_, bars, basis_, s_hat, w_hat, reduce::BasisGauge::FrozenCoordinates);
     reduction_cg_iterations_ = stats.cg_iterations;
   } catch (const Error &) {
     for (Vec &v : owned) VecDestroy(&v);
@@ -642,6 +668,17 @@ Matrix DynamicProblem::state_partials(long long j, const dynamics::State &state)
   const int n = scene_.mechanism.coordinates(), m = scene_.mechanism.constraints();
   Matrix P;
   for (std::size_t i = 0; i < specs_.size(); ++i) {
+    if (strain_body_[i] >= 0) {
+      // d/dzeta of w_j 1/2 zeta^T K_r zeta.
+      const dynamics::Mechanism &mech = scene_.mechanism;
+      const auto &body = dynamic_cast<const bodies::FfrfBody &>(mech.body(strain_body_[i]));
+      const int o = mech.offset(strain_body_[i]) + 7, ne = body.coordinates() - 7;
+      if (P.size() == 0) P.setZero(4 * n + m, static_cast<Eigen::Index>(specs_.size()));
+      P.col(static_cast<Eigen::Index>(i)).segment(o, ne) =
+          trapezoid_weight(static_cast<std::size_t>(j), static_cast<std::size_t>(steps_)) *
+          (body.data().stiffness * state.q.segment(o, ne));
+      continue;
+    }
     if (sampled_[i].dy.empty()) continue;
     const Vec3 &dy = sampled_[i].dy[static_cast<std::size_t>(j)];
     if (dy.isZero(0)) continue;

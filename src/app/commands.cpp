@@ -19,6 +19,7 @@
 #include <cmath>
 #include <cstdint>
 #include <filesystem>
+#include <limits>
 #include <sys/resource.h>
 
 namespace fs = std::filesystem;
@@ -579,7 +580,7 @@ int run_check_gradient(const Context &ctx, const Options &o, const io::Case &c, 
   // quotient measures the evaluation's round-off (eps cond(K) |R| / step), not the gradient.
   // Fourth order: D = (4 D(h/2) - D(h)) / 3 with D(h) the central difference of step h.
   constexpr int kSamples = 5;
-  const double kStep = o.fd_step;
+  const double kStep = o.fd_step > 0 ? o.fd_step : problem->fd_step();
   constexpr double kSignificant = 1e-2;
   PetscReal gmax = 0;
   FX_PETSC(VecNorm(base.d_objective, NORM_INFINITY, &gmax));
@@ -634,21 +635,40 @@ int run_check_gradient(const Context &ctx, const Options &o, const io::Case &c, 
     }
     MPI_Allreduce(MPI_IN_PLACE, adjoint.data(), static_cast<int>(nr), MPI_DOUBLE, MPI_SUM,
                   ctx.comm());
-    std::vector<std::vector<double>> sided; // +h, -h, +h/2, -h/2
-    for (double delta : {kStep, -kStep, 0.5 * kStep, -0.5 * kStep}) {
-      FX_PETSC(VecCopy(x0, x));
-      if (local >= 0) FX_PETSC(VecSetValue(x, first + local, delta, ADD_VALUES));
-      FX_PETSC(VecAssemblyBegin(x));
-      FX_PETSC(VecAssemblyEnd(x));
-      optimize::Evaluation e;
-      problem->evaluate(x, false, e);
-      progress("central differences");
-      sided.push_back(response_values(e));
+    // Central differences c_k at the steps h_k = h 2^-k, k = 0 ... L (L = fd_levels()), their
+    // Richardson extrapolations D_k = (4 c_(k+1) - c_k) / 3, and per response the D_k that
+    // agrees best with D_(k+1) (with L = 1 the one D_0 of the steps h and h/2).
+    const int levels = o.fd_step > 0 ? 1 : problem->fd_levels();
+    std::vector<std::vector<double>> c(static_cast<std::size_t>(levels + 1),
+                                       std::vector<double>(nr, 0.0));
+    for (int k = 0; k <= levels; ++k) {
+      const double hk = kStep * std::ldexp(1.0, -k);
+      std::vector<std::vector<double>> sided;
+      for (double delta : {hk, -hk}) {
+        FX_PETSC(VecCopy(x0, x));
+        if (local >= 0) FX_PETSC(VecSetValue(x, first + local, delta, ADD_VALUES));
+        FX_PETSC(VecAssemblyBegin(x));
+        FX_PETSC(VecAssemblyEnd(x));
+        optimize::Evaluation e;
+        problem->evaluate(x, false, e);
+        progress("central differences");
+        sided.push_back(response_values(e));
+      }
+      for (std::size_t i = 0; i < nr; ++i)
+        c[static_cast<std::size_t>(k)][i] = (sided[0][i] - sided[1][i]) / (2 * hk);
     }
     for (std::size_t i = 0; i < nr; ++i) {
-      const double d_h = (sided[0][i] - sided[1][i]) / (2 * kStep);
-      const double d_half = (sided[2][i] - sided[3][i]) / kStep;
-      const double f = (4.0 * d_half - d_h) / 3.0;
+      auto D = [&](int k) {
+        return (4.0 * c[static_cast<std::size_t>(k + 1)][i] - c[static_cast<std::size_t>(k)][i]) /
+               3.0;
+      };
+      int best = 0;
+      double best_gap = std::numeric_limits<double>::infinity();
+      for (int k = 0; k + 1 < levels; ++k) {
+        const double gap = std::abs(D(k) - D(k + 1));
+        if (gap < best_gap) best_gap = gap, best = k;
+      }
+      const double f = D(best);
       const double rel = std::abs(adjoint[i] - f) / std::max(std::abs(f), 1e-300);
       max_rel = std::max(max_rel, rel);
       io::Json row = io::Json::object();
@@ -657,9 +677,11 @@ int run_check_gradient(const Context &ctx, const Options &o, const io::Case &c, 
       row["adjoint"] = adjoint[i];
       row["fd"] = f;
       row["rel_err"] = rel;
+      row["step"] = kStep * std::ldexp(1.0, -best);
       fd.push_back(row);
-      print0(ctx.comm(), "fd element %-8llu %-28s adjoint % .10e  fd % .10e  rel err %.2e\n", tag,
-             names[i].c_str(), adjoint[i], f, rel);
+      print0(ctx.comm(),
+             "fd element %-8llu %-28s adjoint % .10e  fd % .10e  rel err %.2e  (h %.3g)\n", tag,
+             names[i].c_str(), adjoint[i], f, rel, kStep * std::ldexp(1.0, -best));
     }
   }
   s["fd"] = fd;

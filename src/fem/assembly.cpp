@@ -453,6 +453,61 @@ CorotatedSum assemble_corotated(const mesh::DistributedMesh &mesh,
   return reduce_corotated(mesh.comm, energy, failure);
 }
 
+ElementGather::ElementGather(const mesh::DistributedMesh &mesh, const std::vector<Vec> &vectors)
+    : mesh_(mesh) {
+  for (Vec x : vectors) {
+    Vec g = create_ghosted_vector(mesh);
+    FX_PETSC(VecCopy(x, g));
+    FX_PETSC(VecGhostUpdateBegin(g, INSERT_VALUES, SCATTER_FORWARD));
+    FX_PETSC(VecGhostUpdateEnd(g, INSERT_VALUES, SCATTER_FORWARD));
+    Vec local;
+    FX_PETSC(VecGhostGetLocalForm(g, &local));
+    const PetscScalar *a;
+    FX_PETSC(VecGetArrayRead(local, &a));
+    ghosted_.push_back(g);
+    local_.push_back(local);
+    values_.push_back(a);
+  }
+}
+
+ElementGather::~ElementGather() {
+  for (std::size_t k = 0; k < ghosted_.size(); ++k) {
+    VecRestoreArrayRead(local_[k], &values_[k]);
+    VecGhostRestoreLocalForm(ghosted_[k], &local_[k]);
+    VecDestroy(&ghosted_[k]);
+  }
+}
+
+void ElementGather::element(PetscInt e, Eigen::MatrixXd &out) const {
+  const int npe = mesh_.nodes_per_element();
+  out.resize(3 * npe, static_cast<Eigen::Index>(values_.size()));
+  for (std::size_t k = 0; k < values_.size(); ++k)
+    for (int a = 0; a < npe; ++a) {
+      const PetscInt node = mesh_.connectivity[static_cast<std::size_t>(e * npe + a)];
+      for (int i = 0; i < 3; ++i)
+        out(3 * a + i, static_cast<Eigen::Index>(k)) = values_[k][3 * node + i];
+    }
+}
+
+Eigen::MatrixXd project_stiffness(const mesh::DistributedMesh &mesh,
+                                  const IsotropicMaterial &material,
+                                  const std::vector<double> &modulus_factor,
+                                  const std::vector<Vec> &vectors) {
+  const auto n = static_cast<Eigen::Index>(vectors.size());
+  Eigen::MatrixXd P = Eigen::MatrixXd::Zero(n, n);
+  if (n == 0) return P;
+  const ElementGather v(mesh, vectors);
+  Eigen::MatrixXd Ve;
+  for (PetscInt e = 0; e < mesh.local_elements(); ++e) {
+    const double f = modulus_factor.empty() ? 1.0 : modulus_factor[static_cast<std::size_t>(e)];
+    v.element(e, Ve);
+    const ElementMatrix Ke = element_stiffness(mesh.type, mesh.element_coordinates(e), material, f);
+    P.noalias() += Ve.transpose() * (Ke * Ve);
+  }
+  MPI_Allreduce(MPI_IN_PLACE, P.data(), static_cast<int>(P.size()), MPI_DOUBLE, MPI_SUM, mesh.comm);
+  return 0.5 * (P + P.transpose());
+}
+
 ElementVector gather_element(const mesh::DistributedMesh &mesh, PetscInt e,
                              const PetscScalar *u_local) {
   const int npe = mesh.nodes_per_element();

@@ -96,14 +96,21 @@ DistributedMesh load_body_mesh(MPI_Comm comm, const io::BodySpec &body,
   });
   const double t1 = wall_time();
   DistributedMesh mesh = distribute_mesh(comm, comm_rank(comm) == 0 ? &data : nullptr);
-  print0(comm, "mesh: body %s: %s in %.2f s: %lld %s elements, %lld nodes", body.name.c_str(),
-         geo ? "meshed" : "read", t1 - t0, static_cast<long long>(mesh.global_elements),
-         fem::element_name(mesh.type), static_cast<long long>(mesh.global_nodes));
+  // One write for the whole line: mpirun forwards stdout and stderr apart, and a line written in
+  // pieces can be split by another rank's error message.
+  char estimate_text[128] = "";
   if (geo)
-    print0(comm, " (estimate %s elements, %.2f times the count)",
-           count_text(estimate.elements).c_str(),
-           estimate.elements / static_cast<double>(mesh.global_elements));
-  print0(comm, "; partitioned over %d rank(s) (%.2f s)\n", comm_size(comm), wall_time() - t1);
+    std::snprintf(estimate_text, sizeof estimate_text,
+                  " (estimate %s elements, %.2f times the count)",
+                  count_text(estimate.elements).c_str(),
+                  estimate.elements / static_cast<double>(mesh.global_elements));
+  print0(comm,
+         "mesh: body %s: %s in %.2f s: %lld %s elements, %lld nodes%s; partitioned over %d "
+         "rank(s) (%.2f s)\n",
+         body.name.c_str(), geo ? "meshed" : "read", t1 - t0,
+         static_cast<long long>(mesh.global_elements), fem::element_name(mesh.type),
+         static_cast<long long>(mesh.global_nodes), estimate_text, comm_size(comm),
+         wall_time() - t1);
   return mesh;
 }
 

@@ -137,9 +137,12 @@ void reduce_flexible_body(const mesh::DistributedMesh &mesh, const fem::Isotropi
     FX_PETSC(VecMAXPY(v, n, Y.col(k).data(), cb.vectors.data()));
     out.basis.push_back(v);
   }
-  // Psi = V Y: the reduced matrices follow from the Craig-Bampton ones without another
-  // projection of the full matrices.
-  out.K = Y.transpose() * cb.K * Y;
+  // Psi = V Y: M_r follows from the Craig-Bampton matrix. K_r is projected again by element
+  // energies (fem::project_stiffness): V^T (K V) through the assembled K carries an error of
+  // eps ||K|| ||V||^2 (eps cond(K) relative: 1e-9 on a slender bar), a noise that reaches the
+  // responses and their finite differences (docs/theory.md section 10, "Accuracy"); Y only
+  // needs to span (its noise is a change of coordinates), K_r must be accurate.
+  out.K = fem::project_stiffness(mesh, material, s, out.basis);
   out.M = Y.transpose() * cb.M * Y;
   out.eigenvalues = out.K.diagonal();
   out.invariants = ffrf_invariants(mesh, M, out.basis, out.origin);

@@ -120,18 +120,34 @@ std::array<Eigen::MatrixXd, 6> centrifugal_geometric_stiffness(
     throw;
   }
 
-  // G_c = V^T K_sigma(u_c) V.
-  Vec ug = fem::create_ghosted_vector(mesh);
-  Mat Ks = fem::create_matrix(mesh);
-  for (int c = 0; c < 6; ++c) {
-    FX_PETSC(VecCopy(u[static_cast<std::size_t>(c)], ug));
-    FX_PETSC(VecGhostUpdateBegin(ug, INSERT_VALUES, SCATTER_FORWARD));
-    FX_PETSC(VecGhostUpdateEnd(ug, INSERT_VALUES, SCATTER_FORWARD));
-    fem::assemble_geometric_stiffness(mesh, material, modulus_factor, ug, Ks);
-    G[static_cast<std::size_t>(c)] = project(Ks, basis);
+  // G_c = V^T K_sigma(u_c) V, summed element by element (as fem::project_stiffness: the
+  // assembled K_sigma V would cancel element forces row by row).
+  {
+    const fem::ElementGather vg(mesh, basis), ug(mesh, u);
+    Eigen::MatrixXd Ve, Ue;
+    for (PetscInt e = 0; e < mesh.local_elements(); ++e) {
+      const fem::ElementCoords X = mesh.element_coordinates(e);
+      const double f = modulus_factor.empty() ? 1.0 : modulus_factor[static_cast<std::size_t>(e)];
+      vg.element(e, Ve);
+      ug.element(e, Ue);
+      for (int c = 0; c < 6; ++c) {
+        fem::ElementMatrix Ks;
+        try {
+          Ks = fem::element_geometric_stiffness(mesh.type, X, material, Ue.col(c));
+        } catch (const std::exception &err) {
+          abort_local(std::string("centrifugal geometric stiffness: element ") +
+                      std::to_string(mesh.element_tags[static_cast<std::size_t>(e)]) + ": " +
+                      err.what());
+        }
+        G[static_cast<std::size_t>(c)].noalias() += f * (Ve.transpose() * (Ks * Ve));
+      }
+    }
   }
-  FX_PETSC(MatDestroy(&Ks));
-  FX_PETSC(VecDestroy(&ug));
+  for (auto &g : G) {
+    MPI_Allreduce(MPI_IN_PLACE, g.data(), static_cast<int>(g.size()), MPI_DOUBLE, MPI_SUM,
+                  mesh.comm);
+    g = 0.5 * (g + g.transpose()).eval();
+  }
   if (keep) {
     for (Vec &v : keep->u) FX_PETSC(VecDestroy(&v));
     keep->u = u;

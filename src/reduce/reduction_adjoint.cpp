@@ -26,50 +26,7 @@ Matrix sym(const Matrix &A, int n) {
   return 0.5 * (A + A.transpose());
 }
 
-/// Ghosted copies of full-size vectors, for element gathers.
-class Gathered {
-public:
-  Gathered(const mesh::DistributedMesh &mesh, const std::vector<Vec> &v) : mesh_(mesh) {
-    for (Vec x : v) {
-      Vec g = fem::create_ghosted_vector(mesh);
-      FX_PETSC(VecCopy(x, g));
-      FX_PETSC(VecGhostUpdateBegin(g, INSERT_VALUES, SCATTER_FORWARD));
-      FX_PETSC(VecGhostUpdateEnd(g, INSERT_VALUES, SCATTER_FORWARD));
-      Vec local;
-      FX_PETSC(VecGhostGetLocalForm(g, &local));
-      const PetscScalar *a;
-      FX_PETSC(VecGetArrayRead(local, &a));
-      g_.push_back(g);
-      local_.push_back(local);
-      a_.push_back(a);
-    }
-  }
-  ~Gathered() {
-    for (std::size_t k = 0; k < g_.size(); ++k) {
-      VecRestoreArrayRead(local_[k], &a_[k]);
-      VecGhostRestoreLocalForm(g_[k], &local_[k]);
-      VecDestroy(&g_[k]);
-    }
-  }
-  Gathered(const Gathered &) = delete;
-  Gathered &operator=(const Gathered &) = delete;
-  /// The 3 npe x size() block of local element e (node-major rows).
-  void element(PetscInt e, Matrix &out) const {
-    const int npe = mesh_.nodes_per_element();
-    out.resize(3 * npe, static_cast<Eigen::Index>(a_.size()));
-    for (std::size_t k = 0; k < a_.size(); ++k)
-      for (int a = 0; a < npe; ++a) {
-        const PetscInt node = mesh_.connectivity[static_cast<std::size_t>(e * npe + a)];
-        for (int i = 0; i < 3; ++i)
-          out(3 * a + i, static_cast<Eigen::Index>(k)) = a_[k][3 * node + i];
-      }
-  }
-
-private:
-  const mesh::DistributedMesh &mesh_;
-  std::vector<Vec> g_, local_;
-  std::vector<const PetscScalar *> a_;
-};
+using Gathered = fem::ElementGather;
 
 /// Zeroes the owned global DOFs `dofs` of v.
 void zero_dofs(Vec v, const std::vector<PetscInt> &dofs) {
@@ -105,7 +62,8 @@ void add_combination(Vec y, const std::vector<Vec> &x, const Eigen::VectorXd &c)
 /// Phi^T b_j = 0). Returns the largest iteration count.
 int fixed_mode_solves(const ReductionAdjointData &d, const std::vector<Vec> &Phi,
                       const std::vector<Vec> &MPhi, const std::vector<double> &lambda,
-                      const std::vector<Vec> &b, const std::vector<Vec> &x) {
+                      const std::vector<Vec> &b, const std::vector<Vec> &unprojected,
+                      const std::vector<Vec> &x) {
   const std::size_t nc = b.size();
   if (nc == 0) return 0;
   const auto N = static_cast<PetscInt>(Phi.size());
@@ -151,10 +109,28 @@ int fixed_mode_solves(const ReductionAdjointData &d, const std::vector<Vec> &Phi
     FX_PETSC(VecDot(r[c], z[c], &rz[c]));
     rz0[c] = rz[c];
     FX_PETSC(VecCopy(z[c], p[c]));
-    if (rz[c] > 0) next.push_back(c);
   }
-  active = next;
+  // Each column stops at 1e-12 of the largest cotangent of its response before the projection
+  // P (in the K^-1 norm; a response's columns are consecutive, one per mode): a right-hand side
+  // that P reduces to round-off (a cotangent nearly inside the span, as K Psi K-bar is) cannot
+  // lose 12 more orders.
+  const std::size_t per = lambda.size();
+  std::vector<double> ref(nc, 0.0), rz_scale(nc, 0.0);
+  {
+    std::vector<Vec> y(nc);
+    for (std::size_t c = 0; c < nc; ++c) FX_PETSC(VecDuplicate(b[c], &y[c]));
+    d.interior->solve(unprojected, y, "FFRF reduction adjoint: the preconditioner solve");
+    for (std::size_t c = 0; c < nc; ++c) FX_PETSC(VecDot(unprojected[c], y[c], &ref[c]));
+    destroy_all(y);
+  }
+  for (std::size_t c = 0; c < nc; ++c)
+    rz_scale[c] = std::max(
+        rz0[c], *std::max_element(ref.begin() + static_cast<std::ptrdiff_t>(c - c % per),
+                                  ref.begin() + static_cast<std::ptrdiff_t>(c - c % per + per)));
   constexpr double kTol = 1e-12;
+  for (std::size_t c : active)
+    if (rz[c] > kTol * kTol * rz_scale[c]) next.push_back(c);
+  active = next;
   constexpr int kMaxIterations = 2000;
   int it = 0;
   for (; !active.empty() && it < kMaxIterations; ++it) {
@@ -166,6 +142,7 @@ int fixed_mode_solves(const ReductionAdjointData &d, const std::vector<Vec> &Phi
       zero_dofs(Ap[c], d.interface_dofs);
       PetscScalar pAp;
       FX_PETSC(VecDot(p[c], Ap[c], &pAp));
+      if (!(pAp > 0) && rz[c] <= kTol * kTol * rz_scale[c]) continue; // round-off: done
       if (!(pAp > 0)) {
         cleanup();
         throw Error("FFRF reduction adjoint: K - lambda M is not positive definite on the "
@@ -184,7 +161,7 @@ int fixed_mode_solves(const ReductionAdjointData &d, const std::vector<Vec> &Phi
       FX_PETSC(VecDot(r[c], z[c], &rzn));
       const double beta = rzn / rz[c];
       rz[c] = rzn;
-      if (std::abs(rzn) <= kTol * kTol * rz0[c]) continue;
+      if (std::abs(rzn) <= kTol * kTol * rz_scale[c]) continue;
       FX_PETSC(VecAYPX(p[c], beta, z[c]));
       next.push_back(c);
     }
@@ -208,7 +185,7 @@ ReductionAdjointStats reduction_adjoint(const mesh::DistributedMesh &mesh,
                                         const std::vector<ReductionCotangent> &bars,
                                         BasisDerivative mode,
                                         std::vector<std::vector<double>> &s_hat,
-                                        std::vector<std::vector<double>> &w_hat) {
+                                        std::vector<std::vector<double>> &w_hat, BasisGauge gauge) {
   LogScope log("FxReductionAdjoint");
   const double t0 = wall_time();
   if (!r.adjoint)
@@ -391,9 +368,17 @@ ReductionAdjointStats reduction_adjoint(const mesh::DistributedMesh &mesh,
   }
 
   // Step 4: the orthonormalization and the maps: V-bar = (Psi-bar - M Psi (Psi^T Psi-bar + B))
-  // Y^T, and the element term -1/2 <S, Psi_e^T M_e Psi_e> (into Mhat).
+  // Y^T, and the element term -1/2 <S, Psi_e^T M_e Psi_e> (into Mhat). Frozen coordinates:
+  // Psi = V' Y_0, so V-bar = Psi-bar Y_0^T.
   std::vector<Vec> vbar; // response-major: [i * n + j]
-  if (exact && n > 0) {
+  if (exact && n > 0 && gauge == BasisGauge::FrozenCoordinates) {
+    for (std::size_t i = 0; i < nr; ++i)
+      for (int j = 0; j < n; ++j) {
+        Vec v = duplicate_zero(proto);
+        add_combination(v, pbar[i], d.Y.row(j).transpose());
+        vbar.push_back(v);
+      }
+  } else if (exact && n > 0) {
     std::vector<PetscScalar> dots(static_cast<std::size_t>(n));
     for (std::size_t i = 0; i < nr; ++i) {
       Matrix Ybar = Matrix::Zero(n, n);
@@ -444,9 +429,12 @@ ReductionAdjointStats reduction_adjoint(const mesh::DistributedMesh &mesh,
       std::vector<PetscScalar> dots(static_cast<std::size_t>(nf));
       rhs.clear();
       out.clear();
+      std::vector<Vec> unprojected;
       for (std::size_t i = 0; i < nr; ++i)
         for (int j = ns; j < n; ++j) {
           Vec b = vbar[i * static_cast<std::size_t>(n) + static_cast<std::size_t>(j)];
+          unprojected.push_back(duplicate_zero(proto));
+          FX_PETSC(VecCopy(b, unprojected.back()));
           // P b = b - M Phi (Phi^T b).
           FX_PETSC(VecMDot(b, nf, Phi.data(), dots.data()));
           for (auto &v : dots) v = -v;
@@ -455,13 +443,15 @@ ReductionAdjointStats reduction_adjoint(const mesh::DistributedMesh &mesh,
           out.push_back(abar[i * static_cast<std::size_t>(n) + static_cast<std::size_t>(j)]);
         }
       try {
-        stats.cg_iterations = fixed_mode_solves(d, Phi, MPhi, lambda, rhs, out);
+        stats.cg_iterations = fixed_mode_solves(d, Phi, MPhi, lambda, rhs, unprojected, out);
       } catch (const Error &) {
+        destroy_all(unprojected);
         destroy_all(MPhi);
         destroy_all(vbar);
         destroy_all(abar);
         throw;
       }
+      destroy_all(unprojected);
       destroy_all(MPhi);
     }
   }

@@ -15,7 +15,7 @@ struct Options {
   std::string body;       ///< modes: Craig-Bampton basis of this body (--body NAME)
   bool restart = false;   ///< optimize: continue from out/restart.h5
   int max_iterations = 0; ///< optimize: overrides optimizer.max_iterations when > 0
-  double fd_step = 1e-2;  ///< check-gradient: finite-difference step h
+  double fd_step = 0;     ///< check-gradient: finite-difference step h (0: the problem's)
   std::string design;     ///< simulate (dynamic): the design of this restart.h5
   bool gradient = false;  ///< simulate (dynamic): also the adjoint gradients
 };

@@ -130,6 +130,33 @@ CorotatedSum assemble_corotated(const mesh::DistributedMesh &mesh,
                                 const std::vector<CorotatedElement> &elements, Vec u_ghosted, Vec F,
                                 Mat T);
 
+/// Ghosted copies of full-size vectors (block size 3, the mesh's layout) for element gathers.
+/// Collective to construct.
+class ElementGather {
+public:
+  ElementGather(const mesh::DistributedMesh &mesh, const std::vector<Vec> &vectors);
+  ~ElementGather();
+  ElementGather(const ElementGather &) = delete;
+  ElementGather &operator=(const ElementGather &) = delete;
+  int size() const { return static_cast<int>(values_.size()); }
+  /// The 3 npe x size() block of local element e (node-major rows, one column per vector).
+  void element(PetscInt e, Eigen::MatrixXd &out) const;
+
+private:
+  const mesh::DistributedMesh &mesh_;
+  std::vector<Vec> ghosted_, local_;
+  std::vector<const PetscScalar *> values_;
+};
+
+/// sum_e f_e V_e^T K_e V_e (f: modulus factors, empty: 1; V: full-size vectors) summed over all
+/// ranks: the projection of the stiffness by element energies, without the cancellation of
+/// the assembled K's rows (every row of K V sums element forces that balance), which leaves
+/// V^T (K V) an error of eps ||K|| ||V||^2 against eps |V^T K V| here. Collective.
+Eigen::MatrixXd project_stiffness(const mesh::DistributedMesh &mesh,
+                                  const IsotropicMaterial &material,
+                                  const std::vector<double> &modulus_factor,
+                                  const std::vector<Vec> &vectors);
+
 /// Displacement of local element e from the local form of a ghosted vector.
 ElementVector gather_element(const mesh::DistributedMesh &mesh, PetscInt e,
                              const PetscScalar *u_local);

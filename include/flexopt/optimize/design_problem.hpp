@@ -54,6 +54,14 @@ public:
   /// Relative round-off of a response evaluation, |R| times this, below which a Taylor
   /// remainder is noise (check-gradient).
   virtual double noise_floor() const = 0;
+  /// check-gradient's finite-difference step on a design variable when --fd-step is not given:
+  /// large enough that noise_floor() |R| / (h |dR/dx_e|) stays below the checked tolerance,
+  /// small enough that the fourth-order truncation does too.
+  virtual double fd_step() const { return 1e-2; }
+  /// How many halvings of fd_step() check-gradient tries (1: the steps h and h/2, one
+  /// Richardson extrapolation; L > 1: L + 1 steps, and per response the extrapolation that
+  /// agrees best with the next, where truncation and noise balance).
+  virtual int fd_levels() const { return 1; }
 
   Vec create_design_vector() const { return field().create_design_vector(); }
   void initial_design(Vec x) const { field().initial_design(x); }

@@ -63,6 +63,14 @@ struct ReductionAdjointStats {
   double seconds = 0;
 };
 
+/// The coordinates in which the basis is differentiated (docs/theory.md section 10): the
+/// M-Procrustes gauge (Psi^T M dPsi symmetric: the basis stays M-orthonormal, the interface
+/// maps T Y change), or frozen Craig-Bampton coordinates (Y held: Psi = V' Y_0, the maps stay
+/// constant and M_r moves). Both give the same gradient of responses that are covariant under
+/// the change of coordinates (orthogonal for the first, any linear one for the second); the
+/// frozen gauge needs no cotangent of the maps (they are ignored).
+enum class BasisGauge { Orthonormal, FrozenCoordinates };
+
 /// s_hat[i][e] = dPsi_i/ds_e, w_hat[i][e] = dPsi_i/dw_e for every response i (cotangent
 /// bars[i]) and every local element e of the design body reduced into `r` (which must hold
 /// adjoint data). Collective; throws a collective flexopt::Error if a solve fails or the
@@ -70,6 +78,7 @@ struct ReductionAdjointStats {
 ReductionAdjointStats
 reduction_adjoint(const mesh::DistributedMesh &mesh, const FlexibleReduction &r,
                   const std::vector<ReductionCotangent> &bars, BasisDerivative mode,
-                  std::vector<std::vector<double>> &s_hat, std::vector<std::vector<double>> &w_hat);
+                  std::vector<std::vector<double>> &s_hat, std::vector<std::vector<double>> &w_hat,
+                  BasisGauge gauge = BasisGauge::Orthonormal);
 
 } // namespace flexopt::reduce
