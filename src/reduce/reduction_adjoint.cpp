@@ -252,9 +252,21 @@ ReductionAdjointStats reduction_adjoint(const mesh::DistributedMesh &mesh,
       FX_PETSC(VecGhostGetLocalForm(ubar[k], &ubar_local[k]));
       FX_PETSC(VecGetArray(ubar_local[k], &ua[k]));
     }
+    // Psi-bar += 2 K_sigma(u_c) Psi Ghat_c, element by element into ghosted vectors (exact only).
+    std::vector<Vec> kbar, kbar_local;
+    std::vector<PetscScalar *> ka;
+    if (exact)
+      for (std::size_t k = 0; k < nr * static_cast<std::size_t>(n); ++k) {
+        kbar.push_back(fem::create_ghosted_vector(mesh));
+        kbar_local.emplace_back();
+        ka.emplace_back();
+        FX_PETSC(VecZeroEntries(kbar.back()));
+        FX_PETSC(VecGhostGetLocalForm(kbar.back(), &kbar_local.back()));
+        FX_PETSC(VecGetArray(kbar_local.back(), &ka.back()));
+      }
     {
       const Gathered psi(mesh, Psi), uc(mesh, d.loads.u);
-      Matrix Pe, Ue;
+      Matrix Pe, Ue, KP, Be;
       for (PetscInt e = 0; e < ne; ++e) {
         const fem::ElementCoords X = mesh.element_coordinates(e);
         psi.element(e, Pe);
@@ -265,10 +277,21 @@ ReductionAdjointStats reduction_adjoint(const mesh::DistributedMesh &mesh,
           const fem::ElementVector u_e = Ue.col(c);
           const fem::ElementMatrix Ks =
               fem::element_geometric_stiffness(mesh.type, X, d.material, u_e);
-          const Matrix PKP = Pe.transpose() * (Ks * Pe);
+          KP.noalias() = Ks * Pe;
+          const Matrix PKP = Pe.transpose() * KP;
           for (std::size_t i = 0; i < nr; ++i) {
             const Matrix &G = Ghat[i * 6 + static_cast<std::size_t>(c)];
             s_hat[i][static_cast<std::size_t>(e)] += G.cwiseProduct(PKP).sum();
+            if (exact) {
+              Be.noalias() = (2.0 * se) * (KP * G);
+              for (int k = 0; k < n; ++k) {
+                PetscScalar *a = ka[i * static_cast<std::size_t>(n) + static_cast<std::size_t>(k)];
+                for (int b = 0; b < npe; ++b) {
+                  const PetscInt node = mesh.connectivity[static_cast<std::size_t>(e * npe + b)];
+                  for (int j = 0; j < 3; ++j) a[3 * node + j] += Be(3 * b + j, k);
+                }
+              }
+            }
             const fem::ElementVector f =
                 fem::element_geometric_stiffness_load(mesh.type, X, d.material, Pe, G);
             PetscScalar *a = ua[i * 6 + static_cast<std::size_t>(c)];
@@ -301,28 +324,15 @@ ReductionAdjointStats reduction_adjoint(const mesh::DistributedMesh &mesh,
       throw;
     }
     destroy_all(rhs);
-    // Psi-bar += 2 K_sigma(u_c) Psi Ghat_c.
-    if (exact) {
-      Vec ug = fem::create_ghosted_vector(mesh);
-      Mat Ks = fem::create_matrix(mesh);
-      std::vector<Vec> KsPsi;
-      for (int k = 0; k < n; ++k) KsPsi.push_back(duplicate_zero(proto));
-      for (int c = 0; c < 6; ++c) {
-        FX_PETSC(VecCopy(d.loads.u[static_cast<std::size_t>(c)], ug));
-        FX_PETSC(VecGhostUpdateBegin(ug, INSERT_VALUES, SCATTER_FORWARD));
-        FX_PETSC(VecGhostUpdateEnd(ug, INSERT_VALUES, SCATTER_FORWARD));
-        fem::assemble_geometric_stiffness(mesh, d.material, d.factors.stiffness, ug, Ks);
-        for (int k = 0; k < n; ++k)
-          FX_PETSC(
-              MatMult(Ks, Psi[static_cast<std::size_t>(k)], KsPsi[static_cast<std::size_t>(k)]));
-        for (std::size_t i = 0; i < nr; ++i)
-          for (int k = 0; k < n; ++k)
-            add_combination(pbar[i][static_cast<std::size_t>(k)], KsPsi,
-                            2.0 * Ghat[i * 6 + static_cast<std::size_t>(c)].col(k));
-      }
-      destroy_all(KsPsi);
-      FX_PETSC(MatDestroy(&Ks));
-      FX_PETSC(VecDestroy(&ug));
+    for (std::size_t k = 0; k < kbar.size(); ++k) {
+      FX_PETSC(VecRestoreArray(kbar_local[k], &ka[k]));
+      FX_PETSC(VecGhostRestoreLocalForm(kbar[k], &kbar_local[k]));
+      FX_PETSC(VecGhostUpdateBegin(kbar[k], ADD_VALUES, SCATTER_REVERSE));
+      FX_PETSC(VecGhostUpdateEnd(kbar[k], ADD_VALUES, SCATTER_REVERSE));
+      // The owned part (a ghosted vector's global form has the layout of pbar's).
+      FX_PETSC(VecAXPY(pbar[k / static_cast<std::size_t>(n)][k % static_cast<std::size_t>(n)], 1.0,
+                       kbar[k]));
+      FX_PETSC(VecDestroy(&kbar[k]));
     }
   }
 
