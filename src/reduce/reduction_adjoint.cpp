@@ -247,7 +247,10 @@ ReductionAdjointStats reduction_adjoint(const mesh::DistributedMesh &mesh,
     std::vector<Vec> ubar(nr * 6), ubar_local(nr * 6);
     std::vector<PetscScalar *> ua(nr * 6);
     for (std::size_t k = 0; k < nr * 6; ++k) {
-      ubar[k] = fem::create_ghosted_vector(mesh);
+      if (k == 0)
+        ubar[k] = fem::create_ghosted_vector(mesh);
+      else
+        FX_PETSC(VecDuplicate(ubar[0], &ubar[k])); // shares the scatter
       FX_PETSC(VecZeroEntries(ubar[k]));
       FX_PETSC(VecGhostGetLocalForm(ubar[k], &ubar_local[k]));
       FX_PETSC(VecGetArray(ubar_local[k], &ua[k]));
@@ -257,7 +260,14 @@ ReductionAdjointStats reduction_adjoint(const mesh::DistributedMesh &mesh,
     std::vector<PetscScalar *> ka;
     if (exact)
       for (std::size_t k = 0; k < nr * static_cast<std::size_t>(n); ++k) {
-        kbar.push_back(fem::create_ghosted_vector(mesh));
+        {
+          Vec g;
+          if (kbar.empty())
+            g = fem::create_ghosted_vector(mesh);
+          else
+            FX_PETSC(VecDuplicate(kbar.front(), &g)); // shares the scatter
+          kbar.push_back(g);
+        }
         kbar_local.emplace_back();
         ka.emplace_back();
         FX_PETSC(VecZeroEntries(kbar.back()));
