@@ -215,15 +215,13 @@ std::unique_ptr<DynamicProblem> DynamicProblem::create(MPI_Comm comm, const io::
       for (std::size_t k = 0; k < p->scene_.sensors.size(); ++k)
         if (p->scene_.sensors[k].name == r->sensor) sensor = static_cast<int>(k);
     p->sensor_of_.push_back(sensor);
-    p->sensor_location_.emplace_back();
     p->sensor_frames_.emplace_back();
+    bool on_design = false;
     if (sensor >= 0 && p->ffrf_design_) {
       const dynamics::BoundSensor &s = p->scene_.sensors[static_cast<std::size_t>(sensor)];
-      if (s.acf_body < 0 && s.body == p->mechanism_body_ && s.quantity != "rotation_angle")
-        p->sensor_location_.back() = std::make_unique<fem::PointLocation>(
-            fem::locate(m, {s.point.x(), s.point.y(), s.point.z()},
-                        r->where.str() + ": sensor '" + s.name + "' point"));
+      on_design = s.acf_body < 0 && s.body == p->mechanism_body_ && s.quantity != "rotation_angle";
     }
+    p->sensor_on_design_.push_back(on_design);
     p->strain_body_.push_back(-1);
     if (r->type == "strain_energy_integral") {
       const std::string bm = io::simulated_model(c.body(r->body).model);
@@ -497,7 +495,7 @@ void DynamicProblem::evaluate_rigid(bool gradients, optimize::Evaluation &out) {
       if (sensor_of_[i] < 0) continue;
       const dynamics::BoundSensor &bs = scene_.sensors[static_cast<std::size_t>(sensor_of_[i])];
       samples_[i].push_back(dynamics::sensor_value(scene_, bs, s.q));
-      if (sensor_location_[i])
+      if (sensor_on_design_[i])
         sensor_frames_[i].emplace_back(bs.quantity == "elastic_displacement"
                                            ? bodies::Mat3::Identity()
                                            : bodies::rotation(s.q.segment<4>(od + 3)),
@@ -583,7 +581,7 @@ void DynamicProblem::add_ffrf_element_gradients(const Matrix &G) {
     c.M = spec.rayleigh[0] * bar.damping;
     c.invariants = bar.invariants;
     c.geometric = bar.geometric;
-    if (sensor_location_[i] && n > 0) {
+    if (sensor_on_design_[i] && n > 0) {
       // The sensor's basis S = Psi(X_s): dPsi/dS = sum_n A_n^T dPsi/dy_n zeta_n^T (minus the
       // value at q0 for a displacement), then Psi-bar_k = N(X_s) S-bar(:, k).
       Matrix Sbar = Matrix::Zero(3, n);
@@ -604,8 +602,9 @@ void DynamicProblem::add_ffrf_element_gradients(const Matrix &G) {
           Vec v;
           FX_PETSC(VecDuplicate(reduction_->basis.front(), &v));
           FX_PETSC(VecZeroEntries(v));
-          fem::add_point_functional(m, *sensor_location_[i], {Sbar(0, k), Sbar(1, k), Sbar(2, k)},
-                                    v);
+          fem::add_point_functional(
+              m, scene_.sensors[static_cast<std::size_t>(sensor_of_[i])].location,
+              {Sbar(0, k), Sbar(1, k), Sbar(2, k)}, v);
           c.basis.push_back(v);
           owned.push_back(v);
         }

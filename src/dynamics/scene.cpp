@@ -503,9 +503,11 @@ void connect(MPI_Comm comm, const io::Case &c, Scene &scene, bool report) {
     }
     bs.body = sb.mechanism;
     bs.s = bs.point - mech.bodies[static_cast<std::size_t>(bs.body)]->origin();
-    if (sb.reduction)
-      bs.S = reduce::basis_at_point(scene.meshes[ub], *sb.reduction, bs.point,
-                                    s.where.str() + ": sensor '" + s.name + "' point");
+    if (sb.reduction) {
+      bs.location = fem::locate(scene.meshes[ub], {bs.point.x(), bs.point.y(), bs.point.z()},
+                                s.where.str() + ": sensor '" + s.name + "' point");
+      bs.S = reduce::basis_at_point(scene.meshes[ub], *sb.reduction, bs.location);
+    }
     scene.sensors.push_back(bs);
   }
   mech.finalize();

@@ -277,24 +277,6 @@ void add_element_pattern(const mesh::DistributedMesh &mesh, const std::vector<Pe
   }
 }
 
-void assemble_geometric_stiffness(const mesh::DistributedMesh &mesh,
-                                  const IsotropicMaterial &material,
-                                  const std::vector<double> &modulus_factor, Vec u_ghosted, Mat A) {
-  Vec local;
-  FX_PETSC(VecGhostGetLocalForm(u_ghosted, &local));
-  const PetscScalar *u;
-  FX_PETSC(VecGetArrayRead(local, &u));
-  assemble_matrix(mesh, A, [&](PetscInt e, const ElementCoords &X) {
-    const double f = modulus_factor.empty() ? 1.0 : modulus_factor[static_cast<std::size_t>(e)];
-    ElementMatrix Ke =
-        element_geometric_stiffness(mesh.type, X, material, gather_element(mesh, e, u));
-    if (f != 1.0) Ke *= f;
-    return Ke;
-  });
-  FX_PETSC(VecRestoreArrayRead(local, &u));
-  FX_PETSC(VecGhostRestoreLocalForm(u_ghosted, &local));
-}
-
 void assemble_stiffness_and_mass(const mesh::DistributedMesh &mesh,
                                  const IsotropicMaterial &material, Mat &K, Mat &M) {
   // Two fresh matrices: MatDuplicate of the preallocated, not yet assembled K goes through

@@ -214,9 +214,8 @@ Eigen::MatrixXd owned_basis_values(const FlexibleReduction &r, PetscInt owned_no
 }
 
 Eigen::Matrix3Xd basis_at_point(const mesh::DistributedMesh &mesh, const FlexibleReduction &r,
-                                const Eigen::Vector3d &point, const std::string &what) {
+                                const fem::PointLocation &where) {
   const int n = r.size();
-  const fem::PointLocation where = fem::locate(mesh, {point.x(), point.y(), point.z()}, what);
   Eigen::Matrix3Xd out(3, n);
   Vec g = fem::create_ghosted_vector(mesh);
   for (int k = 0; k < n; ++k) {

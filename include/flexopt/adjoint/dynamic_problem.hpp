@@ -171,10 +171,10 @@ private:
   /// The FFRF design body's reduction at the last design (with its adjoint data).
   std::shared_ptr<const reduce::FlexibleReduction> reduction_;
   reduce::BasisDerivative basis_ = reduce::BasisDerivative::Exact;
-  /// Per response: the location of its sensor's point on the FFRF design body's mesh (null if
-  /// the sensor is elsewhere or has no basis), and per main step the sensor's frame rotation A_n
-  /// and elastic coordinates zeta_n, for dPsi/dS = sum_n A_n^T dPsi/dy_n zeta_n^T.
-  std::vector<std::unique_ptr<fem::PointLocation>> sensor_location_;
+  /// Per response: whether its sensor reads the FFRF design body's basis (its BoundSensor holds
+  /// the point's location), and per main step the sensor's frame rotation A_n and elastic
+  /// coordinates zeta_n, for dPsi/dS = sum_n A_n^T dPsi/dy_n zeta_n^T.
+  std::vector<char> sensor_on_design_;
   std::vector<std::vector<std::pair<bodies::Mat3, Vector>>> sensor_frames_;
   /// Per response: the FFRF body (mechanism index) whose strain energy it integrates, or -1;
   /// for the design body, sum_n w_n 1/2 zeta_n zeta_n^T of the last forward run (dPsi/dK_r).

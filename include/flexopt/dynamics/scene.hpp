@@ -37,7 +37,7 @@ struct BoundSensor {
   Vec3 s{0, 0, 0};
   joints::Elastic S;
   int acf_body = -1;
-  fem::PointLocation location;
+  fem::PointLocation location; ///< ACF and FFRF bodies: the point in the body's mesh
 };
 
 /// What a case body became: a body of the mechanism (rigid, FFRF) or an ACF body with one

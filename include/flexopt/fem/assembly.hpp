@@ -48,14 +48,6 @@ void add_mass(const mesh::DistributedMesh &mesh, double density,
 void add_element_pattern(const mesh::DistributedMesh &mesh, const std::vector<PetscInt> &node_dof,
                          Mat A);
 
-/// Geometric (initial-stress) stiffness K_sigma = sum_e s_e element_geometric_stiffness(u_e) of
-/// the stress of the displacement u into A (zeroed first; A from create_matrix), s_e the modulus
-/// factors (empty: 1). `u_ghosted` is a vector from create_ghosted_vector whose ghost values are
-/// up to date. Collective.
-void assemble_geometric_stiffness(const mesh::DistributedMesh &mesh,
-                                  const IsotropicMaterial &material,
-                                  const std::vector<double> &modulus_factor, Vec u_ghosted, Mat A);
-
 /// Creates and assembles the body's stiffness K and consistent mass M (same layout, no
 /// factors). Collective; the caller destroys both.
 void assemble_stiffness_and_mass(const mesh::DistributedMesh &mesh,

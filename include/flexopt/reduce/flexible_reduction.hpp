@@ -5,6 +5,7 @@
 /// the centrifugal geometric stiffness. Built once per body (per design, later), in parallel;
 /// the small matrices are held on every rank, the basis vectors stay distributed for output.
 #include "flexopt/fem/element.hpp"
+#include "flexopt/fem/probe.hpp"
 #include "flexopt/mesh/distributed_mesh.hpp"
 #include "flexopt/reduce/ffrf_invariants.hpp"
 
@@ -80,9 +81,9 @@ void check_modal_cut(const FlexibleReduction &r, const std::string &body, MPI_Co
 /// The basis vectors' values at the owned nodes: a (3 owned_nodes) x n matrix, node-major.
 Eigen::MatrixXd owned_basis_values(const FlexibleReduction &r, PetscInt owned_nodes);
 
-/// The basis interpolated at a point of the undeformed body (3 x n, the same on every rank).
-/// Collective; throws a collective flexopt::Error naming `what` if no element contains it.
+/// The basis interpolated at a located point of the undeformed body (fem::locate; 3 x n, the
+/// same on every rank). Collective.
 Eigen::Matrix3Xd basis_at_point(const mesh::DistributedMesh &mesh, const FlexibleReduction &r,
-                                const Eigen::Vector3d &point, const std::string &what);
+                                const fem::PointLocation &where);
 
 } // namespace flexopt::reduce

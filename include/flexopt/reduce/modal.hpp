@@ -60,8 +60,6 @@ public:
   /// The lowest `modes` eigenpairs K phi = omega^2 M phi with phi = 0 on the clamped DOFs
   /// (full-size, M-orthonormal), ascending.
   void lowest_modes(ModalResult &result);
-  /// The free DOFs (owned global numbers).
-  IS free_set() const { return free_; }
 
 private:
   IS free_ = nullptr;
