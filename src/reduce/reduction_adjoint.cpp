@@ -206,9 +206,9 @@ ReductionAdjointStats reduction_adjoint(const mesh::DistributedMesh &mesh,
   Vec proto;
   FX_PETSC(MatCreateVecs(d.K, &proto, nullptr));
 
-  // K Psi and M Psi, shared by all responses.
+  // K Psi and M Psi, shared by all responses (only the exact basis derivative forms Psi-bar).
   std::vector<Vec> KPsi, MPsi;
-  for (int k = 0; k < n; ++k) {
+  for (int k = 0; exact && k < n; ++k) {
     KPsi.push_back(duplicate_zero(proto));
     MPsi.push_back(duplicate_zero(proto));
     FX_PETSC(MatMult(d.K, Psi[static_cast<std::size_t>(k)], KPsi.back()));
