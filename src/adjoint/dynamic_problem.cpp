@@ -18,18 +18,71 @@ namespace flexopt::adjoint {
 
 using bodies::Vec3;
 
-Matrix initial_state_adjoint(const dynamics::GeneralizedAlpha &ga, const dynamics::State &s0,
-                             const dynamics::StartTrace &trace, const Matrix &gbar,
-                             const ResidualPartials &partials) {
+namespace {
+
+/// Sum_i lambda_i H_i over the enforced rows (n x n).
+Matrix constraint_hessian(const dynamics::Mechanism &mech, const Vector &q, double t,
+                          const Vector &lambda) {
+  const int n = mech.coordinates();
+  Matrix H = Matrix::Zero(n, n);
+  mech.add_constraint_hessian(q, t, lambda, H);
+  return H;
+}
+
+/// Column c: grad_q (w_c . f(q)) for a vector function f that is a polynomial of degree <= 6
+/// in each coordinate (the constraint rows and their time derivatives, docs/theory.md section
+/// 9.2 item 6): the seven-point central difference, exact for such polynomials, with the steps
+/// h_j.
+Matrix polynomial_gradient(const std::function<Vector(const Vector &)> &f, const Vector &q,
+                           const Vector &h, const Matrix &w) {
+  static constexpr double coefficient[3] = {45.0 / 60, -9.0 / 60, 1.0 / 60};
+  const auto n = q.size();
+  Matrix out = Matrix::Zero(n, w.cols());
+  for (Eigen::Index j = 0; j < n; ++j) {
+    Vector d = Vector::Zero(w.rows());
+    for (int k = 1; k <= 3; ++k) {
+      Vector qp = q, qm = q;
+      qp(j) += k * h(j);
+      qm(j) -= k * h(j);
+      d += coefficient[k - 1] * (f(qp) - f(qm));
+    }
+    out.row(j) = (w.transpose() * d).transpose() / h(j);
+  }
+  return out;
+}
+
+/// grad_q sum_c x_c^T M(q) y_c over the columns of X and Y: sum_c (K(q, 0, y_c) -
+/// K(q, 0, 0))^T x_c, K = dr/dq of Mechanism::dynamics (r is linear in its acceleration
+/// argument).
+Vector mass_gradient(const dynamics::Mechanism &mech, const Vector &q, double t, const Matrix &X,
+                     const Matrix &Y) {
+  const int n = mech.coordinates();
+  Vector r, out = Vector::Zero(n);
+  Matrix K0, K;
+  mech.dynamics(q, Vector::Zero(n), Vector::Zero(n), t, r, &K0, nullptr, nullptr);
+  for (Eigen::Index c = 0; c < X.cols(); ++c) {
+    mech.dynamics(q, Vector::Zero(n), Y.col(c), t, r, &K, nullptr, nullptr);
+    out += (K - K0).transpose() * X.col(c);
+  }
+  return out;
+}
+
+} // namespace
+
+StartAdjoint initial_state_adjoint(const dynamics::GeneralizedAlpha &ga, const dynamics::State &s0,
+                                   const dynamics::StartTrace &trace, const Matrix &gbar,
+                                   const ResidualPartials &partials, bool given) {
   const dynamics::Mechanism &mech = ga.mechanism();
   const int n = mech.coordinates(), m = mech.constraints();
   const auto r = gbar.cols();
   const double t0 = s0.t;
+  const Vector &q = s0.q;
+  StartAdjoint out;
   // Accelerations and multipliers: [M J^T; J 0] [acc; lambda] = [-r(q, v, 0); gamma(q, v)].
   Vector res, phi;
   Matrix K, C, M, J;
-  mech.dynamics(s0.q, s0.v, Vector::Zero(n), t0, res, nullptr, &C, &M);
-  mech.constraint(s0.q, t0, phi, &J);
+  mech.dynamics(q, s0.v, Vector::Zero(n), t0, res, nullptr, &C, &M);
+  mech.constraint(q, t0, phi, &J);
   Matrix A = Matrix::Zero(n + m, n + m);
   A.topLeftCorner(n, n) = M;
   A.topRightCorner(n, m) = J.transpose();
@@ -41,43 +94,175 @@ Matrix initial_state_adjoint(const dynamics::GeneralizedAlpha &ga, const dynamic
   const Matrix nu = lu.solve(rhs);
   if (!nu.allFinite()) throw Error("adjoint: the initial acceleration system is singular", true);
   const Matrix nu_acc = nu.topRows(n), nu_lambda = nu.bottomRows(m);
-  Matrix G = partials(s0.q, s0.v, s0.acc, true, -nu_acc);
+  out.design = partials(q, s0.v, s0.acc, true, -nu_acc);
   // d gamma/dv^T nu_lambda = -2 (sum_i nu_i H_i) v - 2 Phi_qt^T nu_lambda; Phi_qt column by
   // column from the linear map v -> Phi_qt v.
   Matrix Phi_qt(m, n);
   {
     Vector phi_t, phi_tt, phi_qt_v;
     for (int j = 0; j < n; ++j) {
-      mech.constraint_time_terms(s0.q, Vector::Unit(n, j), t0, phi_t, phi_tt, phi_qt_v);
+      mech.constraint_time_terms(q, Vector::Unit(n, j), t0, phi_t, phi_tt, phi_qt_v);
       Phi_qt.col(j) = phi_qt_v;
     }
   }
   Matrix gv = gbar.middleRows(n, n) - C.transpose() * nu_acc - 2 * Phi_qt.transpose() * nu_lambda;
-  for (Eigen::Index c = 0; c < r; ++c) {
-    Matrix H = Matrix::Zero(n, n);
-    mech.add_constraint_hessian(s0.q, t0, Vector(nu_lambda.col(c)), H);
-    gv.col(c) -= 2 * H * s0.v;
+  for (Eigen::Index c = 0; c < r; ++c)
+    gv.col(c) -= 2 * constraint_hessian(mech, q, t0, nu_lambda.col(c)) * s0.v;
+
+  // The q-dependence of every stage (item 6): the steps of the exact polynomial gradients.
+  Matrix gq;
+  Vector h;
+  auto time_terms = [&](const Vector &x, const Vector &v, int which) {
+    Vector phi_t, phi_tt, phi_qt_v;
+    mech.constraint_time_terms(x, v, t0, phi_t, phi_tt, phi_qt_v);
+    return which == 0 ? phi_t : which == 1 ? phi_tt : phi_qt_v;
+  };
+  if (given) {
+    double L = 1;
+    for (int b = 0; b < static_cast<int>(mech.bodies.size()); ++b)
+      L = std::max(L, q.segment<3>(mech.offset(b)).cwiseAbs().maxCoeff());
+    h.resize(n);
+    for (int j = 0; j < n; ++j)
+      h(j) = 0.1 * L / std::max(m > 0 ? J.col(j).cwiseAbs().maxCoeff() : 0.0, 0.1);
+    gq = gbar.topRows(n);
+    Matrix Kd;
+    mech.dynamics(q, s0.v, s0.acc, t0, res, &Kd, nullptr, nullptr);
+    gq -= Kd.transpose() * nu_acc;
+    const Matrix Hl = constraint_hessian(mech, q, t0, s0.lambda);
+    gq -= Hl * nu_acc;
+    for (Eigen::Index c = 0; c < r; ++c)
+      gq.col(c) -= constraint_hessian(mech, q, t0, nu_lambda.col(c)) * s0.acc;
+    if (m > 0)
+      gq -= polynomial_gradient(
+          [&](const Vector &x) {
+            return Vector(mech.constraint_convective(x, s0.v, t0) + 2 * time_terms(x, s0.v, 2) +
+                          time_terms(x, s0.v, 1));
+          },
+          q, h, nu_lambda);
   }
+
   // The velocity correction, as the forward start made it (trace): first the rigid-body
   // velocities, v_r = v_given + T y; then, if they could not satisfy the joints, the elastic
   // fallback v_0 = v_r + dv with [M J^T; J 0] [dv; mu] = [0; -(J v_r + Phi_t)] (section 9.2):
   // nu = A^-T [gv; 0], dPsi/dx += -nu_v^T dM dv, and gv_r = gv - J^T nu_lambda.
   const dynamics::VelocityCorrection &vc = trace.rigid;
+  // W^T dM(x)/dx a: r(q, 0, a) less r(q, 0, 0), which holds the elastic forces of a deformed
+  // FFRF body (K_r zeta) and must not enter.
+  auto mass_partials = [&](const Vector &a, const Matrix &W) {
+    return Matrix(partials(q, Vector::Zero(n), a, false, W) -
+                  partials(q, Vector::Zero(n), Vector::Zero(n), false, W));
+  };
+  Vector v_r = s0.v;
   if (trace.fallback.size() > 0) {
+    v_r -= trace.fallback;
     Matrix rhs_v = Matrix::Zero(n + m, r);
     rhs_v.topRows(n) = gv;
     const Matrix nu_v = lu.solve(rhs_v);
-    G += partials(s0.q, Vector::Zero(n), trace.fallback, false, -nu_v.topRows(n));
+    out.design += mass_partials(trace.fallback, -nu_v.topRows(n));
+    if (given) {
+      Vector f = Vector::Zero(n + m);
+      f.tail(m) = -(J * v_r + time_terms(q, v_r, 0));
+      const Vector mu = lu.solve(f).tail(m); // A is symmetric: lu (of A^T) solves it too
+      const Matrix Hmu = constraint_hessian(mech, q, t0, mu);
+      for (Eigen::Index c = 0; c < r; ++c) {
+        const Vector nv = nu_v.col(c).head(n), nm = nu_v.col(c).tail(m);
+        gq.col(c) -= mass_gradient(mech, q, t0, nv, trace.fallback) + Hmu * nv +
+                     constraint_hessian(mech, q, t0, nm) * s0.v; // dv + v_r = v_0
+      }
+      if (m > 0)
+        gq -= polynomial_gradient([&](const Vector &x) { return time_terms(x, v_r, 0); }, q, h,
+                                  nu_v.bottomRows(m));
+    }
     gv -= J.transpose() * nu_v.bottomRows(m);
   }
   // The rigid correction v_r = v_given + T y: dy = -Pi dW y, dW = T^T dM T (also for joints that
   // rigid-body velocities cannot satisfy: y is then the least-W-norm solution of the consistent
   // P y = P P^+ b, whose set of least-squares solutions does not depend on W).
-  if (vc.T.size() == 0) return G;
-  const Matrix U = vc.T * (vc.Pi * (vc.T.transpose() * gv));
-  const Vector ay = vc.T * vc.y;
-  G += partials(s0.q, Vector::Zero(n), ay, false, -U);
-  return G;
+  Matrix gvg = gv; // dPsi/dv_given
+  if (vc.T.size() > 0) {
+    const Matrix U = vc.T * (vc.Pi * (vc.T.transpose() * gv));
+    const Vector ay = vc.T * vc.y;
+    out.design += mass_partials(ay, -U);
+    if (given) {
+      // Item 6: the least-W-norm least-squares y = W^-1 P^T S^+ b differentiated at constant
+      // rank, S^+ = B^+T B^+, S S^+ = B B^+.
+      const auto k = vc.T.cols();
+      const Vector v_g = v_r - vc.T * vc.y;
+      const Eigen::LLT<Matrix> W(vc.W);
+      const Matrix Sp = vc.Bp.transpose() * vc.Bp;
+      auto range_complement = [&](const Vector &x) { return Vector(x - vc.B * (vc.Bp * x)); };
+      const Vector mu = Sp * vc.b, f = Sp * mu, e = range_complement(vc.b);
+      const Matrix WiPt = W.solve(vc.P.transpose());
+      for (Eigen::Index c = 0; c < r; ++c) {
+        const Vector ybar = vc.T.transpose() * gv.col(c), yhat = W.solve(ybar);
+        const Vector tt = vc.P * yhat, a = Sp * tt, g = range_complement(tt);
+        const Matrix Sbar = -a * mu.transpose() + (Sp * a) * e.transpose() + g * f.transpose();
+        const Matrix Pbar = mu * yhat.transpose() + (Sbar + Sbar.transpose()) * WiPt.transpose();
+        Matrix Wbar = -yhat * vc.y.transpose() - WiPt * Sbar * WiPt.transpose();
+        for (Eigen::Index i = 0; i < k; ++i) // W is block diagonal (6 x 6 blocks)
+          for (Eigen::Index j = 0; j < k; ++j)
+            if (i / 6 != j / 6) Wbar(i, j) = 0;
+        const Vector &bbar = a;
+        Vector g_c = Vector::Zero(n);
+        for (Eigen::Index col = 0; col < k; ++col)
+          g_c += constraint_hessian(mech, q, t0, Pbar.col(col)) * vc.T.col(col);
+        // <Tbar, T(q)>: T's Euler-parameter blocks 1/2 G(p)^T are linear in p.
+        const Matrix Tbar = gv.col(c) * vc.y.transpose() + J.transpose() * Pbar +
+                            M * vc.T * (Wbar + Wbar.transpose());
+        for (int b = 0; b < static_cast<int>(mech.bodies.size()); ++b) {
+          const int o = mech.offset(b);
+          for (Eigen::Index col = 0; col + 2 < k; col += 6) {
+            if (vc.T.block(o + 3, col + 3, 4, 3).isZero(0)) continue;
+            for (int j = 0; j < 4; ++j)
+              g_c(o + 3 + j) +=
+                  (Tbar.block(o + 3, col + 3, 4, 3).array() *
+                   (0.5 * bodies::g_matrix(bodies::Vec4::Unit(j)).transpose()).array())
+                      .sum();
+          }
+        }
+        g_c += mass_gradient(mech, q, t0, vc.T * Wbar, vc.T);
+        g_c -= constraint_hessian(mech, q, t0, bbar) * v_g;
+        gq.col(c) += g_c;
+        gvg.col(c) -= J.transpose() * bbar;
+      }
+      if (m > 0) {
+        Matrix B_bar(m, r);
+        for (Eigen::Index c = 0; c < r; ++c)
+          B_bar.col(c) = Sp * (vc.P * W.solve(Vector(vc.T.transpose() * gv.col(c))));
+        gq -= polynomial_gradient([&](const Vector &x) { return time_terms(x, v_g, 0); }, q, h,
+                                  B_bar);
+      }
+    }
+  }
+  if (!given) return out;
+  // The positions: the closest point q0 of the joints' manifold to the placed coordinates,
+  // F = [W (q0 - q_g) + J^T mu; Phi(q0)] = 0 with W = I: [I + H(mu), J^T; J, 0] [a; b] =
+  // [gq; 0] gives dPsi/dq_g = a and the metric's cotangent -a (q0 - q_g)^T (item 6). Also when
+  // the placement satisfied the joints (mu = 0): skipping the correction is the same map.
+  if (!trace.closest)
+    throw Error("adjoint: the start's position correction did not converge to the closest "
+                "point of the joints to the placed coordinates, whose derivative the adjoint "
+                "takes (the initial placement is far from an assembled configuration)",
+                true);
+  out.metric.assign(static_cast<std::size_t>(r), Matrix::Zero(n, n));
+  if (m > 0) {
+    Matrix Ak = Matrix::Zero(n + m, n + m);
+    Ak.topLeftCorner(n, n) = Matrix::Identity(n, n);
+    const Vector mu = trace.multipliers.size() == m ? trace.multipliers : Vector::Zero(m);
+    mech.add_constraint_hessian(q, t0, mu, Ak);
+    Ak.topRightCorner(n, m) = J.transpose();
+    Ak.bottomLeftCorner(m, n) = J;
+    Matrix rhs_q = Matrix::Zero(n + m, r);
+    rhs_q.topRows(n) = gq;
+    const Matrix ab = Ak.transpose().partialPivLu().solve(rhs_q);
+    gq = ab.topRows(n);
+    const Vector dq = q - (trace.given.size() == n ? trace.given : q);
+    for (Eigen::Index c = 0; c < r; ++c)
+      out.metric[static_cast<std::size_t>(c)] = -gq.col(c) * dq.transpose();
+  }
+  out.q = gq;
+  out.v = gvg;
+  return out;
 }
 
 double trapezoid_weight(std::size_t n, std::size_t N) {
@@ -162,20 +347,15 @@ std::unique_ptr<DynamicProblem> DynamicProblem::create(MPI_Comm comm, const io::
     throw Error(d.where.str() + ": design.body '" + d.body + "' is simulated as " + model +
                     ": design sensitivities are built for rigid, FFRF and ACF bodies",
                 true);
-  if (model == "ffrf") {
+  if (model == "ffrf")
     // What the FFRF design body's adjoint does not differentiate yet: say so before computing.
-    std::string missing;
-    if (!body.initial.elastic_displacement[0].empty() || !body.initial.elastic_velocity[0].empty())
-      missing = "initial elastic fields";
-    else
-      for (const io::BodySpec &b : c.bodies)
-        if (io::simulated_model(b.model) == "acf") missing = "scenes with ACF bodies";
-    if (!missing.empty())
-      throw Error(d.where.str() + ": design.body '" + d.body + "' is an FFRF body with " + missing +
-                      ", whose design sensitivities are not built yet (FFRF design bodies: no "
-                      "initial elastic fields, no ACF bodies in the scene)",
-                  true);
-  }
+    for (const io::BodySpec &b : c.bodies)
+      if (io::simulated_model(b.model) == "acf")
+        throw Error(d.where.str() + ": design.body '" + d.body +
+                        "' is an FFRF body in a scene with ACF bodies (body '" + b.name +
+                        "'), whose design sensitivities are not built yet (FFRF design bodies: "
+                        "scenes of rigid and FFRF bodies)",
+                    true);
   std::unique_ptr<DynamicProblem> p(new DynamicProblem());
   p->case_ = c;
   p->scratch_ = scratch;
@@ -545,17 +725,25 @@ void DynamicProblem::evaluate_rigid(bool gradients, optimize::Evaluation &out) {
   checkpoint_bytes_ = store->peak_bytes();
   adjoint_factorizations_ = sweep.factorizations();
   const Matrix mu0 = sweep.finish(state_partials(0, s0));
-  G += initial_state_adjoint(ga, s0, trace, -mu0,
-                             [&](const Vector &q, const Vector &v, const Vector &a, bool gravity,
-                                 const Matrix &W) { return design_partials(q, v, a, gravity, W); });
+  // The placed state depends on the design when the FFRF design body has initial elastic fields
+  // (section 10.2): then the start returns its sensitivities to it too.
+  const dynamics::SceneBody &dsb = scene_.bodies[static_cast<std::size_t>(design_body_)];
+  const bool given = ffrf_design_ && (dsb.elastic0.size() > 0 || dsb.elastic_rate0.size() > 0);
+  const StartAdjoint start = initial_state_adjoint(
+      ga, s0, trace, -mu0,
+      [&](const Vector &q, const Vector &v, const Vector &a, bool gravity, const Matrix &W) {
+        return design_partials(q, v, a, gravity, W);
+      },
+      given);
+  G += start.design;
   adjoint_s_ = wall_time() - t_adjoint;
   if (ffrf_design_)
-    add_ffrf_element_gradients(G);
+    add_ffrf_element_gradients(G, start);
   else
     add_rigid_element_gradients(G);
 }
 
-void DynamicProblem::add_ffrf_element_gradients(const Matrix &G) {
+void DynamicProblem::add_ffrf_element_gradients(const Matrix &G, const StartAdjoint &start) {
   const io::BodySpec &spec = case_.bodies[static_cast<std::size_t>(design_body_)];
   const auto &body = dynamic_cast<const bodies::FfrfBody &>(scene_.mechanism.body(mechanism_body_));
   const int n = body.coordinates() - 7;
@@ -563,6 +751,8 @@ void DynamicProblem::add_ffrf_element_gradients(const Matrix &G) {
   std::vector<reduce::ReductionCotangent> bars;
   std::vector<std::size_t> columns; // the responses that depend on the design body
   std::vector<Vec> owned;
+  // The element terms of the initial fields' projections (section 10.2), per response.
+  std::vector<std::vector<double>> projection_w(specs_.size());
   for (std::size_t i = 0; i < specs_.size(); ++i) {
     const io::ResponseSpec &r = *specs_[i];
     bodies::FfrfModel bar = unpack(G.col(static_cast<Eigen::Index>(i)), n, body.stiffening());
@@ -611,6 +801,44 @@ void DynamicProblem::add_ffrf_element_gradients(const Matrix &G) {
         used = true;
       }
     }
+    if (start.q.size() > 0 && n > 0) {
+      // Initial elastic fields (section 10.2): the start's sensitivities to the placed elastic
+      // coordinates and rates (a displacement sensor also measures from the placed position),
+      // and the cotangent of the positions' metric on the body's coordinates.
+      const auto col = static_cast<Eigen::Index>(i);
+      const int o = scene_.mechanism.offset(mechanism_body_);
+      Vector qbar = start.q.col(col);
+      if (sensor_of_[i] >= 0 && sensor_on_design_[i]) {
+        const dynamics::BoundSensor &bs = scene_.sensors[static_cast<std::size_t>(sensor_of_[i])];
+        if (bs.quantity == "displacement") {
+          Vec3 sum = Vec3::Zero();
+          for (const Vec3 &dy : sampled_[i].dy) sum += dy;
+          qbar -= sensor_jacobian(scene_, bs, scene_.q0).transpose() * sum;
+        }
+      }
+      const Matrix &W = start.metric[static_cast<std::size_t>(i)];
+      const Matrix Wz = W.block(o + 7, o + 7, n, n);
+      c.M += 0.5 * (Wz + Wz.transpose());
+      const dynamics::SceneBody &dsb = scene_.bodies[static_cast<std::size_t>(design_body_)];
+      const double density = case_.material(spec.material).density;
+      for (const bool rate : {false, true}) {
+        const Vector &zeta = rate ? dsb.elastic_rate0 : dsb.elastic0;
+        if (zeta.size() == 0) continue;
+        const Vector zbar = (rate ? start.v.col(col) : qbar).segment(o + 7, n);
+        if (c.basis.empty())
+          for (int k = 0; k < n; ++k) {
+            Vec v;
+            FX_PETSC(VecDuplicate(reduction_->basis.front(), &v));
+            FX_PETSC(VecZeroEntries(v));
+            c.basis.push_back(v);
+            owned.push_back(v);
+          }
+        reduce::project_field_adjoint(m, density, *reduction_,
+                                      dynamics::initial_elastic_field(spec, rate), w_, zeta, zbar,
+                                      c.basis, projection_w[i]);
+      }
+      used = true;
+    }
     if (!used) continue;
     bars.push_back(std::move(c));
     columns.push_back(i);
@@ -633,6 +861,9 @@ void DynamicProblem::add_ffrf_element_gradients(const Matrix &G) {
       const auto k = static_cast<std::size_t>(e);
       element_gradient_[columns[c]][k] += ds_[k] * s_hat[c][k] + dw_[k] * w_hat[c][k];
     }
+  for (std::size_t i = 0; i < projection_w.size(); ++i)
+    for (std::size_t k = 0; k < projection_w[i].size(); ++k)
+      element_gradient_[i][k] += dw_[k] * projection_w[i][k];
 }
 
 std::vector<char>

@@ -96,6 +96,11 @@ VelocityCorrection rigid_velocity_correction(const Mechanism &mech, const Vector
   out.Pi = Linv.transpose() * (Matrix::Identity(k, k) - BpB) * Linv;
   out.T = T;
   out.y = y;
+  out.W = W;
+  out.P = J * T;
+  out.B = B;
+  out.Bp = cod.pseudoInverse();
+  out.b = b;
   for (std::size_t f = 0; f < fields.size(); ++f)
     out.field[f] = y.segment<6>(field_col0 + 6 * static_cast<int>(f));
   mech.constraint_time_terms(q, v + out.dv, t, phi_t, phi_tt, phi_qt_v);

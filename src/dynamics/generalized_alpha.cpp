@@ -161,6 +161,7 @@ State GeneralizedAlpha::initial_state(const Vector &q0, const Vector &v0, double
   State s;
   s.t = t0;
   s.q = q0;
+  if (trace) *trace = StartTrace{};
   Vector phi;
   Matrix J;
   // Positions: Gauss-Newton on the smallest correction, q <- q - J^T (J J^T)^-1 Phi.
@@ -174,6 +175,42 @@ State GeneralizedAlpha::initial_state(const Vector &q0, const Vector &v0, double
     if (m == 0 || phi.cwiseAbs().maxCoeff() <= tol) break;
     const Matrix JJt = J * J.transpose();
     s.q -= J.transpose() * JJt.partialPivLu().solve(phi);
+  }
+  // The Gauss-Newton point is near, not at, the smallest correction, and where it lands
+  // depends on the iterations taken. Newton on the conditions of the smallest change,
+  // q - q0 + J^T mu = 0 and Phi = 0, makes it the closest point, a function of q0 whose
+  // derivative the adjoint has exactly (section 9.2 item 6).
+  Vector mu = Vector::Zero(m);
+  bool closest = true;
+  if (it > 0 && it < 50) {
+    mech_.constraint(s.q, t0, phi, &J);
+    const Matrix JJt = J * J.transpose();
+    mu = -JJt.partialPivLu().solve(J * (s.q - q0));
+    closest = false;
+    for (int k = 0; k < 8; ++k) {
+      mech_.constraint(s.q, t0, phi, &J);
+      const Vector g = s.q - q0 + J.transpose() * mu;
+      if (g.cwiseAbs().maxCoeff() <= tol && phi.cwiseAbs().maxCoeff() <= tol) {
+        closest = true;
+        break;
+      }
+      Matrix A = Matrix::Zero(n + m, n + m);
+      A.topLeftCorner(n, n) = Matrix::Identity(n, n);
+      mech_.add_constraint_hessian(s.q, t0, mu, A); // writes into the top-left n x n block
+      A.topRightCorner(n, m) = J.transpose();
+      A.bottomLeftCorner(m, n) = J;
+      Vector rhs(n + m);
+      rhs << -g, -phi;
+      const Vector d = A.partialPivLu().solve(rhs);
+      if (!d.allFinite()) break;
+      s.q += d.head(n);
+      mu += d.tail(m);
+    }
+  }
+  if (trace) {
+    trace->given = q0;
+    trace->multipliers = mu;
+    trace->closest = closest;
   }
   Vector all;
   mech_.all_constraint_values(s.q, t0, all);
@@ -198,7 +235,10 @@ State GeneralizedAlpha::initial_state(const Vector &q0, const Vector &v0, double
   StartReport rep;
   rep.kinetic_given = 0.5 * v0.dot(M * v0);
   const VelocityCorrection rigid = rigid_velocity_correction(mech_, s.q, v0, t0);
-  if (trace) *trace = StartTrace{rigid, Vector()};
+  if (trace) {
+    trace->rigid = rigid;
+    trace->fallback = Vector();
+  }
   s.v = v0 + rigid.dv;
   rep.rigid_residual = rigid.residual;
   rep.given_violation = rigid.scale;

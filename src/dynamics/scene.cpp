@@ -125,6 +125,17 @@ joints::Equation driver_equation(const std::string &joint_type, const Attachment
   return e;
 }
 
+reduce::Field initial_elastic_field(const io::BodySpec &spec, bool rate) {
+  const auto &text = rate ? spec.initial.elastic_velocity : spec.initial.elastic_displacement;
+  if (text[0].empty()) return {};
+  const auto f = std::make_shared<std::array<PointExpression, 3>>(std::array<PointExpression, 3>{
+      PointExpression(text[0]), PointExpression(text[1]), PointExpression(text[2])});
+  return [f](const Vec3 &x) {
+    return Vec3((*f)[0](x.x(), x.y(), x.z()), (*f)[1](x.x(), x.y(), x.z()),
+                (*f)[2](x.x(), x.y(), x.z()));
+  };
+}
+
 namespace {
 
 /// The Rayleigh damping a M + b K of a reduced body.
@@ -133,19 +144,18 @@ Matrix rayleigh(const reduce::FlexibleReduction &r, const std::array<double, 2> 
 }
 
 /// The initial elastic displacement (or velocity, if `rate`) of an FFRF body: its
-/// `initial.elastic_displacement` (`elastic_velocity`) field projected onto the basis
-/// (docs/theory.md section 7.6); empty if the case gives none. Logs how much of the field the
-/// basis represents.
+/// `initial.elastic_displacement` (`elastic_velocity`) field projected onto the basis with the
+/// mass sum_e w_e M_e (`mass_factor`: a design body's w; empty: 1; docs/theory.md sections 7.6
+/// and 10.2); empty if the case gives none. If `report`, logs how much of the field the basis
+/// represents.
 bodies::Vector initial_elastic(MPI_Comm comm, const io::BodySpec &spec,
                                const mesh::DistributedMesh &mesh, double density,
-                               const reduce::FlexibleReduction &red, bool rate) {
-  const auto &text = rate ? spec.initial.elastic_velocity : spec.initial.elastic_displacement;
-  if (text[0].empty()) return {};
-  const std::array<PointExpression, 3> f{PointExpression(text[0]), PointExpression(text[1]),
-                                         PointExpression(text[2])};
-  const reduce::FieldProjection p = reduce::project_field(mesh, density, red, [&](const Vec3 &x) {
-    return Vec3(f[0](x.x(), x.y(), x.z()), f[1](x.x(), x.y(), x.z()), f[2](x.x(), x.y(), x.z()));
-  });
+                               const reduce::FlexibleReduction &red, bool rate,
+                               const std::vector<double> &mass_factor = {}, bool report = true) {
+  const reduce::Field u = initial_elastic_field(spec, rate);
+  if (!u) return {};
+  const reduce::FieldProjection p = reduce::project_field(mesh, density, red, u, mass_factor);
+  if (!report) return p.coordinates;
   const char *what = rate ? "elastic_velocity" : "elastic_displacement";
   print0(comm,
          "body %s: initial.%s projected onto the basis: ||u||_M = %.6g, %.3g %% of it outside "
@@ -546,6 +556,9 @@ set_ffrf_design(MPI_Comm comm, const io::Case &c, Scene &scene, std::size_t b,
   sb.reduction = red;
   scene.owned_modes[b] = reduce::owned_basis_values(*red, m.owned_nodes);
   scene.reduction_seconds[b] = wall_time() - t0;
+  const double density = c.material(spec.material).density;
+  sb.elastic0 = initial_elastic(comm, spec, m, density, *red, false, factors.mass, false);
+  sb.elastic_rate0 = initial_elastic(comm, spec, m, density, *red, true, factors.mass, false);
   set_body_model(comm, c, scene, b,
                  std::make_shared<bodies::FfrfBody>(spec.name, ffrf_model(*red, spec)));
   return red;

@@ -32,14 +32,25 @@ using bodies::Vec3;
 using ResidualPartials = std::function<Matrix(const Vector &q, const Vector &v, const Vector &a,
                                               bool gravity, const Matrix &W)>;
 
+/// What the adjoint of the consistent initial state returns (one column per response).
+struct StartAdjoint {
+  Matrix design; ///< dPsi/dtheta through the start
+  /// With `given`: dPsi/dq_g and dPsi/dv_g, the sensitivities to the placed coordinates and
+  /// velocities, and per response the cotangent of the positions' metric (n x n, section 9.2
+  /// item 6: only its block on a design body's elastic coordinates means anything).
+  Matrix q, v;
+  std::vector<Matrix> metric;
+};
+
 /// The adjoint of the consistent initial state (docs/theory.md section 9.2): from
 /// gbar = dPsi/ds_0 (packed like State::pack, one column per response; = -mu_0 of the sweep),
 /// the state s0 that GeneralizedAlpha::initial_state computed and its `trace` (what the start
-/// did to the velocities), returns dPsi/dtheta through the accelerations, multipliers and the
-/// velocity corrections (the rigid-body one and the elastic fallback).
-Matrix initial_state_adjoint(const dynamics::GeneralizedAlpha &ga, const dynamics::State &s0,
-                             const dynamics::StartTrace &trace, const Matrix &gbar,
-                             const ResidualPartials &partials);
+/// did), returns dPsi/dtheta through the accelerations, multipliers and the velocity
+/// corrections (the rigid-body one and the elastic fallback) and, if `given`, the
+/// sensitivities to the placed coordinates and velocities through every stage (item 6).
+StartAdjoint initial_state_adjoint(const dynamics::GeneralizedAlpha &ga, const dynamics::State &s0,
+                                   const dynamics::StartTrace &trace, const Matrix &gbar,
+                                   const ResidualPartials &partials, bool given = false);
 
 /// A response of a dynamic analysis on the time grid (docs/theory.md section 9.3): the sensor
 /// samples y_n at the main steps give Psi and dPsi/dy_n.
@@ -135,7 +146,9 @@ private:
   /// The FFRF design body (section 10): element_gradient_ += ds_e s_hat_e + dw_e w_hat_e from
   /// G = (d r/d model)^T mu summed over the steps (packed FfrfModel cotangents, one column per
   /// response), the damping's Rayleigh split, the mass response and the sensors' bases.
-  void add_ffrf_element_gradients(const Matrix &G);
+  /// `start`: the start's sensitivities to the placed state (section 9.2 item 6), used when the
+  /// design body has initial elastic fields (section 10.2).
+  void add_ffrf_element_gradients(const Matrix &G, const StartAdjoint &start);
   /// Rows of the design partials: 10 mass parameters (rigid) or the packed FfrfModel.
   int design_parameters() const;
   /// Which main steps the forward run stores (all, or step 0, the binomial schedule's first

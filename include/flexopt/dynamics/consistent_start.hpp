@@ -44,6 +44,11 @@ struct VelocityCorrection {
   Matrix T;
   Vector y;
   Matrix Pi;
+  /// And what its derivative with respect to q and the given v needs (section 9.2, item 6):
+  /// the metric W, P = Phi_q T, b = -(Phi_q v + Phi_t), B = P L^-T (W = L L^T) and the
+  /// pseudo-inverse B^+ of the complete orthogonal decomposition the correction used.
+  Matrix W, P, B, Bp;
+  Vector b;
 };
 
 /// The smallest change of kinetic energy of the rigid-body velocities that satisfies

@@ -88,6 +88,11 @@ struct StartReport {
 struct StartTrace {
   VelocityCorrection rigid;
   Vector fallback;
+  /// The positions: the placed coordinates, the multipliers of the smallest change
+  /// (q0 - q_given + Phi_q^T mu = 0; zero if the placement satisfied the joints) and whether
+  /// the closest point was reached (false: the Gauss-Newton point was kept).
+  Vector given, multipliers;
+  bool closest = true;
 };
 
 /// What one step did, for progress output and failure messages.

@@ -9,6 +9,7 @@
 #include "flexopt/fem/probe.hpp"
 #include "flexopt/io/case.hpp"
 #include "flexopt/mesh/distributed_mesh.hpp"
+#include "flexopt/reduce/field_projection.hpp"
 
 #include <functional>
 #include <map>
@@ -139,11 +140,16 @@ void set_body_model(MPI_Comm comm, const io::Case &c, Scene &scene, std::size_t 
 /// Reduces the FFRF body b again with a design body's element factors (its stiffness and mass
 /// per element, docs/theory.md section 10; the reduction keeps its adjoint data), and replaces
 /// its reduction, basis values and body model, then connects the scene again (joint maps and
-/// sensor bases from the new basis). Returns the new reduction. Collective; throws a collective
+/// sensor bases from the new basis), the initial elastic coordinates projected with the design's
+/// mass (section 10.2). Returns the new reduction. Collective; throws a collective
 /// flexopt::Error if the modes count splits a repeated eigenvalue (reduce::check_modal_cut).
 std::shared_ptr<const reduce::FlexibleReduction>
 set_ffrf_design(MPI_Comm comm, const io::Case &c, Scene &scene, std::size_t b,
                 const reduce::ElementFactors &factors);
+
+/// The field `initial.elastic_displacement` (or `elastic_velocity`, if `rate`) of a body as a
+/// function of the mesh coordinates; empty if the case gives none.
+reduce::Field initial_elastic_field(const io::BodySpec &spec, bool rate);
 
 /// The scene's ACF bodies, in order (DistributedAlpha's list).
 std::vector<const bodies::AcfBody *> acf_body_list(const Scene &scene);

@@ -18,11 +18,26 @@ struct FieldProjection {
   double residual = 0;
 };
 
+using Field = std::function<Eigen::Vector3d(const Eigen::Vector3d &)>;
+
 /// Projects the field u(X) (X: mesh coordinates of the nodes, u in the mesh axes) onto the
-/// basis of `reduction`, with the consistent mass matrix of density `density`. Collective;
-/// every rank gets the same result.
+/// basis of `reduction`, with the consistent mass matrix of density `density` times the
+/// elements' `mass_factor` (empty: 1; a design body's w_e). Collective; every rank gets the
+/// same result.
 FieldProjection project_field(const mesh::DistributedMesh &mesh, double density,
-                              const FlexibleReduction &reduction,
-                              const std::function<Eigen::Vector3d(const Eigen::Vector3d &)> &u);
+                              const FlexibleReduction &reduction, const Field &u,
+                              const std::vector<double> &mass_factor = {});
+
+/// The adjoint of project_field on a design body (docs/theory.md section 10.2): for the
+/// cotangent zbar of the coordinates zeta it returned, differentiated in the covariant form
+/// zeta = (Psi^T M Psi)^-1 Psi^T M u at Psi^T M Psi = I, adds
+///   basis_bar[k] += zbar_k M (u - Psi zeta) - zeta_k M Psi zbar       (full-size vectors),
+///   w_hat[e] += (Psi zbar)_e^T M0_e (u - Psi zeta)_e                  (local elements).
+/// Collective.
+void project_field_adjoint(const mesh::DistributedMesh &mesh, double density,
+                           const FlexibleReduction &reduction, const Field &u,
+                           const std::vector<double> &mass_factor, const Eigen::VectorXd &zeta,
+                           const Eigen::VectorXd &zbar, const std::vector<Vec> &basis_bar,
+                           std::vector<double> &w_hat);
 
 } // namespace flexopt::reduce
