@@ -23,11 +23,28 @@ def run_flexopt(cmd):
     return proc.stdout
 
 
+def without_optimization(text):
+    """case.yaml text without its top-level design, objective and constraints entries (each key
+    line and the indented or list lines under it)."""
+    out, skipping = [], False
+    for line in text.split("\n"):
+        if re.match(r"(design|objective|constraints):", line):
+            skipping = True
+            continue
+        if skipping and (line.startswith(" ") or line.startswith("-")):
+            continue
+        skipping = False
+        out.append(line)
+    return "\n".join(out)
+
+
 def run_variant(flexopt, case, out, name, replace, ranks=2, end=None, output=False):
     """Runs `flexopt simulate` on CASE's case.yaml with each (old, new) of `replace` applied
     (old must occur) and, if given, time.end set to `end`; returns the summary, or with
-    `output` the pair (summary, the run's printed output)."""
-    text = open(os.path.join(case, "case.yaml")).read()
+    `output` the pair (summary, the run's printed output). A variant simulates the scene: the
+    case's optimization sections (design, objective, constraints) are left out, so that a
+    variant may change what they rely on (the design body's model, say)."""
+    text = without_optimization(open(os.path.join(case, "case.yaml")).read())
     text = re.sub(r"geometry: ([./]*)meshes/",
                   lambda m: "geometry: " + os.path.abspath(os.path.join(case, m.group(1), "meshes")) + "/",
                   text)

@@ -359,13 +359,32 @@ std::unique_ptr<DynamicProblem> DynamicProblem::create(MPI_Comm comm, const io::
   std::unique_ptr<DynamicProblem> p(new DynamicProblem());
   p->case_ = c;
   p->scratch_ = scratch;
-  p->scene_ = dynamics::build_scene(comm, c);
+  // An FFRF design body is reduced once, with its first design (the reduction is reused by
+  // the first evaluation at that design).
+  reduce::ElementFactors first;
+  const dynamics::InitialDesign initial{d.body, [&](const mesh::DistributedMesh &m) {
+                                          optimize::DesignField f(m, d);
+                                          Vec x = f.create_design_vector();
+                                          f.initial_design(x);
+                                          f.update(x);
+                                          std::vector<double> dw, ds;
+                                          f.mass_factors(first.mass, dw);
+                                          f.stiffness_factors(first.stiffness, ds);
+                                          VecDestroy(&x);
+                                          return first;
+                                        }};
+  p->scene_ = dynamics::build_scene(comm, c, model == "ffrf" ? &initial : nullptr);
   for (std::size_t b = 0; b < c.bodies.size(); ++b)
     if (c.bodies[b].name == d.body) p->design_body_ = static_cast<int>(b);
   const dynamics::SceneBody &dsb = p->scene_.bodies[static_cast<std::size_t>(p->design_body_)];
   p->mechanism_body_ = dsb.mechanism;
   p->acf_design_ = dsb.acf;
   p->ffrf_design_ = model == "ffrf";
+  if (p->ffrf_design_) {
+    p->reduction_ = dsb.reduction;
+    p->reduced_factors_ = first;
+    p->reduction_s_ = p->scene_.reduction_seconds[static_cast<std::size_t>(p->design_body_)];
+  }
   p->basis_ =
       c.adjoint.basis == "fixed" ? reduce::BasisDerivative::Fixed : reduce::BasisDerivative::Exact;
   const mesh::DistributedMesh &m = p->scene_.meshes[static_cast<std::size_t>(p->design_body_)];
@@ -547,11 +566,17 @@ void DynamicProblem::apply_design(Vec x) {
   if (acf_design_ >= 0) {
     scene_.acf[static_cast<std::size_t>(acf_design_)]->set_factors(s_, w_);
   } else if (ffrf_design_) {
-    const double t0 = wall_time();
-    reduction_ = dynamics::set_ffrf_design(mesh().comm, case_, scene_,
-                                           static_cast<std::size_t>(design_body_),
-                                           reduce::ElementFactors{s_, w_});
-    reduction_s_ = wall_time() - t0;
+    // Collective: every rank compares its own elements (a change of one element's density
+    // moves the factors on its rank only).
+    int changed = s_ != reduced_factors_.stiffness || w_ != reduced_factors_.mass, any = 0;
+    MPI_Allreduce(&changed, &any, 1, MPI_INT, MPI_LOR, mesh().comm);
+    if (any) {
+      const double t0 = wall_time();
+      reduced_factors_ = reduce::ElementFactors{s_, w_};
+      reduction_ = dynamics::set_ffrf_design(
+          mesh().comm, case_, scene_, static_cast<std::size_t>(design_body_), reduced_factors_);
+      reduction_s_ = wall_time() - t0;
+    }
   } else {
     set_rigid_design();
   }

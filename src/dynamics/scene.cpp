@@ -248,7 +248,7 @@ bodies::FfrfModel ffrf_model(const reduce::FlexibleReduction &red, const io::Bod
 /// An FFRF body: its mesh reduced (in parallel) to the floating frame and the Craig-Bampton
 /// basis, its initial elastic coordinates projected onto the basis.
 void add_ffrf_body(MPI_Comm comm, const io::BodySpec &spec, const io::MaterialSpec &mat,
-                   Scene &scene, SceneBody &sb) {
+                   Scene &scene, SceneBody &sb, const InitialDesign *design) {
   if (spec.interfaces.empty())
     throw Error(spec.where.str() + ": body '" + spec.name +
                     "' (model: ffrf) lists no interfaces; its floating frame is clamped at "
@@ -257,7 +257,12 @@ void add_ffrf_body(MPI_Comm comm, const io::BodySpec &spec, const io::MaterialSp
   scene.meshes.push_back(mesh::load_body_mesh(comm, spec));
   const mesh::DistributedMesh &m = scene.meshes.back();
   const double t0 = wall_time();
-  const auto red = reduce_ffrf_body(m, spec, mat, nullptr);
+  // A design body is reduced with its first design's element factors (once, not with the
+  // solid material and again for the design).
+  reduce::ElementFactors factors;
+  const bool designed = design && design->body == spec.name;
+  if (designed) factors = design->factors(m);
+  const auto red = reduce_ffrf_body(m, spec, mat, designed ? &factors : nullptr);
   auto body = std::make_shared<bodies::FfrfBody>(spec.name, ffrf_model(*red, spec));
   for (std::size_t i = 0; i < spec.interfaces.size(); ++i)
     sb.interfaces[spec.interfaces[i]] = red->centroids[i];
@@ -285,8 +290,8 @@ void add_ffrf_body(MPI_Comm comm, const io::BodySpec &spec, const io::MaterialSp
   }
   sb.reduction = red;
   scene.reduction_seconds.push_back(wall_time() - t0);
-  sb.elastic0 = initial_elastic(comm, spec, m, mat.density, *red, false);
-  sb.elastic_rate0 = initial_elastic(comm, spec, m, mat.density, *red, true);
+  sb.elastic0 = initial_elastic(comm, spec, m, mat.density, *red, false, factors.mass);
+  sb.elastic_rate0 = initial_elastic(comm, spec, m, mat.density, *red, true, factors.mass);
   scene.mechanism.bodies.push_back(body);
 }
 
@@ -376,7 +381,7 @@ void place(MPI_Comm comm, const io::Case &c, Scene &scene) {
 
 } // namespace
 
-Scene load_bodies(MPI_Comm comm, const io::Case &c) {
+Scene load_bodies(MPI_Comm comm, const io::Case &c, const InitialDesign *design) {
   Scene scene;
   const std::size_t nbodies = c.bodies.size();
   scene.meshes.reserve(nbodies); // the ACF bodies refer to their meshes
@@ -390,7 +395,7 @@ Scene load_bodies(MPI_Comm comm, const io::Case &c) {
     if (model == "acf")
       add_acf_body(comm, spec, mat, scene, sb);
     else if (model == "ffrf")
-      add_ffrf_body(comm, spec, mat, scene, sb);
+      add_ffrf_body(comm, spec, mat, scene, sb, design);
     else
       add_rigid_body(comm, spec, mat, scene, sb);
     sb.position = v3(spec.initial.position);
@@ -529,8 +534,8 @@ void connect(MPI_Comm comm, const io::Case &c, Scene &scene, bool report) {
         std::max(scene.length_scale, scene.q0.segment<3>(mech.offset(b)).cwiseAbs().maxCoeff());
 }
 
-Scene build_scene(MPI_Comm comm, const io::Case &c) {
-  Scene scene = load_bodies(comm, c);
+Scene build_scene(MPI_Comm comm, const io::Case &c, const InitialDesign *design) {
+  Scene scene = load_bodies(comm, c, design);
   connect(comm, c, scene, true);
   return scene;
 }

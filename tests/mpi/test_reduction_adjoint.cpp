@@ -45,6 +45,17 @@ struct Scene {
   reduce::FrameCondition frame = reduce::FrameCondition::Clamped;
 };
 
+/// A density rho_e in [0.6, 1] and a direction delta_e in [-1, 1] per local element, from its
+/// Gmsh tag (the same design on every rank count).
+void random_densities(const mesh::DistributedMesh &m, std::vector<double> &rho,
+                      std::vector<double> &delta) {
+  for (PetscInt e = 0; e < m.local_elements(); ++e) {
+    const std::size_t tag = m.element_tags[static_cast<std::size_t>(e)];
+    rho.push_back(0.6 + 0.4 * hashed(tag, 0.0));
+    delta.push_back(2 * hashed(tag, 1.0) - 1);
+  }
+}
+
 /// The reduction at densities rho + t delta.
 std::unique_ptr<reduce::FlexibleReduction> reduce_at(const mesh::DistributedMesh &m, const Scene &s,
                                                      const std::vector<double> &rho,
@@ -191,11 +202,7 @@ void check_reduction_adjoint(const Scene &s, double tolerance,
   auto m = test_support::load_test_mesh("beam.geo", 0.025, 2);
   const PetscInt ne = m.local_elements();
   std::vector<double> rho, delta;
-  for (PetscInt e = 0; e < ne; ++e) {
-    const std::size_t tag = m.element_tags[static_cast<std::size_t>(e)];
-    rho.push_back(0.6 + 0.4 * hashed(tag, 0.0));
-    delta.push_back(2 * hashed(tag, 1.0) - 1);
-  }
+  random_densities(m, rho, delta);
   const auto r0 = reduce_at(m, s, rho, delta, 0.0);
   const int n = r0->size();
   ASSERT_GT(n, 0);
@@ -272,11 +279,7 @@ void check_projection_adjoint(const Scene &s, double tolerance) {
   auto m = test_support::load_test_mesh("beam.geo", 0.025, 2);
   const PetscInt ne = m.local_elements();
   std::vector<double> rho, delta;
-  for (PetscInt e = 0; e < ne; ++e) {
-    const std::size_t tag = m.element_tags[static_cast<std::size_t>(e)];
-    rho.push_back(0.6 + 0.4 * hashed(tag, 0.0));
-    delta.push_back(2 * hashed(tag, 1.0) - 1);
-  }
+  random_densities(m, rho, delta);
   const double density = 7850;
   const reduce::Field u = [](const Eigen::Vector3d &x) {
     return Eigen::Vector3d(1e-4 * x.x() * x.x(), 2e-3 * std::sin(3 * x.x()) * (1 + x.y()),

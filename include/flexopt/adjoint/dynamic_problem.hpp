@@ -183,6 +183,9 @@ private:
   bool ffrf_design_ = false;   ///< the design body is an FFRF body
   /// The FFRF design body's reduction at the last design (with its adjoint data).
   std::shared_ptr<const reduce::FlexibleReduction> reduction_;
+  /// The element factors reduction_ was made with (a new design with the same factors, the
+  /// first one in particular, reuses it).
+  reduce::ElementFactors reduced_factors_;
   reduce::BasisDerivative basis_ = reduce::BasisDerivative::Exact;
   /// Per response: whether its sensor reads the FFRF design body's basis (its BoundSensor holds
   /// the point's location), and per main step the sensor's frame rotation A_n and elastic

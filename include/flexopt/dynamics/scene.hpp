@@ -128,10 +128,16 @@ joints::Equation driver_equation(const std::string &joint_type, const Attachment
 ///
 /// Both are collective and throw collective flexopt::Errors naming the case key for
 /// scene-level problems (an interface without area, a sensor on a missing body).
-Scene load_bodies(MPI_Comm comm, const io::Case &c);
+/// An FFRF design body's element factors at its first design: load_bodies reduces that body
+/// once with them (not with the solid material first).
+struct InitialDesign {
+  std::string body;
+  std::function<reduce::ElementFactors(const mesh::DistributedMesh &)> factors;
+};
+Scene load_bodies(MPI_Comm comm, const io::Case &c, const InitialDesign *design = nullptr);
 void connect(MPI_Comm comm, const io::Case &c, Scene &scene, bool report);
 /// Both phases: the scene of a dynamic case.
-Scene build_scene(MPI_Comm comm, const io::Case &c);
+Scene build_scene(MPI_Comm comm, const io::Case &c, const InitialDesign *design = nullptr);
 /// Per design: case body b (rigid or FFRF) takes the model `body` (a design's mass
 /// properties, say) and the scene is connected again; no mesh is touched. Collective.
 void set_body_model(MPI_Comm comm, const io::Case &c, Scene &scene, std::size_t b,
