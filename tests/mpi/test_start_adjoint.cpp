@@ -1,11 +1,11 @@
 // The adjoint of the consistent start with respect to the placed state (docs/theory.md section
 // 9.2 item 6) against central differences of the whole start: the flexible slider-crank whose
-// stretched rod violates the wrist pin, so that every stage acts (the Gauss-Newton position
-// corrections, the rigid-body velocity correction with joints it cannot satisfy, the elastic
+// stretched rod violates the wrist pin, so that every stage acts (the closest-point position
+// correction, the rigid-body velocity correction with joints it cannot satisfy, the elastic
 // fallback, the accelerations with the crank's rotation driver). The pairing <gbar, s0(q_g +
-// e dq, v_g + e dv)> is differenced (fourth order, two steps, Richardson) against
-// qbar . dq + vbar . dv for a random gbar and directions on the rod's elastic coordinates
-// (the design's) and on all coordinates.
+// e dq, v_g + e dv)> is differenced (fourth order, at two steps that must agree to 1e-5)
+// against qbar . dq + vbar . dv for a random gbar and directions on the rod's elastic
+// coordinates (the design's) and on all coordinates.
 #include "flexopt/adjoint/dynamic_problem.hpp"
 #include "flexopt/io/case.hpp"
 
