@@ -859,7 +859,7 @@ void DynamicProblem::add_ffrf_element_gradients(const Matrix &G, const StartAdjo
             owned.push_back(v);
           }
         reduce::project_field_adjoint(m, density, *reduction_,
-                                      dynamics::initial_elastic_field(spec, rate), w_, zeta, zbar,
+                                      dynamics::initial_elastic_field(spec, rate), zeta, zbar,
                                       c.basis, projection_w[i]);
       }
       used = true;

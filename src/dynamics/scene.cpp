@@ -145,16 +145,15 @@ Matrix rayleigh(const reduce::FlexibleReduction &r, const std::array<double, 2> 
 
 /// The initial elastic displacement (or velocity, if `rate`) of an FFRF body: its
 /// `initial.elastic_displacement` (`elastic_velocity`) field projected onto the basis with the
-/// mass sum_e w_e M_e (`mass_factor`: a design body's w; empty: 1; docs/theory.md sections 7.6
-/// and 10.2); empty if the case gives none. If `report`, logs how much of the field the basis
-/// represents.
+/// reduction's mass (a design body's sum_e w_e M_e; docs/theory.md sections 7.6 and 10.2); empty if
+/// the case gives none. If `report`, logs how much of the field the basis represents.
 bodies::Vector initial_elastic(MPI_Comm comm, const io::BodySpec &spec,
                                const mesh::DistributedMesh &mesh, double density,
                                const reduce::FlexibleReduction &red, bool rate,
-                               const std::vector<double> &mass_factor = {}, bool report = true) {
+                               bool report = true) {
   const reduce::Field u = initial_elastic_field(spec, rate);
   if (!u) return {};
-  const reduce::FieldProjection p = reduce::project_field(mesh, density, red, u, mass_factor);
+  const reduce::FieldProjection p = reduce::project_field(mesh, density, red, u);
   if (!report) return p.coordinates;
   const char *what = rate ? "elastic_velocity" : "elastic_displacement";
   print0(comm,
@@ -290,8 +289,8 @@ void add_ffrf_body(MPI_Comm comm, const io::BodySpec &spec, const io::MaterialSp
   }
   sb.reduction = red;
   scene.reduction_seconds.push_back(wall_time() - t0);
-  sb.elastic0 = initial_elastic(comm, spec, m, mat.density, *red, false, factors.mass);
-  sb.elastic_rate0 = initial_elastic(comm, spec, m, mat.density, *red, true, factors.mass);
+  sb.elastic0 = initial_elastic(comm, spec, m, mat.density, *red, false);
+  sb.elastic_rate0 = initial_elastic(comm, spec, m, mat.density, *red, true);
   scene.mechanism.bodies.push_back(body);
 }
 
@@ -562,8 +561,8 @@ set_ffrf_design(MPI_Comm comm, const io::Case &c, Scene &scene, std::size_t b,
   scene.owned_modes[b] = reduce::owned_basis_values(*red, m.owned_nodes);
   scene.reduction_seconds[b] = wall_time() - t0;
   const double density = c.material(spec.material).density;
-  sb.elastic0 = initial_elastic(comm, spec, m, density, *red, false, factors.mass, false);
-  sb.elastic_rate0 = initial_elastic(comm, spec, m, density, *red, true, factors.mass, false);
+  sb.elastic0 = initial_elastic(comm, spec, m, density, *red, false, false);
+  sb.elastic_rate0 = initial_elastic(comm, spec, m, density, *red, true, false);
   set_body_model(comm, c, scene, b,
                  std::make_shared<bodies::FfrfBody>(spec.name, ffrf_model(*red, spec)));
   return red;

@@ -3,6 +3,7 @@
 #include "flexopt/core/error.hpp"
 #include "flexopt/fem/assembly.hpp"
 #include "flexopt/fem/element.hpp"
+#include "flexopt/reduce/reduction_adjoint.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -24,14 +25,21 @@ void nodal_field(const mesh::DistributedMesh &mesh, const Field &u, Vec x) {
   FX_PETSC(VecRestoreArray(x, &a));
 }
 
-/// The consistent mass matrix sum_e w_e M_e and the nodal field u in its layout.
+/// The consistent mass matrix of the reduction's body (a design reduction's own M = sum_e w_e
+/// M_e, kept with its adjoint data, or assembled with `density`) and M u.
 struct MassAndField {
   Mat M = nullptr;
+  bool owned = false;
   Vec x = nullptr, Mx = nullptr;
   MassAndField(const mesh::DistributedMesh &mesh, double density,
-               const std::vector<double> &mass_factor, const Field &u) {
-    M = fem::create_matrix(mesh);
-    fem::assemble_mass(mesh, density, mass_factor, M);
+               const FlexibleReduction &reduction, const Field &u) {
+    if (reduction.adjoint && reduction.adjoint->M) {
+      M = reduction.adjoint->M;
+    } else {
+      M = fem::create_matrix(mesh);
+      owned = true;
+      fem::assemble_mass(mesh, density, {}, M);
+    }
     FX_PETSC(MatCreateVecs(M, &x, &Mx));
     nodal_field(mesh, u, x);
     FX_PETSC(MatMult(M, x, Mx));
@@ -39,7 +47,7 @@ struct MassAndField {
   ~MassAndField() {
     VecDestroy(&x);
     VecDestroy(&Mx);
-    MatDestroy(&M);
+    if (owned) MatDestroy(&M);
   }
   MassAndField(const MassAndField &) = delete;
   MassAndField &operator=(const MassAndField &) = delete;
@@ -48,9 +56,8 @@ struct MassAndField {
 } // namespace
 
 FieldProjection project_field(const mesh::DistributedMesh &mesh, double density,
-                              const FlexibleReduction &reduction, const Field &u,
-                              const std::vector<double> &mass_factor) {
-  const MassAndField f(mesh, density, mass_factor, u);
+                              const FlexibleReduction &reduction, const Field &u) {
+  const MassAndField f(mesh, density, reduction, u);
   FieldProjection out;
   const int n = reduction.size();
   out.coordinates.setZero(n);
@@ -66,15 +73,14 @@ FieldProjection project_field(const mesh::DistributedMesh &mesh, double density,
 
 void project_field_adjoint(const mesh::DistributedMesh &mesh, double density,
                            const FlexibleReduction &reduction, const Field &u,
-                           const std::vector<double> &mass_factor, const Eigen::VectorXd &zeta,
-                           const Eigen::VectorXd &zbar, const std::vector<Vec> &basis_bar,
-                           std::vector<double> &w_hat) {
+                           const Eigen::VectorXd &zeta, const Eigen::VectorXd &zbar,
+                           const std::vector<Vec> &basis_bar, std::vector<double> &w_hat) {
   const int n = reduction.size();
   if (static_cast<int>(basis_bar.size()) != n || zeta.size() != n || zbar.size() != n)
     throw Error("project_field_adjoint: the basis has " + std::to_string(n) +
                     " vectors, the cotangents do not match",
                 true);
-  const MassAndField f(mesh, density, mass_factor, u);
+  const MassAndField f(mesh, density, reduction, u);
   // res = u - Psi zeta, a = Psi zbar, and their products with M.
   Vec res, a, Mres, Ma;
   FX_PETSC(VecDuplicate(f.x, &res));

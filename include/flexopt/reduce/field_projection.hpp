@@ -21,12 +21,11 @@ struct FieldProjection {
 using Field = std::function<Eigen::Vector3d(const Eigen::Vector3d &)>;
 
 /// Projects the field u(X) (X: mesh coordinates of the nodes, u in the mesh axes) onto the
-/// basis of `reduction`, with the consistent mass matrix of density `density` times the
-/// elements' `mass_factor` (empty: 1; a design body's w_e). Collective; every rank gets the
-/// same result.
+/// basis of `reduction`, with the consistent mass matrix the reduction was made with (a design
+/// reduction's M = sum_e w_e M_e, kept with its adjoint data; otherwise assembled with
+/// `density`). Collective; every rank gets the same result.
 FieldProjection project_field(const mesh::DistributedMesh &mesh, double density,
-                              const FlexibleReduction &reduction, const Field &u,
-                              const std::vector<double> &mass_factor = {});
+                              const FlexibleReduction &reduction, const Field &u);
 
 /// The adjoint of project_field on a design body (docs/theory.md section 10.2): for the
 /// cotangent zbar of the coordinates zeta it returned, differentiated in the covariant form
@@ -36,8 +35,7 @@ FieldProjection project_field(const mesh::DistributedMesh &mesh, double density,
 /// Collective.
 void project_field_adjoint(const mesh::DistributedMesh &mesh, double density,
                            const FlexibleReduction &reduction, const Field &u,
-                           const std::vector<double> &mass_factor, const Eigen::VectorXd &zeta,
-                           const Eigen::VectorXd &zbar, const std::vector<Vec> &basis_bar,
-                           std::vector<double> &w_hat);
+                           const Eigen::VectorXd &zeta, const Eigen::VectorXd &zbar,
+                           const std::vector<Vec> &basis_bar, std::vector<double> &w_hat);
 
 } // namespace flexopt::reduce
