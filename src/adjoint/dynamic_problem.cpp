@@ -576,6 +576,7 @@ void DynamicProblem::apply_design(Vec x) {
       reduction_ = dynamics::set_ffrf_design(
           mesh().comm, case_, scene_, static_cast<std::size_t>(design_body_), reduced_factors_);
       reduction_s_ = wall_time() - t0;
+      last_.reduction = reduction_s_;
     }
   } else {
     set_rigid_design();
@@ -585,6 +586,7 @@ void DynamicProblem::apply_design(Vec x) {
 void DynamicProblem::evaluate(Vec x, bool gradients, optimize::Evaluation &out) {
   LogScope log("FxDynamicEvaluate");
   ++evaluations_;
+  last_ = {};
   apply_design(x);
   const mesh::DistributedMesh &m = mesh();
   const PetscInt ne = m.local_elements();
@@ -595,6 +597,7 @@ void DynamicProblem::evaluate(Vec x, bool gradients, optimize::Evaluation &out) 
   else
     evaluate_rigid(gradients, out);
   if (!gradients) return;
+  last_.adjoint = adjoint_s_;
   if (!out.d_objective) {
     out.d_objective = create_design_vector();
     for (std::size_t i = 0; i < case_.constraints.size(); ++i)
@@ -879,6 +882,7 @@ void DynamicProblem::add_ffrf_element_gradients(const Matrix &G, const StartAdjo
     throw;
   }
   reduction_adjoint_s_ = wall_time() - t0;
+  last_.reduction_adjoint = reduction_adjoint_s_;
   for (Vec &v : owned) FX_PETSC(VecDestroy(&v));
   const PetscInt ne = m.local_elements();
   for (std::size_t c = 0; c < columns.size(); ++c)
@@ -913,6 +917,7 @@ std::string DynamicProblem::checkpoint_file() const {
 bool DynamicProblem::finish_forward(double t_forward, bool gradients, optimize::Evaluation &out) {
   const double forward = wall_time() - t_forward;
   forward_total_s_ += forward;
+  last_.forward = forward;
   out.constraints.assign(case_.constraints.size(), 0.0);
   for (std::size_t i = 0; i < specs_.size(); ++i) out.value(i) = response_value(i);
   if (gradients) forward_s_ = forward;
@@ -956,6 +961,15 @@ long long DynamicProblem::dofs() const {
   for (std::size_t b = 0; b < scene_.bodies.size(); ++b)
     if (scene_.bodies[b].acf >= 0) n += 3LL * scene_.meshes[b].global_nodes;
   return n;
+}
+
+std::vector<optimize::Timing> DynamicProblem::timings() const {
+  std::vector<optimize::Timing> t;
+  if (ffrf_design_) t.push_back({"reduction", "reduce", last_.reduction});
+  t.push_back({"forward", "forward", last_.forward});
+  t.push_back({"adjoint", "adjoint", last_.adjoint});
+  if (ffrf_design_) t.push_back({"reduction_adjoint", "red.adj", last_.reduction_adjoint});
+  return t;
 }
 
 void DynamicProblem::describe(io::Json &s) const {

@@ -718,6 +718,16 @@ int run_optimize(const Context &ctx, const Options &o, const io::Case &c, double
   for (const auto &row : r.constraints) cons.push_back(io::Json(row));
   s["constraints"] = cons;
   s["max_change"] = r.max_change;
+  io::Json split = io::Json::object();
+  for (std::size_t p = 0; p < r.split_names.size(); ++p) {
+    std::vector<double> column;
+    for (const auto &row : r.seconds_split) column.push_back(row[p]);
+    split[r.split_names[p]] = column;
+  }
+  s["seconds_split"] = split; // per part, per iteration
+  io::Json about = io::Json::object();
+  problem->describe(about);
+  s["problem"] = about;
   s["volume_fraction"] = r.volume_fraction;
   s["converged"] = r.converged;
   s["restarted"] = o.restart;

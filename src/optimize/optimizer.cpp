@@ -106,7 +106,19 @@ OptimizationResult run_optimization(MPI_Comm comm, DesignProblem &design, const 
   std::ostringstream history;
   history << "iteration,objective";
   for (std::size_t i = 0; i < m; ++i) history << "," << names[i + 1];
-  history << ",max_change,seconds\n";
+  history << ",max_change,seconds";
+  // The split of an iteration's seconds: the problem's parts, then the update (the filter, the
+  // pull-back, MMA and the output: the rest of the iteration).
+  std::vector<std::string> split_labels;
+  for (const Timing &t : problem->timings()) {
+    history << ",seconds_" << t.name;
+    split_labels.push_back(t.label);
+    result.split_names.push_back(t.name);
+  }
+  split_labels.push_back("update");
+  result.split_names.emplace_back("update");
+  const std::size_t nsplit = split_labels.size();
+  history << ",seconds_update\n";
 
   print0(
       comm,
@@ -118,7 +130,9 @@ OptimizationResult run_optimization(MPI_Comm comm, DesignProblem &design, const 
   for (std::size_t i = 0; i < m; ++i)
     print0(comm, " %16s",
            ("c" + std::to_string(i) + ":" + c.constraints[i].type).substr(0, 16).c_str());
-  print0(comm, " %10s %8s\n", "change", "s");
+  print0(comm, " %10s", "change");
+  for (const std::string &l : split_labels) print0(comm, " %8s", l.substr(0, 8).c_str());
+  print0(comm, " %8s\n", "s");
 
   const std::string restart_path = (std::filesystem::path(out_dir) / "restart.h5").string();
   const std::vector<std::uint64_t> tags(problem->design_tags().begin(),
@@ -127,7 +141,7 @@ OptimizationResult run_optimization(MPI_Comm comm, DesignProblem &design, const 
   // Projection continuation: stage index into design.projection.beta and its first iteration.
   const std::vector<double> &betas = c.design->beta;
   int stage = 0, stage_start = 1;
-  std::vector<double> seconds_list;
+  std::vector<double> seconds_list, split_list; // per iteration; the split k x nsplit
   if (restart) {
     const io::RestartData r = io::read_restart(comm, restart_path, tags);
     const auto &meta =
@@ -155,6 +169,12 @@ OptimizationResult run_optimization(MPI_Comm comm, DesignProblem &design, const 
     for (Vec &v : state_vecs) FX_PETSC(VecDestroy(&v));
     const auto &obj = r.arrays.at("objective"), &chg = r.arrays.at("max_change"),
                &con = r.arrays.at("constraints"), &sec = r.arrays.at("seconds");
+    // The split, k x nsplit (a restart file written without it: not a number).
+    const auto split = r.arrays.find("seconds_split");
+    if (split != r.arrays.end() && split->second.size() == static_cast<std::size_t>(done) * nsplit)
+      split_list = split->second;
+    else
+      split_list.assign(static_cast<std::size_t>(done) * nsplit, std::nan(""));
     for (int k = 0; k < done; ++k) {
       result.objective.push_back(obj.at(static_cast<std::size_t>(k)));
       result.max_change.push_back(chg.at(static_cast<std::size_t>(k)));
@@ -167,9 +187,15 @@ OptimizationResult run_optimization(MPI_Comm comm, DesignProblem &design, const 
         std::snprintf(buf, sizeof buf, ",%.17g", con[static_cast<std::size_t>(k) * m + i]);
         history << buf;
       }
-      std::snprintf(buf, sizeof buf, ",%.17g,%.6g\n", chg[static_cast<std::size_t>(k)],
+      std::snprintf(buf, sizeof buf, ",%.17g,%.6g", chg[static_cast<std::size_t>(k)],
                     sec[static_cast<std::size_t>(k)]);
       history << buf;
+      for (std::size_t p = 0; p < nsplit; ++p) {
+        std::snprintf(buf, sizeof buf, ",%.6g",
+                      split_list[static_cast<std::size_t>(k) * nsplit + p]);
+        history << buf;
+      }
+      history << '\n';
     }
     seconds_list = sec;
     result.iterations = done;
@@ -206,6 +232,13 @@ OptimizationResult run_optimization(MPI_Comm comm, DesignProblem &design, const 
     mma->update(x, xmin, xmax, e.objective * objective_scale, df0, g, dg);
     const double change = max_abs_change(x, xold);
     const double seconds = wall_time() - t0;
+    std::vector<double> split;
+    double parts = 0;
+    for (const Timing &t : problem->timings()) {
+      split.push_back(t.seconds);
+      parts += t.seconds;
+    }
+    split.push_back(seconds - parts);
 
     result.iterations = k;
     result.objective.push_back(e.objective);
@@ -213,7 +246,9 @@ OptimizationResult run_optimization(MPI_Comm comm, DesignProblem &design, const 
     result.max_change.push_back(change);
     print0(comm, "%5d %16.9e", k, e.objective);
     for (double v : e.constraints) print0(comm, " %16.9e", v);
-    print0(comm, " %10.3e %8.2f\n", change, seconds);
+    print0(comm, " %10.3e", change);
+    for (double v : split) print0(comm, " %8.2f", v);
+    print0(comm, " %8.2f\n", seconds);
     char buf[64];
     std::snprintf(buf, sizeof buf, "%d,%.17g", k, e.objective);
     history << buf;
@@ -221,9 +256,15 @@ OptimizationResult run_optimization(MPI_Comm comm, DesignProblem &design, const 
       std::snprintf(buf, sizeof buf, ",%.17g", v);
       history << buf;
     }
-    std::snprintf(buf, sizeof buf, ",%.17g,%.6g\n", change, seconds);
+    std::snprintf(buf, sizeof buf, ",%.17g,%.6g", change, seconds);
     history << buf;
+    for (double v : split) {
+      std::snprintf(buf, sizeof buf, ",%.6g", v);
+      history << buf;
+    }
+    history << '\n';
     seconds_list.push_back(seconds);
+    split_list.insert(split_list.end(), split.begin(), split.end());
 
     // Restart point after every iteration (atomic: a kill at any moment leaves the previous
     // complete file).
@@ -250,6 +291,7 @@ OptimizationResult run_optimization(MPI_Comm comm, DesignProblem &design, const 
     rd.arrays["objective"] = result.objective;
     rd.arrays["max_change"] = result.max_change;
     rd.arrays["seconds"] = seconds_list;
+    rd.arrays["seconds_split"] = split_list;
     std::vector<double> flat;
     for (const auto &row : result.constraints) flat.insert(flat.end(), row.begin(), row.end());
     rd.arrays["constraints"] = flat;
@@ -262,6 +304,10 @@ OptimizationResult run_optimization(MPI_Comm comm, DesignProblem &design, const 
     }
   }
   if (!result.converged) result.stop_reason = "max_iterations reached";
+  for (std::size_t k = 0; k * nsplit < split_list.size(); ++k)
+    result.seconds_split.emplace_back(split_list.begin() + static_cast<std::ptrdiff_t>(k * nsplit),
+                                      split_list.begin() +
+                                          static_cast<std::ptrdiff_t>((k + 1) * nsplit));
   // Final state: the design after the last update.
   problem->evaluate(x, false, e);
   write_densities(writer, problem->field(), result.iterations);

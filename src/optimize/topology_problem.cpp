@@ -143,6 +143,7 @@ void TopologyProblem::response_gradient(const io::ResponseSpec &r, std::size_t i
 void TopologyProblem::evaluate(Vec x, bool gradients, Evaluation &out) {
   LogScope log("FxTopologyEvaluate");
   field_->update(x);
+  const double t_solve = wall_time();
 
   // SIMP: s = e_min + rho~^p (1 - e_min) on design elements; solid (s = 1) elsewhere.
   field_->stiffness_factors(factor_, dfactor_);
@@ -150,6 +151,8 @@ void TopologyProblem::evaluate(Vec x, bool gradients, Evaluation &out) {
   static_->solve();
   element_ku_current_ = false;
   ++solves_;
+  solve_s_ = wall_time() - t_solve;
+  adjoint_s_ = 0;
 
   std::vector<const io::ResponseSpec *> specs{&*case_.objective};
   for (const auto &r : case_.constraints) specs.push_back(&r);
@@ -165,7 +168,9 @@ void TopologyProblem::evaluate(Vec x, bool gradients, Evaluation &out) {
       out.d_constraints.push_back(create_design_vector());
   }
   for (std::size_t i = 0; i < specs.size(); ++i) {
+    const double t_adjoint = wall_time();
     response_gradient(*specs[i], i, grad_physical_); // d/d(physical density)
+    adjoint_s_ += wall_time() - t_adjoint;
     field_->pull_back(grad_physical_, out.gradient(i));
   }
 }

@@ -117,6 +117,9 @@ public:
   int fd_levels() const override { return ffrf_design_ ? 6 : 1; }
   /// The mechanism's coordinates and the ACF bodies' node coordinates.
   long long dofs() const override;
+  /// forward, adjoint (the backward sweep and the initial state's adjoint) and, with an FFRF
+  /// design body, reduction (0 when the design's factors did not change) and reduction_adjoint.
+  std::vector<optimize::Timing> timings() const override;
   /// Solve every step with Newton's method proper (reuse 0) or with kept matrices
   /// (time.newton_reuse, the default). check-gradient uses 0: kept-matrix iterations stop within
   /// their tolerance at a point that depends on when the matrix was renewed, which leaves about
@@ -224,6 +227,10 @@ private:
   /// Wall times of the last evaluation with gradients (forward, backward sweep) and of all
   /// forward runs.
   double forward_s_ = 0, adjoint_s_ = 0, forward_total_s_ = 0;
+  /// The parts of the last evaluation's wall time (timings()).
+  struct {
+    double reduction = 0, forward = 0, adjoint = 0, reduction_adjoint = 0;
+  } last_;
   long long steps_ = 0, evaluations_ = 0;
   bool zero_gradient_warned_ = false; ///< the warning of a design-independent response, once
 };

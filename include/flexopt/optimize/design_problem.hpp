@@ -31,6 +31,13 @@ struct Evaluation {
   ~Evaluation();
 };
 
+/// One part of an evaluation's wall time.
+struct Timing {
+  std::string name;  ///< history.csv column seconds_<name>
+  std::string label; ///< the iteration line's column head (at most 8 characters)
+  double seconds = 0;
+};
+
 class DesignProblem {
 public:
   virtual ~DesignProblem() = default;
@@ -48,6 +55,10 @@ public:
   /// Facts of the problem and of the evaluations so far for summary.json (sizes, solves,
   /// timings). Collective.
   virtual void describe(io::Json &summary) const = 0;
+  /// The parts of the last evaluate's wall time, the same names in the same order at every
+  /// evaluation of a problem (static: solve, adjoint; dynamic: forward, adjoint, and with an FFRF
+  /// design body reduction and reduction_adjoint). The filter and the pull-back are the rest.
+  virtual std::vector<Timing> timings() const = 0;
   /// Unknowns of one state solve (static: displacement DOFs; dynamic: the mechanism's
   /// coordinates).
   virtual long long dofs() const = 0;

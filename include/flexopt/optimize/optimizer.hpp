@@ -14,8 +14,12 @@ struct OptimizationResult {
   std::vector<double> objective;                ///< per iteration (unscaled)
   std::vector<std::vector<double>> constraints; ///< per iteration, response values
   std::vector<double> max_change;               ///< per iteration
-  double volume_fraction = 0;                   ///< final, of the design region
-  bool converged = false;                       ///< stopped on optimizer.tolerance
+  /// The parts of an iteration's seconds (DesignProblem::timings, then "update") and their
+  /// values per iteration (not a number for iterations of a restart file that lacks them).
+  std::vector<std::string> split_names;
+  std::vector<std::vector<double>> seconds_split;
+  double volume_fraction = 0; ///< final, of the design region
+  bool converged = false;     ///< stopped on optimizer.tolerance
   std::string stop_reason;
   long long dofs = 0, elements = 0, design_variables = 0;
   std::string output; ///< design.xdmf path

@@ -28,6 +28,10 @@ public:
   /// test cases.
   double noise_floor() const override { return 1e-10; }
   long long dofs() const override { return static_cast<long long>(static_->global_dofs()); }
+  /// solve (assembly and state solve), adjoint (the sensitivities and their adjoint solves).
+  std::vector<Timing> timings() const override {
+    return {{"solve", "solve", solve_s_}, {"adjoint", "adjoint", adjoint_s_}};
+  }
 
   DesignField &field() override { return *field_; }
   const DesignField &field() const override { return *field_; }
@@ -59,6 +63,7 @@ private:
   std::vector<double> element_ku_;  ///< K_e^0 u_e, 3 * nodes_per_element per element
   bool element_ku_current_ = false; ///< element_ku_ belongs to the current state
   int solves_ = 0;
+  double solve_s_ = 0, adjoint_s_ = 0; ///< of the last evaluation
 };
 
 } // namespace flexopt::optimize
