@@ -5,6 +5,10 @@
 #include "flexopt/io/json.hpp"
 #include "flexopt/optimize/design_problem.hpp"
 
+namespace flexopt::adjoint {
+class DynamicProblem;
+}
+
 #include <string>
 
 namespace flexopt::app {
@@ -26,5 +30,11 @@ std::string write_gradients(const optimize::DesignProblem &problem, const optimi
 /// `simulate` for `analysis: dynamic`: generalized-alpha run of the mechanism, motion.xdmf and
 /// summary.json. Collective.
 int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double t0);
+
+/// After `optimize` on a dynamic case: the mechanism with the first design (design.initial) and
+/// with the last one (dir/restart.h5) integrated and written to dir/motion_initial.xdmf and
+/// dir/motion_final.xdmf; their responses and motion figures into s. Collective.
+void write_design_motions(const Context &ctx, const io::Case &c, adjoint::DynamicProblem &problem,
+                          const std::string &dir, io::Json &s);
 
 } // namespace flexopt::app

@@ -734,6 +734,8 @@ int run_optimize(const Context &ctx, const Options &o, const io::Case &c, double
   s["stop_reason"] = r.stop_reason;
   s["output"] = r.output;
   s["history"] = (fs::path(dir) / "history.csv").string();
+  if (auto *dynamic = dynamic_cast<adjoint::DynamicProblem *>(problem.get()))
+    write_design_motions(ctx, run_case, *dynamic, dir, s);
   write_summary(ctx, dir, s, t0);
   print0(
       ctx.comm(),

@@ -197,57 +197,12 @@ private:
   dynamics::State small_;
 };
 
-} // namespace
-
-int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double t0) {
-  const std::string dir = detail::output_directory(ctx, o);
-  io::Json s = detail::base_summary(ctx, o, c);
-  s["analysis"] = "dynamic";
-  print0(ctx.comm(), "case %s (%s), analysis: dynamic, %d rank(s)\n", c.name.c_str(),
-         c.file.c_str(), ctx.size());
-  // A body may carry the settings of every model; say which ones its model leaves unused.
-  for (const io::BodySpec &b : c.bodies) {
-    const std::string note = io::unused_settings_note(b);
-    if (!note.empty()) print0(ctx.comm(), "note: %s\n", note.c_str());
-  }
-  // With a design: the design body's densities (design.initial or --design FILE), every
-  // response, and with --gradient their adjoint gradients (docs/theory.md section 9); the
-  // motion below is that of this design.
-  std::unique_ptr<adjoint::DynamicProblem> design;
-  Vec x = nullptr; // the design's variables
-  dynamics::Scene built;
-  if (c.design) {
-    design = adjoint::DynamicProblem::create(ctx.comm(), c, dir);
-    x = design->create_design_vector();
-    if (o.design.empty()) {
-      design->initial_design(x);
-    } else {
-      const std::vector<std::uint64_t> tags(design->design_tags().begin(),
-                                            design->design_tags().end());
-      const io::RestartData r = io::read_restart(ctx.comm(), o.design, tags);
-      const auto it = r.fields.find("x");
-      if (it == r.fields.end())
-        throw Error(o.design + ": no design field 'x' (--design takes the restart.h5 of a run)",
-                    true);
-      PetscScalar *a;
-      FX_PETSC(VecGetArray(x, &a));
-      std::copy(it->second.begin(), it->second.end(), a);
-      FX_PETSC(VecRestoreArray(x, &a));
-      // The projection sharpness of the run's continuation stage (meta: iteration, objective
-      // scale, constraints, stage, ...).
-      const auto meta = r.arrays.find("meta");
-      if (meta != r.arrays.end() && meta->second.size() > 3 && !c.design->beta.empty()) {
-        const auto stage =
-            std::min(static_cast<std::size_t>(meta->second[3]), c.design->beta.size() - 1);
-        design->field().set_beta(c.design->beta[stage]);
-      }
-      print0(ctx.comm(), "design: the densities of %s\n", o.design.c_str());
-    }
-    design->apply_design(x); // the scene below is that of this design
-  } else {
-    built = dynamics::build_scene(ctx.comm(), c);
-  }
-  dynamics::Scene &scene = design ? design->scene() : built;
+/// Integrates `scene` (with `design`: the scene of that problem at the design x, through its
+/// forward run, and with `gradient` its adjoint gradients too), writes dir/NAME.xdmf (+ .h5)
+/// and the run's figures into s. Collective.
+void integrate(const Context &ctx, const io::Case &c, dynamics::Scene &scene,
+               adjoint::DynamicProblem *design, Vec x, bool gradient, const std::string &dir,
+               const std::string &name, io::Json &s) {
   const dynamics::Mechanism &mech = scene.mechanism;
   print0(ctx.comm(), "mechanism: %zu bodies, %d coordinates, %d constraint rows enforced of %d\n",
          mech.bodies.size(), mech.coordinates(), mech.constraints(), mech.all_rows());
@@ -333,7 +288,7 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
            "output: warning: output.interval = %g s is shorter than time.step = %g s: every step "
            "is written\n",
            c.output.interval, h);
-  print0(ctx.comm(), "output: motion.xdmf: %s; about %s; energy and sensors at %s\n",
+  print0(ctx.comm(), "output: %s.xdmf: %s; about %s; energy and sensors at %s\n", name.c_str(),
          schedule.describe().c_str(), human_bytes(motion_bytes).c_str(),
          sample_every_step ? "every step" : "the frames' steps");
   if (motion_bytes > kLargeMotionBytes) {
@@ -354,7 +309,19 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
     print0(ctx.comm(), "output: warning: motion.h5 will take about %s (%lld frames of %s); %s\n",
            human_bytes(motion_bytes).c_str(), frames, human_bytes(per_frame).c_str(), hint.c_str());
   }
-  io::MotionWriter writer(mb, dir, "motion");
+  io::MotionWriter writer(mb, dir, name);
+  if (design) {
+    // The design's densities on its body (the caller applied x), in every frame: threshold
+    // physical_density at 0.5.
+    const optimize::DesignField &f = design->field();
+    for (const auto &[field, v] :
+         {std::pair{"density", f.density()}, {"physical_density", f.physical()}}) {
+      const PetscScalar *a;
+      FX_PETSC(VecGetArrayRead(v, &a));
+      writer.constant_cell_scalar(design->design_body(), field, a);
+      FX_PETSC(VecRestoreArrayRead(v, &a));
+    }
+  }
 
   std::vector<double> out_t, frame_t, energy;
   std::vector<std::vector<bodies::Vec3>> sensor_values(scene.sensors.size());
@@ -400,8 +367,9 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
   FX_PETSC(PetscOptionsGetBool(nullptr, nullptr, "-fx_newton_monitor", &newton_monitor, nullptr));
   int newton_max = 0, halvings_max = 0;
   // The time steps are their own -log_view stage (the set-up, meshing and initial state apart).
-  PetscLogStage stage;
-  FX_PETSC(PetscLogStageRegister("Time steps", &stage));
+  // (registered once: optimize integrates its first and its last design)
+  static PetscLogStage stage = -1;
+  if (stage < 0) FX_PETSC(PetscLogStageRegister("Time steps", &stage));
   FX_PETSC(PetscLogStagePush(stage));
   const double t_start = wall_time();
   double last_print = t_start, t_end = t_start;
@@ -466,9 +434,8 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
       }
     });
     optimize::Evaluation e;
-    design->evaluate(x, o.gradient, e);
+    design->evaluate(x, gradient, e);
     design->set_observer(nullptr);
-    FX_PETSC(VecDestroy(&x));
     io::Json responses = io::Json::object();
     const auto &names = design->response_names();
     for (std::size_t i = 0; i < names.size(); ++i) {
@@ -481,7 +448,7 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
     io::Json rn = io::Json::array();
     for (const auto &n : names) rn.push_back(n);
     s["response_names"] = rn;
-    if (o.gradient) {
+    if (gradient) {
       const std::string file = detail::write_gradients(*design, e, dir);
       io::Json a = io::Json::object();
       design->describe(a);
@@ -517,7 +484,7 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
   // The files' sizes as the file system reports them (-1 if it cannot).
   std::error_code h5_error, xdmf_error;
   const auto h5_bytes =
-      std::filesystem::file_size(std::filesystem::path(dir) / "motion.h5", h5_error);
+      std::filesystem::file_size(std::filesystem::path(dir) / (name + ".h5"), h5_error);
   const auto xdmf_bytes = std::filesystem::file_size(xdmf, xdmf_error);
   const long long motion_file_bytes =
       h5_error || xdmf_error ? -1LL : static_cast<long long>(h5_bytes + xdmf_bytes);
@@ -597,12 +564,97 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
          "%.9g\n",
          steps, t_int, static_cast<double>(steps) / std::max(t_int, 1e-9), newton_total, newton_max,
          factorizations_total, max_violation, energy.front(), energy.back());
+  print0(ctx.comm(), "wrote %s (%zu frames, %s; open in ParaView and press play)\n", xdmf.c_str(),
+         frame_t.size(), human_bytes(static_cast<double>(motion_file_bytes)).c_str());
+}
+
+/// Reads the design variables of a run's restart.h5 into x (the field's layout) and sets the
+/// projection sharpness of the run's continuation stage on `design`. Collective; throws a
+/// collective flexopt::Error naming the file if it holds no design.
+void load_design(MPI_Comm comm, const io::Case &c, adjoint::DynamicProblem &design,
+                 const std::string &file, Vec x) {
+  const std::vector<std::uint64_t> tags(design.design_tags().begin(), design.design_tags().end());
+  const io::RestartData r = io::read_restart(comm, file, tags);
+  const auto it = r.fields.find("x");
+  if (it == r.fields.end())
+    throw Error(file + ": no design field 'x' (--design takes the restart.h5 of a run)", true);
+  PetscScalar *a;
+  FX_PETSC(VecGetArray(x, &a));
+  std::copy(it->second.begin(), it->second.end(), a);
+  FX_PETSC(VecRestoreArray(x, &a));
+  // The projection sharpness of the run's continuation stage (meta: iteration, objective
+  // scale, constraints, stage, ...).
+  const auto meta = r.arrays.find("meta");
+  if (meta != r.arrays.end() && meta->second.size() > 3 && !c.design->beta.empty()) {
+    const auto stage =
+        std::min(static_cast<std::size_t>(meta->second[3]), c.design->beta.size() - 1);
+    design.field().set_beta(c.design->beta[stage]);
+  }
+}
+
+} // namespace
+
+int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double t0) {
+  const std::string dir = detail::output_directory(ctx, o);
+  io::Json s = detail::base_summary(ctx, o, c);
+  s["analysis"] = "dynamic";
+  print0(ctx.comm(), "case %s (%s), analysis: dynamic, %d rank(s)\n", c.name.c_str(),
+         c.file.c_str(), ctx.size());
+  // A body may carry the settings of every model; say which ones its model leaves unused.
+  for (const io::BodySpec &b : c.bodies) {
+    const std::string note = io::unused_settings_note(b);
+    if (!note.empty()) print0(ctx.comm(), "note: %s\n", note.c_str());
+  }
+  // With a design: the design body's densities (design.initial or --design FILE), every
+  // response, and with --gradient their adjoint gradients (docs/theory.md section 9); the
+  // motion below is that of this design.
+  std::unique_ptr<adjoint::DynamicProblem> design;
+  Vec x = nullptr; // the design's variables
+  dynamics::Scene built;
+  if (c.design) {
+    design = adjoint::DynamicProblem::create(ctx.comm(), c, dir);
+    x = design->create_design_vector();
+    if (o.design.empty()) {
+      design->initial_design(x);
+    } else {
+      load_design(ctx.comm(), c, *design, o.design, x);
+      print0(ctx.comm(), "design: the densities of %s\n", o.design.c_str());
+    }
+    design->apply_design(x); // the scene below is that of this design
+  } else {
+    built = dynamics::build_scene(ctx.comm(), c);
+  }
+  integrate(ctx, c, design ? design->scene() : built, design.get(), x, o.gradient, dir, "motion",
+            s);
+  if (x) FX_PETSC(VecDestroy(&x));
   detail::write_summary(ctx, dir, s, t0);
-  print0(ctx.comm(),
-         "wrote %s (%zu frames, %s; open in ParaView and press play) and %s/summary.json\n",
-         xdmf.c_str(), frame_t.size(), human_bytes(static_cast<double>(motion_file_bytes)).c_str(),
-         dir.c_str());
+  print0(ctx.comm(), "wrote %s/summary.json\n", dir.c_str());
   return 0;
+}
+
+void write_design_motions(const Context &ctx, const io::Case &c, adjoint::DynamicProblem &problem,
+                          const std::string &dir, io::Json &s) {
+  Vec x = problem.create_design_vector();
+  const double beta = problem.field().beta();
+  for (const char *which : {"initial", "final"}) {
+    const std::string name = std::string("motion_") + which;
+    if (std::string(which) == "initial") {
+      problem.initial_design(x);
+      if (!c.design->beta.empty()) problem.field().set_beta(c.design->beta.front());
+    } else {
+      load_design(ctx.comm(), c, problem, (std::filesystem::path(dir) / "restart.h5").string(), x);
+    }
+    print0(ctx.comm(), "%s: the mechanism with the %s design moving\n", name.c_str(), which);
+    io::Json one = io::Json::object();
+    problem.apply_design(x);
+    integrate(ctx, c, problem.scene(), &problem, x, false, dir, name, one);
+    io::Json brief = io::Json::object();
+    for (const char *key : {"responses", "motion", "integration_s", "constraint_violation_max"})
+      brief[key] = one[key];
+    s[name] = brief;
+  }
+  problem.field().set_beta(beta);
+  FX_PETSC(VecDestroy(&x));
 }
 
 } // namespace flexopt::app

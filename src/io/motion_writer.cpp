@@ -80,6 +80,7 @@ struct MotionWriter::Impl {
   hid_t dcpl = -1; ///< no fill value: every element is written once
   hid_t lcpl = -1; ///< creates /<body>/step_K on the first dataset of a step
   std::vector<Step> steps;
+  std::vector<std::vector<Field>> constants; ///< per body: fields shown in every step
   bool closed = false;
 
   /// Creates a dataset [global_rows x cols] (1D if cols == 1) and writes this rank's rows
@@ -183,7 +184,10 @@ struct MotionWriter::Impl {
           << " 3\" NumberType=\"Float\" Precision=\"8\" Format=\"HDF\">" << h5 << ":/" << name
           << "/step_" << k << "/positions</DataItem>\n"
           << "          </Geometry>\n";
-        for (const Field &f : steps[k].bodies[b].fields) {
+        std::vector<Field> shown = constants[b];
+        shown.insert(shown.end(), steps[k].bodies[b].fields.begin(),
+                     steps[k].bodies[b].fields.end());
+        for (const Field &f : shown) {
           const long long rows = f.cell ? nc : nn;
           x << "          <Attribute Name=\"" << xml_escape(f.name) << "\" AttributeType=\""
             << (f.vector ? "Vector" : "Scalar") << "\" Center=\"" << (f.cell ? "Cell" : "Node")
@@ -216,6 +220,7 @@ MotionWriter::MotionWriter(const std::vector<MotionBody> &bodies, const std::str
   Impl &m = *impl_;
   if (bodies.empty()) throw Error("motion output: no bodies", true);
   m.bodies = bodies;
+  m.constants.assign(bodies.size(), {});
   m.comm = bodies[0].layout.comm;
   if (m.comm == MPI_COMM_NULL)
     abort_local("motion output: body '" + bodies[0].name + "' has no communicator");
@@ -367,6 +372,25 @@ void MotionWriter::node_vector(std::size_t body, const std::string &name,
 void MotionWriter::cell_scalar(std::size_t body, const std::string &name,
                                const double *local_values) {
   impl_->add_field(body, name, true, false, local_values);
+}
+
+void MotionWriter::constant_cell_scalar(std::size_t body, const std::string &name,
+                                        const double *local_values) {
+  Impl &m = *impl_;
+  const MotionBody &mb = m.body(body, "constant_cell_scalar");
+  std::string why = bad_name(name);
+  if (why.empty() && (name == "positions" || name == "topology" || name == "reference_geometry" ||
+                      name.rfind("step_", 0) == 0))
+    why = "is reserved";
+  for (const Field &f : m.constants[body])
+    if (why.empty() && f.name == name) why = "is written twice";
+  if (!why.empty())
+    throw Error("motion output: field name '" + name + "' of body '" + mb.name + "' " + why, true);
+  const GridLayout &g = mb.layout;
+  const std::string path = "/" + mb.name + "/" + name;
+  m.write_rows(path, H5T_NATIVE_DOUBLE, H5T_IEEE_F64LE, local_values, g.global_cells, g.cell_start,
+               g.local_cells, 1);
+  m.constants[body].push_back(Field{name, true, false, path});
 }
 
 std::size_t MotionWriter::steps() const {

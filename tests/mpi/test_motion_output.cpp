@@ -18,6 +18,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
 #include <gtest/gtest.h>
 #include <hdf5.h>
 #include <unistd.h>
@@ -264,6 +265,50 @@ TEST(MotionOutput, RigidMotionOfThreeBodiesReadsBackExactly) {
       j["bodies"].push_back(e);
     }
     io::write_file_atomic((out.path / "expected.json").string(), j.dump(2));
+  }
+}
+
+/// A design's densities on a moving body: written once, shown in every step (those begun
+/// before the field and after it), and read back as written; a reserved name is refused.
+TEST(MotionOutput, ConstantCellFieldIsShownInEveryStep) {
+  const MPI_Comm comm = PETSC_COMM_WORLD;
+  const auto arm_mesh = test_support::load_test_mesh("beam.geo", 0.05, 2);
+  const io::GridLayout arm = mesh::grid_layout(arm_mesh);
+  OutDir out("motion_constant");
+  std::string xdmf;
+  {
+    io::MotionWriter w({{"arm", arm}}, out.path.string(), "motion");
+    std::vector<double> value(static_cast<std::size_t>(arm.local_cells));
+    for (std::size_t i = 0; i < value.size(); ++i)
+      value[i] = 0.5 + static_cast<double>(arm.cell_start + static_cast<long long>(i));
+    for (int k = 0; k < 3; ++k) {
+      w.begin_step(0.1 * k);
+      w.positions(0, arm.owned_coordinates.data());
+      if (k == 0) w.constant_cell_scalar(0, "physical_density", value.data());
+    }
+    try {
+      w.constant_cell_scalar(0, "step_1", value.data());
+      ADD_FAILURE() << "a reserved name was accepted";
+    } catch (const Error &e) {
+      EXPECT_TRUE(e.collective());
+      EXPECT_NE(std::string(e.what()).find("reserved"), std::string::npos) << e.what();
+    }
+    xdmf = w.close();
+  }
+  if (comm_rank(comm) == 0) {
+    hid_t file = H5Fopen((out.path / "motion.h5").c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+    ASSERT_GE(file, 0);
+    const auto d = read_all<double>(file, "/arm/physical_density");
+    ASSERT_EQ(static_cast<long long>(d.size()), arm.global_cells);
+    for (std::size_t i = 0; i < d.size(); ++i) ASSERT_EQ(d[i], 0.5 + static_cast<double>(i));
+    H5Fclose(file);
+    std::ifstream in(xdmf);
+    const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    std::size_t shown = 0;
+    for (std::size_t at = text.find("motion.h5:/arm/physical_density"); at != std::string::npos;
+         at = text.find("motion.h5:/arm/physical_density", at + 1))
+      ++shown;
+    EXPECT_EQ(shown, 3u) << "one Attribute per step";
   }
 }
 

@@ -126,6 +126,8 @@ public:
   /// 1e-10 relative noise in the responses of a 2,000-step run (docs/theory.md section 9.5),
   /// above what a finite difference of a single element resolves.
   void set_newton_reuse(double reuse) { newton_.reuse_contraction = reuse; }
+  /// The design body's index among the case's bodies (and the scene's).
+  std::size_t design_body() const { return static_cast<std::size_t>(design_body_); }
   /// The scene, its design body with the mass of the last evaluation's design.
   dynamics::Scene &scene() { return scene_; }
   double forward_seconds() const { return forward_s_; }

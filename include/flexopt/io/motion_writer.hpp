@@ -68,6 +68,10 @@ public:
   /// A cell scalar field of body `body` in the current step: one value per local cell.
   /// Collective.
   void cell_scalar(std::size_t body, const std::string &name, const double *local_values);
+  /// A cell scalar field of body `body` that does not change with time (a design's densities):
+  /// written once, to /<body>/<name>, and shown in every step, those begun before and after.
+  /// Collective.
+  void constant_cell_scalar(std::size_t body, const std::string &name, const double *local_values);
   /// Writes /time, closes the HDF5 file, writes the XDMF file and renames both to their final
   /// names. Collective. Returns the path of the XDMF file.
   std::string close();
