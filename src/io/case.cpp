@@ -736,6 +736,12 @@ void read_design(const Reader &r, const YAML::Node &v, Case &c) {
     if (!(d.initial > 0 && d.initial <= 1))
       r.fail(v["initial"], path + ".initial: must lie in (0, 1]");
   }
+  // The mass interpolation's default: a flexible design body in a dynamic analysis gets the one
+  // that keeps its lowest modes global (docs/theory.md 9.1, "Local modes"); a rigid one has no
+  // modes, and its mass is best exactly the densities'.
+  for (const BodySpec &b : c.bodies)
+    if (b.name == d.body && c.analysis == "dynamic" && simulated_model(b.model) != "rigid")
+      d.mass = "pedersen";
   if (v["interpolation"]) {
     const YAML::Node &i = v["interpolation"];
     const std::string ip = path + ".interpolation";
