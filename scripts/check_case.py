@@ -12,6 +12,7 @@ reads the run's summary.json and compares each check:
           - {path: sensors.tip.value[1], value: -7.634e-3, rel_tol: 0.02, source: "..."}
           - {path: compliance, value: 37.9, abs_tol: 0.5}
           - {path: frequencies_hz[0:6], max_abs: 0.2}      # every selected |value| <= max_abs
+          - {path: "objective[-1]", ratio_to: "objective[0]", max: 0.7}   # value / other <= max
           # time series (a sensor's t/value, or a list against output_times):
           - {path: sensors.tip, component: 1, period: 1.9339, between: [0, 2], rel_tol: 1.0e-4}
           - {path: sensors.s, component: 0, formula: "0.2*np.cos(t)", max_abs_err: 1.0e-8}
@@ -160,6 +161,12 @@ def check_one(summary, check):
     except (KeyError, IndexError, TypeError) as e:
         return False, f"{path}: not in summary.json ({e})"
     values = got if isinstance(got, list) else [got]
+    if "ratio_to" in check:
+        other = select(summary, check["ratio_to"])
+        ratio = got / other
+        if "max" in check:
+            return ratio <= check["max"], f"{path} / {check['ratio_to']} = {got:.6g} / {other:.6g} = {ratio:.4g} <= {check['max']:.4g}"
+        return ratio >= check["min"], f"{path} / {check['ratio_to']} = {got:.6g} / {other:.6g} = {ratio:.4g} >= {check['min']:.4g}"
     if "count" in check:
         n = len(got) if isinstance(got, list) else -1
         return n == check["count"], f"{path}: {n} entries, expected {check['count']}"

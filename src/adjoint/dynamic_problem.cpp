@@ -336,8 +336,57 @@ Matrix sensor_jacobian(const dynamics::Scene &scene, const dynamics::BoundSensor
   return D;
 }
 
+namespace {
+
+/// A flexible design body's interfaces are tied rigidly by the joints: a design region that
+/// touches one is refused (`refuse`, optimize) or warned about (the derivatives of such a
+/// region are still right, and check-gradient and simulate take it).
+void check_interfaces(const optimize::DesignField &f, const io::BodySpec &body,
+                      const io::DesignSpec &d, bool refuse) {
+  const optimize::DesignField::SurfaceContact c = f.touched_surface(body.interfaces);
+  if (c.elements == 0) return;
+  const std::string what =
+      d.where.str() + ": design.region '" + d.region + "' of body '" + d.body +
+      "' touches its interface '" + c.surface + "' (" + std::to_string(c.elements) +
+      " design elements have nodes on it, e.g. Gmsh element " + std::to_string(c.tag) + ")";
+  if (refuse)
+    throw Error(what + ": a joint ties the interface rigidly, so the material around it must stay "
+                       "solid for the design to hold the joint. Keep the interface out of the "
+                       "design region: give the material around it (a boss around a pin) its own "
+                       "physical volume",
+                true);
+  print0(f.mesh().comm,
+         "design: warning: %s; optimize refuses such a region (a void there would cut the joint "
+         "off)\n",
+         what.c_str());
+}
+
+/// A mass bound on the design body that even an empty design region exceeds cannot hold: it is
+/// refused before any computation, with the mass of the material outside the region.
+void check_mass_bounds(const optimize::DesignField &f, const io::Case &c) {
+  const io::DesignSpec &d = *c.design;
+  const double density = c.material(c.body(d.body).material).density;
+  const std::vector<double> &volume = f.element_volumes();
+  double mass[2] = {0, 0}; // outside the region, inside it
+  for (PetscInt e = 0; e < f.mesh().local_elements(); ++e)
+    mass[f.is_design(e) ? 1 : 0] += density * volume[static_cast<std::size_t>(e)];
+  MPI_Allreduce(MPI_IN_PLACE, mass, 2, MPI_DOUBLE, MPI_SUM, f.mesh().comm);
+  for (const io::ResponseSpec &r : c.constraints)
+    if (r.type == "mass" && r.body == d.body && r.max <= mass[0]) {
+      std::ostringstream msg;
+      msg << r.where.str() << ": constraint mass of body '" << d.body << "' <= " << r.max
+          << " kg cannot hold: the material outside design.region '" << d.region
+          << "' alone weighs " << mass[0] << " kg (the solid body " << mass[0] + mass[1]
+          << " kg). Raise the bound or enlarge the design region";
+      throw Error(msg.str(), true);
+    }
+}
+
+} // namespace
+
 std::unique_ptr<DynamicProblem> DynamicProblem::create(MPI_Comm comm, const io::Case &c,
-                                                       const std::string &scratch) {
+                                                       const std::string &scratch,
+                                                       bool refuse_interfaces) {
   if (!c.design || !c.objective)
     throw Error(c.file + ": an optimization needs design: and objective: sections", true);
   const io::DesignSpec &d = *c.design;
@@ -362,8 +411,14 @@ std::unique_ptr<DynamicProblem> DynamicProblem::create(MPI_Comm comm, const io::
   // An FFRF design body is reduced once, with its first design (the reduction is reused by
   // the first evaluation at that design).
   reduce::ElementFactors first;
+  // The design field is made on the design body's mesh as soon as it is meshed (the scene keeps
+  // its meshes at fixed addresses) and kept: its filter is built once.
+  std::unique_ptr<optimize::DesignField> field;
   const dynamics::InitialDesign initial{d.body, [&](const mesh::DistributedMesh &m) {
-                                          optimize::DesignField f(m, d);
+                                          field = std::make_unique<optimize::DesignField>(m, d);
+                                          optimize::DesignField &f = *field;
+                                          check_interfaces(f, body, d, refuse_interfaces);
+                                          check_mass_bounds(f, c);
                                           Vec x = f.create_design_vector();
                                           f.initial_design(x);
                                           f.update(x);
@@ -388,7 +443,12 @@ std::unique_ptr<DynamicProblem> DynamicProblem::create(MPI_Comm comm, const io::
   p->basis_ =
       c.adjoint.basis == "fixed" ? reduce::BasisDerivative::Fixed : reduce::BasisDerivative::Exact;
   const mesh::DistributedMesh &m = p->scene_.meshes[static_cast<std::size_t>(p->design_body_)];
-  p->field_ = std::make_unique<optimize::DesignField>(m, d);
+  if (field && &field->mesh() != &m)
+    throw Error("DynamicProblem: the design field's mesh is not the scene's", true);
+  p->field_ = field ? std::move(field) : std::make_unique<optimize::DesignField>(m, d);
+  // A flexible body's interfaces are tied rigidly (FFRF: checked before the reduction, above).
+  if (model == "acf") check_interfaces(*p->field_, body, d, refuse_interfaces);
+  if (model != "ffrf") check_mass_bounds(*p->field_, c);
   p->grad_physical_ = p->field_->filter().create_element_vector();
 
   if (model == "rigid") {
@@ -961,6 +1021,11 @@ long long DynamicProblem::dofs() const {
   for (std::size_t b = 0; b < scene_.bodies.size(); ++b)
     if (scene_.bodies[b].acf >= 0) n += 3LL * scene_.meshes[b].global_nodes;
   return n;
+}
+
+double DynamicProblem::noise_floor(std::size_t i) const {
+  const std::string &type = specs_[i]->type;
+  return type == "volume_fraction" || type == "mass" ? 1e-14 : noise_floor();
 }
 
 std::vector<optimize::Timing> DynamicProblem::timings() const {

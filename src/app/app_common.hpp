@@ -25,6 +25,11 @@ void write_summary(const Context &ctx, const std::string &dir, io::Json &s, doub
 /// XDMF path. Collective.
 std::string write_gradients(const optimize::DesignProblem &problem, const optimize::Evaluation &e,
                             const std::string &dir);
+/// Reads the design variables of a run's restart.h5 into x (the field's layout) and sets the
+/// projection sharpness of the run's continuation stage on `design`. Collective; throws a
+/// collective flexopt::Error naming the file if it holds no design.
+void load_design(MPI_Comm comm, const io::Case &c, optimize::DesignProblem &design,
+                 const std::string &file, Vec x);
 } // namespace detail
 
 /// `simulate` for `analysis: dynamic`: generalized-alpha run of the mechanism, motion.xdmf and

@@ -7,6 +7,7 @@
 #include "flexopt/fem/static_problem.hpp"
 #include "flexopt/io/case.hpp"
 #include "flexopt/io/json.hpp"
+#include "flexopt/io/restart.hpp"
 #include "flexopt/io/xdmf.hpp"
 #include "flexopt/mesh/load.hpp"
 #include "flexopt/optimize/optimizer.hpp"
@@ -27,6 +28,27 @@ namespace fs = std::filesystem;
 namespace flexopt::app {
 
 namespace detail {
+
+void load_design(MPI_Comm comm, const io::Case &c, optimize::DesignProblem &design,
+                 const std::string &file, Vec x) {
+  const std::vector<std::uint64_t> tags(design.design_tags().begin(), design.design_tags().end());
+  const io::RestartData r = io::read_restart(comm, file, tags);
+  const auto it = r.fields.find("x");
+  if (it == r.fields.end())
+    throw Error(file + ": no design field 'x' (--design takes the restart.h5 of a run)", true);
+  PetscScalar *a;
+  FX_PETSC(VecGetArray(x, &a));
+  std::copy(it->second.begin(), it->second.end(), a);
+  FX_PETSC(VecRestoreArray(x, &a));
+  // The projection sharpness of the run's continuation stage (meta: iteration, objective
+  // scale, constraints, stage, ...).
+  const auto meta = r.arrays.find("meta");
+  if (meta != r.arrays.end() && meta->second.size() > 3 && !c.design->beta.empty()) {
+    const auto stage =
+        std::min(static_cast<std::size_t>(meta->second[3]), c.design->beta.size() - 1);
+    design.field().set_beta(c.design->beta[stage]);
+  }
+}
 
 std::string write_gradients(const optimize::DesignProblem &problem, const optimize::Evaluation &e,
                             const std::string &dir) {
@@ -71,13 +93,16 @@ io::Json base_summary(const Context &ctx, const Options &o, const io::Case &c) {
 
 void write_summary(const Context &ctx, const std::string &dir, io::Json &s, double t0) {
   s["wall_s"] = wall_time() - t0;
-  // The peak resident set of the largest rank (getrusage: KiB on Linux; MUMPS's and Gmsh's
+  // The peak resident set of the largest rank and the sum of the ranks' (getrusage: KiB on Linux; MUMPS's and Gmsh's
   // allocations included, which PETSc's memory counters miss).
   rusage usage{};
   getrusage(RUSAGE_SELF, &usage);
-  double peak = static_cast<double>(usage.ru_maxrss) / 1024.0;
+  const double own = static_cast<double>(usage.ru_maxrss) / 1024.0;
+  double peak = own, total = own;
   MPI_Allreduce(MPI_IN_PLACE, &peak, 1, MPI_DOUBLE, MPI_MAX, ctx.comm());
+  MPI_Allreduce(MPI_IN_PLACE, &total, 1, MPI_DOUBLE, MPI_SUM, ctx.comm());
   s["peak_memory_mib"] = peak;
+  s["peak_memory_total_mib"] = total; // the ranks' peaks summed
   run_on_root(ctx.comm(), 0, [&] {
     io::write_file_atomic((fs::path(dir) / "summary.json").string(), s.dump() + "\n");
   });
@@ -465,17 +490,19 @@ std::vector<double> response_values(const optimize::Evaluation &e) {
   return v;
 }
 
-/// The design problem of a case: the static SIMP problem or the dynamic one (adjoint module).
+/// The design problem of a case: the static SIMP problem or the dynamic one (adjoint module);
+/// `optimizing`: a dynamic design region touching an interface of its flexible body is refused.
 /// Collective.
-std::unique_ptr<optimize::DesignProblem> create_design_problem(MPI_Comm comm, const io::Case &c,
-                                                               const std::string &dir) {
-  if (c.analysis == "dynamic") return adjoint::DynamicProblem::create(comm, c, dir);
+std::unique_ptr<optimize::DesignProblem>
+create_design_problem(MPI_Comm comm, const io::Case &c, bool optimizing, const std::string &dir) {
+  if (c.analysis == "dynamic") return adjoint::DynamicProblem::create(comm, c, dir, optimizing);
   return optimize::TopologyProblem::create(comm, c);
 }
 
 int run_check_gradient(const Context &ctx, const Options &o, const io::Case &c, double t0) {
   const std::string dir = output_directory(ctx, o);
-  std::unique_ptr<optimize::DesignProblem> problem = create_design_problem(ctx.comm(), c, dir);
+  std::unique_ptr<optimize::DesignProblem> problem =
+      create_design_problem(ctx.comm(), c, false, dir);
   if (auto *dynamic = dynamic_cast<adjoint::DynamicProblem *>(problem.get())) {
     // Newton's method proper: responses smooth in the design to round-off (docs/theory.md 9.5).
     dynamic->set_newton_reuse(0);
@@ -489,23 +516,42 @@ int run_check_gradient(const Context &ctx, const Options &o, const io::Case &c, 
          static_cast<long long>(problem->design_size()), nr);
 
   Vec x0 = problem->create_design_vector(), x, direction;
-  problem->initial_design(x0);
+  if (o.design.empty()) {
+    problem->initial_design(x0);
+  } else {
+    detail::load_design(ctx.comm(), c, *problem, o.design, x0);
+    print0(ctx.comm(), "check-gradient: at the design of %s (projection beta %g)\n",
+           o.design.c_str(), problem->field().beta());
+  }
   FX_PETSC(VecDuplicate(x0, &x));
   FX_PETSC(VecDuplicate(x0, &direction));
   {
+    // d_e uniform in [-1, 1] from the element's tag; a variable at a bound of [0, 1] (an
+    // optimized design's) is moved into the box only, so that x0 + h d stays a design.
     PetscScalar *d;
+    const PetscScalar *a;
     FX_PETSC(VecGetArray(direction, &d));
+    FX_PETSC(VecGetArrayRead(x0, &a));
     const auto &tags = problem->design_tags();
-    for (std::size_t k = 0; k < tags.size(); ++k) d[k] = 2.0 * hash_uniform(tags[k]) - 1.0;
+    for (std::size_t k = 0; k < tags.size(); ++k) {
+      d[k] = 2.0 * hash_uniform(tags[k]) - 1.0;
+      if (a[k] <= 0) d[k] = std::abs(d[k]);
+      if (a[k] >= 1) d[k] = -std::abs(d[k]);
+    }
+    FX_PETSC(VecRestoreArrayRead(x0, &a));
     FX_PETSC(VecRestoreArray(direction, &d));
   }
-  // Progress: 1 evaluation with gradients, then 5 Taylor steps and 4 per checked element.
+  // Progress: 1 evaluation with gradients, then 5 Taylor steps and 2 (L + 1) per checked
+  // element (L the finite-difference levels, below).
+  constexpr int kSamples = 5;
+  const int fd_levels = o.fd_step > 0 ? 1 : problem->fd_levels();
+  const int most = 1 + 5 + kSamples * 2 * (fd_levels + 1);
   const double t_check = wall_time();
   int evaluations = 0;
   auto progress = [&](const char *what) {
     ++evaluations;
-    print0(ctx.comm(), "check-gradient: evaluation %d of at most 26 (%s) done after %.1f s\n",
-           evaluations, what, wall_time() - t_check);
+    print0(ctx.comm(), "check-gradient: evaluation %d of at most %d (%s) done after %.1f s\n",
+           evaluations, most, what, wall_time() - t_check);
   };
   optimize::Evaluation base;
   problem->evaluate(x0, true, base);
@@ -528,20 +574,19 @@ int run_check_gradient(const Context &ctx, const Options &o, const io::Case &c, 
       remainders[i].push_back(std::abs(r[i] - r0[i] - h * slope[i]));
   }
   io::Json s = base_summary(ctx, o, c);
-  // Remainders below noise_floor() |R| are round-off of the evaluation itself (the problem
+  // Remainders below noise_floor(i) |R| are round-off of the evaluation itself (the problem
   // says how large: the static state solve's eps * cond(K), the dynamic Newton tolerance). An
   // order is taken only between steps whose remainders both exceed kResolved times that floor:
   // noise of at most 1/kResolved of a remainder moves the order by at most log10(1.1) = 0.04
   // (a remainder just above the floor carries noise of its own size, and an order near 1.88
   // for a correct gradient). A response whose remainders all lie below the floor is linear
   // in the design (the volume fraction): exact.
-  const double kNoiseFloor = problem->noise_floor();
   constexpr double kResolved = 10;
   io::Json taylor = io::Json::array();
   for (std::size_t i = 0; i < nr; ++i) {
     std::vector<double> orders;
     double min_order = 1e300;
-    const double floor = kNoiseFloor * std::max(std::abs(r0[i]), 1e-300);
+    const double floor = problem->noise_floor(i) * std::max(std::abs(r0[i]), 1e-300);
     for (std::size_t k = 0; k + 1 < steps.size(); ++k) {
       orders.push_back(std::log10(remainders[i][k] / remainders[i][k + 1]) /
                        std::log10(steps[k] / steps[k + 1]));
@@ -579,7 +624,6 @@ int run_check_gradient(const Context &ctx, const Options &o, const io::Case &c, 
   // objective sensitivity is at least kSignificant of the largest: on the others a difference
   // quotient measures the evaluation's round-off (eps cond(K) |R| / step), not the gradient.
   // Fourth order: D = (4 D(h/2) - D(h)) / 3 with D(h) the central difference of step h.
-  constexpr int kSamples = 5;
   const double kStep = o.fd_step > 0 ? o.fd_step : problem->fd_step();
   constexpr double kSignificant = 1e-2;
   PetscReal gmax = 0;
@@ -638,7 +682,7 @@ int run_check_gradient(const Context &ctx, const Options &o, const io::Case &c, 
     // Central differences c_k at the steps h_k = h 2^-k, k = 0 ... L (L = fd_levels()), their
     // Richardson extrapolations D_k = (4 c_(k+1) - c_k) / 3, and per response the D_k that
     // agrees best with D_(k+1) (with L = 1 the one D_0 of the steps h and h/2).
-    const int levels = o.fd_step > 0 ? 1 : problem->fd_levels();
+    const int levels = fd_levels;
     std::vector<std::vector<double>> c(static_cast<std::size_t>(levels + 1),
                                        std::vector<double>(nr, 0.0));
     for (int k = 0; k <= levels; ++k) {
@@ -706,7 +750,7 @@ int run_optimize(const Context &ctx, const Options &o, const io::Case &c, double
   const std::string dir = output_directory(ctx, o);
   io::Case run_case = c;
   if (o.max_iterations > 0) run_case.optimizer.max_iterations = o.max_iterations;
-  auto problem = create_design_problem(ctx.comm(), run_case, dir);
+  auto problem = create_design_problem(ctx.comm(), run_case, true, dir);
   const auto r = optimize::run_optimization(ctx.comm(), *problem, run_case, dir, o.restart);
   io::Json s = base_summary(ctx, o, c);
   s["dofs"] = r.dofs;
@@ -751,10 +795,15 @@ int run(const Context &ctx, const Options &o) {
   const double t0 = wall_time();
   io::Case c = io::load_case(o.case_dir);
   if (!c.solver.empty()) insert_default_petsc_options(c.solver, c.file + ": solver");
-  if ((!o.design.empty() || o.gradient) &&
-      !(o.command == "simulate" && c.analysis == "dynamic" && c.design))
-    throw Error(std::string(o.gradient ? "--gradient" : "--design") +
-                    " applies to `flexopt simulate` of a dynamic case with a design: section; " +
+  const bool dynamic_simulate = o.command == "simulate" && c.analysis == "dynamic" && c.design;
+  if (!o.design.empty() && !(dynamic_simulate || (o.command == "check-gradient" && c.design)))
+    throw Error("--design applies to `flexopt simulate` of a dynamic case with a design: section "
+                "and to `flexopt check-gradient` of a case with one; " +
+                    c.file + " is " + c.analysis + (c.design ? "" : " without design:"),
+                true);
+  if (o.gradient && !dynamic_simulate)
+    throw Error("--gradient applies to `flexopt simulate` of a dynamic case with a design: "
+                "section; " +
                     c.file + " is " + c.analysis + (c.design ? "" : " without design:"),
                 true);
   if (o.command == "info") return run_info(ctx, o, c, t0);

@@ -568,30 +568,6 @@ void integrate(const Context &ctx, const io::Case &c, dynamics::Scene &scene,
          frame_t.size(), human_bytes(static_cast<double>(motion_file_bytes)).c_str());
 }
 
-/// Reads the design variables of a run's restart.h5 into x (the field's layout) and sets the
-/// projection sharpness of the run's continuation stage on `design`. Collective; throws a
-/// collective flexopt::Error naming the file if it holds no design.
-void load_design(MPI_Comm comm, const io::Case &c, adjoint::DynamicProblem &design,
-                 const std::string &file, Vec x) {
-  const std::vector<std::uint64_t> tags(design.design_tags().begin(), design.design_tags().end());
-  const io::RestartData r = io::read_restart(comm, file, tags);
-  const auto it = r.fields.find("x");
-  if (it == r.fields.end())
-    throw Error(file + ": no design field 'x' (--design takes the restart.h5 of a run)", true);
-  PetscScalar *a;
-  FX_PETSC(VecGetArray(x, &a));
-  std::copy(it->second.begin(), it->second.end(), a);
-  FX_PETSC(VecRestoreArray(x, &a));
-  // The projection sharpness of the run's continuation stage (meta: iteration, objective
-  // scale, constraints, stage, ...).
-  const auto meta = r.arrays.find("meta");
-  if (meta != r.arrays.end() && meta->second.size() > 3 && !c.design->beta.empty()) {
-    const auto stage =
-        std::min(static_cast<std::size_t>(meta->second[3]), c.design->beta.size() - 1);
-    design.field().set_beta(c.design->beta[stage]);
-  }
-}
-
 } // namespace
 
 int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double t0) {
@@ -617,7 +593,7 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
     if (o.design.empty()) {
       design->initial_design(x);
     } else {
-      load_design(ctx.comm(), c, *design, o.design, x);
+      detail::load_design(ctx.comm(), c, *design, o.design, x);
       print0(ctx.comm(), "design: the densities of %s\n", o.design.c_str());
     }
     design->apply_design(x); // the scene below is that of this design
@@ -642,7 +618,8 @@ void write_design_motions(const Context &ctx, const io::Case &c, adjoint::Dynami
       problem.initial_design(x);
       if (!c.design->beta.empty()) problem.field().set_beta(c.design->beta.front());
     } else {
-      load_design(ctx.comm(), c, problem, (std::filesystem::path(dir) / "restart.h5").string(), x);
+      detail::load_design(ctx.comm(), c, problem,
+                          (std::filesystem::path(dir) / "restart.h5").string(), x);
     }
     print0(ctx.comm(), "%s: the mechanism with the %s design moving\n", name.c_str(), which);
     io::Json one = io::Json::object();

@@ -255,12 +255,12 @@ void add_ffrf_body(MPI_Comm comm, const io::BodySpec &spec, const io::MaterialSp
                 true);
   scene.meshes.push_back(mesh::load_body_mesh(comm, spec));
   const mesh::DistributedMesh &m = scene.meshes.back();
-  const double t0 = wall_time();
   // A design body is reduced with its first design's element factors (once, not with the
   // solid material and again for the design).
   reduce::ElementFactors factors;
   const bool designed = design && design->body == spec.name;
   if (designed) factors = design->factors(m);
+  const double t0 = wall_time();
   const auto red = reduce_ffrf_body(m, spec, mat, designed ? &factors : nullptr);
   auto body = std::make_shared<bodies::FfrfBody>(spec.name, ffrf_model(*red, spec));
   for (std::size_t i = 0; i < spec.interfaces.size(); ++i)

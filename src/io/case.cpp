@@ -881,6 +881,8 @@ ResponseSpec read_response(const Reader &r, const YAML::Node &v, const std::stri
     s.has_max = true;
     if (s.type == "volume_fraction" && !(s.max > 0 && s.max < 1))
       r.fail(v["max"], path + ".max: a volume fraction bound must lie in (0, 1)");
+    if (s.type == "mass" && !(s.max > 0))
+      r.fail(v["max"], path + ".max: a mass bound must be positive [kg]");
   } else if (v["max"]) {
     r.fail(v["max"], path + ".max: the objective takes no bound");
   }

@@ -48,6 +48,49 @@ DesignField::~DesignField() {
   VecDestroy(&work_);
 }
 
+DesignField::SurfaceContact
+DesignField::touched_surface(const std::vector<std::string> &surfaces) const {
+  const MPI_Comm comm = mesh_.comm;
+  int size = 1;
+  MPI_Comm_size(comm, &size);
+  for (const std::string &name : surfaces) {
+    // Every rank needs the whole surface: its design elements may touch nodes owned elsewhere.
+    mesh_.surface(name, spec_.where.str() + ": interface");
+    const std::vector<PetscInt> &own = mesh_.surface_nodes.at(name);
+    const int n = static_cast<int>(own.size());
+    std::vector<int> counts(static_cast<std::size_t>(size)),
+        offsets(static_cast<std::size_t>(size));
+    MPI_Allgather(&n, 1, MPI_INT, counts.data(), 1, MPI_INT, comm);
+    int total = 0;
+    for (std::size_t r = 0; r < counts.size(); ++r) {
+      offsets[r] = total;
+      total += counts[r];
+    }
+    std::vector<PetscInt> all(static_cast<std::size_t>(total));
+    MPI_Allgatherv(own.data(), n, MPIU_INT, all.data(), counts.data(), offsets.data(), MPIU_INT,
+                   comm);
+    std::sort(all.begin(), all.end());
+    SurfaceContact local{name, 0, -1};
+    const int npe = mesh_.nodes_per_element();
+    for (std::size_t j = 0; j < design_elements_.size(); ++j) {
+      const PetscInt e = design_elements_[j];
+      for (int a = 0; a < npe; ++a) {
+        const PetscInt node =
+            mesh_.local_to_global(mesh_.connectivity[static_cast<std::size_t>(e * npe + a)]);
+        if (std::binary_search(all.begin(), all.end(), node)) {
+          if (local.elements++ == 0) local.tag = static_cast<long long>(design_tags_[j]);
+          break;
+        }
+      }
+    }
+    SurfaceContact global{name, 0, -1};
+    MPI_Allreduce(&local.elements, &global.elements, 1, MPI_LONG_LONG, MPI_SUM, comm);
+    MPI_Allreduce(&local.tag, &global.tag, 1, MPI_LONG_LONG, MPI_MAX, comm);
+    if (global.elements > 0) return global;
+  }
+  return {};
+}
+
 Vec DesignField::create_design_vector() const {
   Vec x;
   FX_PETSC(VecCreateMPI(mesh_.comm, static_cast<PetscInt>(design_elements_.size()), PETSC_DETERMINE,

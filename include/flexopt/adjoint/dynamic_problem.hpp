@@ -79,8 +79,11 @@ public:
   /// of `adjoint: {storage: disk}` (the command's output directory). Collective; throws
   /// collective flexopt::Errors with case.yaml:line:col for a design body whose model has no
   /// design partials yet, responses on missing or unsuitable bodies and sensors.
+  /// `refuse_interfaces` (optimize): a design region that touches an interface of its FFRF or
+  /// ACF body is an error, else a warning (checked before the reduction).
   static std::unique_ptr<DynamicProblem> create(MPI_Comm comm, const io::Case &c,
-                                                const std::string &scratch);
+                                                const std::string &scratch,
+                                                bool refuse_interfaces = false);
   ~DynamicProblem() override;
 
   optimize::DesignField &field() override { return *field_; }
@@ -109,6 +112,9 @@ public:
   /// determined only to about eps lambda_max / lambda_1 (docs/theory.md section 10,
   /// "Accuracy": 1.3e-9 relative on tests/gradient/ffrf_pendulum, as -eps_ncv changes them).
   double noise_floor() const override { return ffrf_design_ ? 1e-8 : 1e-12; }
+  /// 1e-14 for the volume fraction and a mass (sums over the densities: no state, no
+  /// reduction), else noise_floor().
+  double noise_floor(std::size_t i) const override;
   /// 1e-2; with an FFRF design body 0.2 and 6 halvings: its responses carry the noise of the
   /// reduction (noise_floor()), so one element's difference quotient errs by noise / h at small
   /// steps and by the truncation at large ones, and where they balance depends on the scene

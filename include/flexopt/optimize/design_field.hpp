@@ -25,11 +25,22 @@ public:
   DesignField(const DesignField &) = delete;
   DesignField &operator=(const DesignField &) = delete;
 
+  /// The first of `surfaces` (physical surfaces of the mesh) that a design element touches
+  /// with a node, how many design elements do and the Gmsh tag of one; `elements` 0: none does.
+  /// (A flexible body's interfaces are tied rigidly by the joints: the material there must stay
+  /// solid for a design to mean anything.) Collective.
+  struct SurfaceContact {
+    std::string surface;
+    long long elements = 0, tag = -1;
+  };
+  SurfaceContact touched_surface(const std::vector<std::string> &surfaces) const;
+
   /// A vector over the design variables (caller destroys it). Collective.
   Vec create_design_vector() const;
   /// design.initial everywhere. Collective.
   void initial_design(Vec x) const;
   PetscInt design_size() const { return global_design_; }
+  const mesh::DistributedMesh &mesh() const { return mesh_; }
   /// Gmsh tag of each local design variable (stable across rank counts).
   const std::vector<std::size_t> &design_tags() const { return design_tags_; }
   /// Local element index of each local design variable.

@@ -65,6 +65,13 @@ public:
   /// Relative round-off of a response evaluation, |R| times this, below which a Taylor
   /// remainder is noise (check-gradient).
   virtual double noise_floor() const = 0;
+  /// The same for response i (0 the objective, i >= 1 constraint i - 1): by default the
+  /// problem's; responses computed from the densities alone (the volume fraction, a mass) may
+  /// carry less round-off than the state's.
+  virtual double noise_floor(std::size_t i) const {
+    (void)i;
+    return noise_floor();
+  }
   /// check-gradient's finite-difference step on a design variable when --fd-step is not given:
   /// large enough that noise_floor() |R| / (h |dR/dx_e|) stays below the checked tolerance,
   /// small enough that the fourth-order truncation does too.
