@@ -93,8 +93,8 @@ io::Json base_summary(const Context &ctx, const Options &o, const io::Case &c) {
 
 void write_summary(const Context &ctx, const std::string &dir, io::Json &s, double t0) {
   s["wall_s"] = wall_time() - t0;
-  // The peak resident set of the largest rank and the sum of the ranks' (getrusage: KiB on Linux; MUMPS's and Gmsh's
-  // allocations included, which PETSc's memory counters miss).
+  // The peak resident set of the largest rank and the sum of the ranks' (getrusage: KiB on Linux;
+  // MUMPS's and Gmsh's allocations included, which PETSc's memory counters miss).
   rusage usage{};
   getrusage(RUSAGE_SELF, &usage);
   const double own = static_cast<double>(usage.ru_maxrss) / 1024.0;
