@@ -466,8 +466,10 @@ void connect(MPI_Comm comm, const io::Case &c, Scene &scene, bool report) {
   }
   double max_gap = 0;
   std::string gap_joint;
+  std::map<std::string, int> joint_equation; // a joint's first equation (the coincidence)
   for (const io::JointSpec &j : c.joints) {
     const Attachment A = attach(j.a, j.a_interface), B = attach(j.b, j.b_interface);
+    joint_equation[j.name] = static_cast<int>(mech.equations.size());
     const double gap = (A.world - B.world).norm();
     if (gap > max_gap && (j.type != "prismatic")) max_gap = gap, gap_joint = j.name;
     for (Equation &e :
@@ -493,10 +495,17 @@ void connect(MPI_Comm comm, const io::Case &c, Scene &scene, bool report) {
       pf.value[static_cast<std::size_t>(k)] = Expression(f.value[static_cast<std::size_t>(k)]);
     mech.forces.push_back(pf);
   }
+  std::vector<std::pair<std::size_t, int>> reactions; // sensor, joint equation
   for (const io::SensorSpec &s : c.sensors) {
     BoundSensor bs;
     bs.name = s.name;
     bs.quantity = s.quantity;
+    if (!s.joint.empty()) {
+      reactions.emplace_back(scene.sensors.size(), joint_equation.at(s.joint));
+      bs.body = -1;
+      scene.sensors.push_back(bs);
+      continue;
+    }
     const std::size_t ub = body_index.at(s.body);
     bs.point = v3(s.point);
     const SceneBody &sb = scene.bodies[ub];
@@ -526,8 +535,17 @@ void connect(MPI_Comm comm, const io::Case &c, Scene &scene, bool report) {
   }
   mech.finalize();
   for (BoundSensor &bs : scene.sensors)
-    if (bs.acf_body < 0 && bs.S.cols() == 0) bs.S.setZero(3, mech.size(bs.body) - 7);
+    if (bs.acf_body < 0 && bs.body >= 0 && bs.S.cols() == 0)
+      bs.S.setZero(3, mech.size(bs.body) - 7);
   scene.redundant_rows = mech.drop_redundant_rows(scene.q0, 0.0);
+  for (const auto &[k, e] : reactions) {
+    // A planar mechanism built of 3D joints has redundant out-of-plane rows; a dropped row's
+    // force component is carried by the rows kept (statically indeterminate): reported 0.
+    BoundSensor &bs = scene.sensors[k];
+    const int r0 = mech.first_row(e);
+    for (int i = 0; i < 3; ++i)
+      bs.lambda_rows[static_cast<std::size_t>(i)] = mech.enforced_index(r0 + i);
+  }
   for (int b = 0; b < static_cast<int>(mech.bodies.size()); ++b)
     scene.length_scale =
         std::max(scene.length_scale, scene.q0.segment<3>(mech.offset(b)).cwiseAbs().maxCoeff());
@@ -618,6 +636,15 @@ Vec3 acf_sensor_value(const Scene &scene, const DistributedAlpha &da, const Boun
   if (s.quantity == "position") return x;
   if (s.quantity == "displacement") return x - (sb.position + sb.R * s.point);
   return first_interface_frame(scene, sb, small).elastic(x, s.point);
+}
+
+Vec3 reaction_value(const BoundSensor &s, const Vector &lambda) {
+  Vec3 f = Vec3::Zero();
+  for (int i = 0; i < 3; ++i) {
+    const int r = s.lambda_rows[static_cast<std::size_t>(i)];
+    if (r >= 0 && r < lambda.size()) f(i) = lambda(r);
+  }
+  return f;
 }
 
 Vec3 sensor_value(const Scene &scene, const BoundSensor &s, const Vector &q) {

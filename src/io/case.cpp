@@ -479,13 +479,25 @@ void read_tractions(const Reader &r, const YAML::Node &node, Case &c, const char
     const YAML::Node &v = node[i];
     const std::string path = std::string(key) + "[" + std::to_string(i) + "]";
     r.require_map(v, path);
-    r.check_keys(v, path, {"body", where_key, "value"});
+    const bool surface = std::string(where_key) == "surface";
+    if (surface)
+      r.check_keys(v, path, {"body", where_key, "value", "force"});
+    else
+      r.check_keys(v, path, {"body", where_key, "value"});
     TractionSpec t;
     t.where = r.where(v);
     t.body = r.string(r.require(v, "body", path), path + ".body");
     if (!has_body(c, t.body)) r.fail(v["body"], path + ".body: no body named '" + t.body + "'");
     t.surface = r.string(r.require(v, where_key, path), path + "." + where_key);
-    t.value = r.vector3(r.require(v, "value", path), path + ".value");
+    if (surface && v["force"]) {
+      if (v["value"])
+        r.fail(v["force"], path + ": give either value (force per area) or force (the total "
+                                  "force, spread uniformly over the surface), not both");
+      t.total = true;
+      t.value = r.vector3(v["force"], path + ".force");
+    } else {
+      t.value = r.vector3(r.require(v, "value", path), path + ".value");
+    }
     out.push_back(t);
   }
 }
@@ -700,13 +712,35 @@ void read_sensors(const Reader &r, const YAML::Node &node, Case &c) {
     const YAML::Node &v = node[i];
     const std::string path = "sensors[" + std::to_string(i) + "]";
     r.require_map(v, path);
-    r.check_keys(v, path, {"name", "body", "point", "quantity"});
+    r.check_keys(v, path, {"name", "body", "point", "quantity", "joint"});
     SensorSpec s;
     s.where = r.where(v);
     s.name = r.string(r.require(v, "name", path), path + ".name");
     for (const auto &other : c.sensors)
       if (other.name == s.name)
         r.fail(v["name"], path + ".name: duplicate sensor name '" + s.name + "'");
+    if (v["joint"]) {
+      // A joint sensor: the reaction force of a joint with a coincident point.
+      for (const char *k : {"body", "point"})
+        if (v[k])
+          r.fail(v[k], path + "." + k +
+                           ": a joint sensor measures the joint's reaction and "
+                           "takes no " +
+                           k);
+      s.joint = r.string(v["joint"], path + ".joint");
+      const JointSpec *joint = nullptr;
+      for (const auto &j : c.joints)
+        if (j.name == s.joint) joint = &j;
+      if (!joint) r.fail(v["joint"], path + ".joint: no joint named '" + s.joint + "'");
+      if (joint->type == "prismatic")
+        r.fail(v["joint"], path + ".joint: joint '" + s.joint +
+                               "' is prismatic; reaction sensors measure the force at the "
+                               "coincident point of a revolute, spherical or fixed joint");
+      s.quantity = "reaction";
+      if (v["quantity"]) r.choice(v["quantity"], path + ".quantity", {"reaction"});
+      c.sensors.push_back(s);
+      continue;
+    }
     s.body = r.string(r.require(v, "body", path), path + ".body");
     if (!has_body(c, s.body)) r.fail(v["body"], path + ".body: no body named '" + s.body + "'");
     s.point = r.vector3(r.require(v, "point", path), path + ".point");
@@ -714,6 +748,7 @@ void read_sensors(const Reader &r, const YAML::Node &node, Case &c) {
       const YAML::Node &q = v["quantity"];
       s.quantity = r.choice(q, path + ".quantity",
                             {"displacement", "position", "elastic_displacement", "rotation_angle"});
+      // ("reaction" belongs to joint sensors: `joint:` instead of `body:` and `point:`.)
       if (c.analysis == "static" && s.quantity != "displacement" && s.quantity != "position")
         r.fail(q, path + ".quantity: '" + s.quantity +
                       "' needs a dynamic analysis; a static one has displacement and position");
@@ -820,10 +855,11 @@ ResponseSpec read_response(const Reader &r, const YAML::Node &v, const std::stri
     s.sensor = r.string(r.require(v, "sensor", path), path + ".sensor");
     for (const auto &sensor : c.sensors)
       if (sensor.name == s.sensor) {
-        if (dynamic && sensor.quantity == "rotation_angle")
-          r.fail(v["sensor"], path + ".sensor: sensor '" + s.sensor +
-                                  "' measures rotation_angle, which a response cannot use yet "
-                                  "(position, displacement, elastic_displacement)");
+        if (dynamic && (sensor.quantity == "rotation_angle" || sensor.quantity == "reaction"))
+          r.fail(v["sensor"], path + ".sensor: sensor '" + s.sensor + "' measures " +
+                                  sensor.quantity +
+                                  ", which a response cannot use yet (position, displacement, "
+                                  "elastic_displacement)");
         return;
       }
     r.fail(v["sensor"], path + ".sensor: no sensor named '" + s.sensor + "'");
@@ -966,8 +1002,28 @@ Case load_case(const std::string &directory) {
   if (root["loads"]) {
     const YAML::Node &l = root["loads"];
     r.require_map(l, "loads");
-    r.check_keys(l, "loads", {"gravity", "forces"});
+    r.check_keys(l, "loads", {"gravity", "forces", "inertia"});
     if (l["gravity"]) c.gravity = r.vector3(l["gravity"], "loads.gravity");
+    if (l["inertia"]) {
+      const YAML::Node &n = l["inertia"];
+      if (dynamic)
+        r.fail(r.key_node(l, "inertia"),
+               "loads.inertia: needs analysis: static (a dynamic analysis computes the inertia "
+               "of its bodies itself)");
+      const std::string path = "loads.inertia";
+      r.require_map(n, path);
+      r.check_keys(n, path, {"point", "acceleration", "angular_velocity", "angular_acceleration"});
+      InertiaSpec in;
+      in.where = r.where(n);
+      if (n["point"]) in.point = r.vector3(n["point"], path + ".point");
+      if (n["acceleration"]) in.acceleration = r.vector3(n["acceleration"], path + ".acceleration");
+      if (n["angular_velocity"])
+        in.angular_velocity = r.vector3(n["angular_velocity"], path + ".angular_velocity");
+      if (n["angular_acceleration"])
+        in.angular_acceleration =
+            r.vector3(n["angular_acceleration"], path + ".angular_acceleration");
+      c.inertia = in;
+    }
     if (l["forces"]) {
       if (!dynamic)
         r.fail(r.key_node(l, "forces"),

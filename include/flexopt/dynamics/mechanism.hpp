@@ -5,6 +5,7 @@
 #include "flexopt/bodies/body.hpp"
 #include "flexopt/joints/equation.hpp"
 
+#include <algorithm>
 #include <array>
 #include <memory>
 #include <string>
@@ -54,6 +55,13 @@ public:
   std::vector<std::string> drop_redundant_rows(const Vector &q, double t, double tol = 1e-9);
   /// Whether row r (over all rows) is enforced.
   bool enforced(int r) const { return enforced_[static_cast<std::size_t>(r)]; }
+  /// Row r's (over all rows) number among the enforced rows (its entry in lambda), or -1.
+  int enforced_index(int r) const { return enforced_index_[static_cast<std::size_t>(r)]; }
+  /// The first row (over all rows) of equation e.
+  int first_row(int e) const {
+    return static_cast<int>(std::find(row_equation_.begin(), row_equation_.end(), e) -
+                            row_equation_.begin());
+  }
 
   /// Enforced constraints: Phi (m) and, if J is non-null, Phi_q (m x n).
   void constraint(const Vector &q, double t, Vector &phi, Matrix *J) const;

@@ -11,6 +11,7 @@
 #include "flexopt/mesh/distributed_mesh.hpp"
 #include "flexopt/reduce/field_projection.hpp"
 
+#include <array>
 #include <functional>
 #include <map>
 #include <memory>
@@ -32,8 +33,11 @@ namespace flexopt::dynamics {
 /// body's mesh.
 struct BoundSensor {
   std::string name;
-  std::string quantity; ///< position | displacement | elastic_displacement | rotation_angle
+  /// position | displacement | elastic_displacement | rotation_angle | reaction
+  std::string quantity;
   int body = 0;
+  /// reaction: the joint's coincident-point rows in lambda (-1: a row dropped as redundant).
+  std::array<int, 3> lambda_rows{-1, -1, -1};
   Vec3 point{0, 0, 0};
   Vec3 s{0, 0, 0};
   joints::Elastic S;
@@ -187,5 +191,9 @@ Vec3 acf_sensor_value(const Scene &scene, const DistributedAlpha &da, const Boun
 /// rigid body) or rotation_angle (the rotation vector of the body frame relative to its
 /// initial orientation, world frame).
 Vec3 sensor_value(const Scene &scene, const BoundSensor &s, const Vector &q);
+/// A reaction sensor's value: the force [N, world axes] its joint applies to the joint's body
+/// b at the coincident point, from the multipliers of a state of the mechanism (the
+/// constraint x_a - x_b = 0 enters M a = Q - Phi_q^T lambda: on body b, +lambda).
+Vec3 reaction_value(const BoundSensor &s, const Vector &lambda);
 
 } // namespace flexopt::dynamics

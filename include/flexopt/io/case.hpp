@@ -190,13 +190,29 @@ struct TractionSpec {
   std::string body;
   std::string surface;
   std::array<double, 3> value{0, 0, 0};
+  /// `force:` given instead of `value:`: `value` is a total force, spread as a uniform
+  /// traction over the surface (value / area).
+  bool total = false;
   Location where;
 };
 
-/// A point sensor: a quantity FE-interpolated at `point` (undeformed body coordinates).
+/// Static analyses: the d'Alembert body force of a body moving rigidly (`loads.inertia`),
+/// b(x) = -rho (a + alpha x r + omega x (omega x r)), r = x - point, all in body axes
+/// (equivalent static loads of a mechanism link at one instant).
+struct InertiaSpec {
+  std::array<double, 3> point{0, 0, 0};
+  std::array<double, 3> acceleration{0, 0, 0};
+  std::array<double, 3> angular_velocity{0, 0, 0};
+  std::array<double, 3> angular_acceleration{0, 0, 0};
+  Location where;
+};
+
+/// A point sensor: a quantity FE-interpolated at `point` (undeformed body coordinates); or a
+/// joint sensor (`joint:` set, quantity `reaction`): the force the joint applies to its body b.
 struct SensorSpec {
   std::string name;
   std::string body;
+  std::string joint;
   std::array<double, 3> point{0, 0, 0};
   std::string quantity = "displacement";
   Location where;
@@ -261,6 +277,7 @@ struct Case {
   std::vector<MaterialSpec> materials;
   std::vector<BodySpec> bodies;
   std::optional<std::array<double, 3>> gravity; ///< [m/s^2]
+  std::optional<InertiaSpec> inertia;           ///< static: loads.inertia
   std::vector<SupportSpec> supports;
   std::vector<TractionSpec> tractions;
   std::vector<TractionSpec>
