@@ -287,18 +287,13 @@ void assemble_stiffness_and_mass(const mesh::DistributedMesh &mesh,
   assemble_mass(mesh, material.density, {}, M);
 }
 
-void add_body_force(const mesh::DistributedMesh &mesh, const Eigen::Vector3d &b, Vec f) {
-  const int npe = mesh.nodes_per_element();
-  std::vector<PetscInt> rows(static_cast<std::size_t>(npe));
-  for (PetscInt e = 0; e < mesh.local_elements(); ++e) {
-    ElementVector fe = element_body_force(mesh.type, mesh.element_coordinates(e), b);
-    for (int a = 0; a < npe; ++a)
-      rows[static_cast<std::size_t>(a)] =
-          mesh.local_to_global(mesh.connectivity[static_cast<std::size_t>(e * npe + a)]);
-    FX_PETSC(VecSetValuesBlocked(f, npe, rows.data(), fe.data(), ADD_VALUES));
-  }
-  FX_PETSC(VecAssemblyBegin(f));
-  FX_PETSC(VecAssemblyEnd(f));
+double surface_area(const mesh::DistributedMesh &mesh, const std::string &surface,
+                    const std::string &where) {
+  const mesh::LocalSurface &s = mesh.surface(surface, where);
+  double local = 0, global = 0;
+  for (std::size_t k = 0; k < s.size(); ++k) local += face_area(s.type, s.face_coordinates(k));
+  MPI_Allreduce(&local, &global, 1, MPI_DOUBLE, MPI_SUM, mesh.comm);
+  return global;
 }
 
 void add_surface_traction(const mesh::DistributedMesh &mesh, const std::string &surface,

@@ -77,17 +77,44 @@ std::unique_ptr<StaticProblem> StaticProblem::create(MPI_Comm comm, const io::Ca
   p->f_ = create_ghosted_vector(m);
   FX_PETSC(VecDuplicate(p->f_, &p->u_));
   FX_PETSC(VecDuplicate(p->f_, &p->rhs_));
-  FX_PETSC(VecZeroEntries(p->f_));
-  if (c.gravity) {
-    const auto &g = *c.gravity;
-    add_body_force(m, mat.density * Eigen::Vector3d(g[0], g[1], g[2]), p->f_);
-  }
+  FX_PETSC(VecDuplicate(p->f_, &p->f_surface_));
+  FX_PETSC(VecZeroEntries(p->f_surface_));
   for (const auto &t : c.line_loads)
     add_surface_traction(m, t.surface, Eigen::Vector3d(t.value[0], t.value[1], t.value[2]),
-                         t.where.str() + ": line_loads", p->f_);
-  for (const auto &t : c.tractions)
-    add_surface_traction(m, t.surface, Eigen::Vector3d(t.value[0], t.value[1], t.value[2]),
-                         t.where.str() + ": tractions", p->f_);
+                         t.where.str() + ": line_loads", p->f_surface_);
+  for (const auto &t : c.tractions) {
+    Eigen::Vector3d value(t.value[0], t.value[1], t.value[2]);
+    const std::string where = t.where.str() + ": tractions";
+    if (t.total) { // a total force, spread uniformly: traction = force / area
+      const double area = surface_area(m, t.surface, where);
+      if (!(area > 0)) throw Error(where + ": surface '" + t.surface + "' has zero area", true);
+      value /= area;
+    }
+    add_surface_traction(m, t.surface, value, where, p->f_surface_);
+  }
+  if (c.gravity || c.inertia) {
+    // The body acceleration field b(X) = g - (a + alpha x r + omega x (omega x r)), r = X - p.
+    Eigen::Vector3d g = Eigen::Vector3d::Zero(), a = g, w = g, al = g, x0 = g;
+    auto v3 = [](const std::array<double, 3> &v) { return Eigen::Vector3d(v[0], v[1], v[2]); };
+    if (c.gravity) g = v3(*c.gravity);
+    if (c.inertia) {
+      a = v3(c.inertia->acceleration), w = v3(c.inertia->angular_velocity);
+      al = v3(c.inertia->angular_acceleration), x0 = v3(c.inertia->point);
+    }
+    const int npe = m.nodes_per_element(), nd = 3 * npe;
+    p->body_load_.assign(static_cast<std::size_t>(m.local_elements() * nd), 0.0);
+    for (PetscInt e = 0; e < m.local_elements(); ++e) {
+      const ElementCoords X = m.element_coordinates(e);
+      ElementVector b(nd);
+      for (int k = 0; k < npe; ++k) {
+        const Eigen::Vector3d r = X.row(k).transpose() - x0;
+        b.segment<3>(3 * k) = g - (a + al.cross(r) + w.cross(w.cross(r)));
+      }
+      const ElementVector fe = element_mass(m.type, X, mat.density) * b;
+      std::copy(fe.data(), fe.data() + nd, p->body_load_.begin() + e * nd);
+    }
+  }
+  p->set_body_load_factors({});
 
   FX_PETSC(KSPCreate(comm, &p->ksp_));
   FX_PETSC(KSPSetOptionsPrefix(p->ksp_, ""));
@@ -101,8 +128,28 @@ StaticProblem::~StaticProblem() {
   KSPDestroy(&ksp_);
   MatDestroy(&K_);
   VecDestroy(&f_);
+  VecDestroy(&f_surface_);
   VecDestroy(&rhs_);
   VecDestroy(&u_);
+}
+
+void StaticProblem::set_body_load_factors(const std::vector<double> &w) {
+  FX_PETSC(VecCopy(f_surface_, f_));
+  if (body_load_.empty()) return;
+  const int npe = mesh_.nodes_per_element(), nd = 3 * npe;
+  std::vector<PetscInt> rows(static_cast<std::size_t>(npe));
+  std::vector<double> fe(static_cast<std::size_t>(nd));
+  for (PetscInt e = 0; e < mesh_.local_elements(); ++e) {
+    const double we = w.empty() ? 1.0 : w[static_cast<std::size_t>(e)];
+    const double *f = element_body_load(e);
+    for (int k = 0; k < nd; ++k) fe[static_cast<std::size_t>(k)] = we * f[k];
+    for (int a = 0; a < npe; ++a)
+      rows[static_cast<std::size_t>(a)] =
+          mesh_.local_to_global(mesh_.connectivity[static_cast<std::size_t>(e * npe + a)]);
+    FX_PETSC(VecSetValuesBlocked(f_, npe, rows.data(), fe.data(), ADD_VALUES));
+  }
+  FX_PETSC(VecAssemblyBegin(f_));
+  FX_PETSC(VecAssemblyEnd(f_));
 }
 
 void StaticProblem::assemble_operator(const std::vector<double> &modulus_factor) {

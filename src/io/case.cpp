@@ -777,6 +777,10 @@ void read_design(const Reader &r, const YAML::Node &v, Case &c) {
   for (const BodySpec &b : c.bodies)
     if (b.name == d.body && c.analysis == "dynamic" && simulated_model(b.model) != "rigid")
       d.mass = "pedersen";
+  // A static design under body forces (self-weight, inertia): a void element's load w(rho) f_e
+  // must vanish faster than its SIMP stiffness, or it deforms without bound (docs/theory.md
+  // section 5); the Du-Olhoff form (rho^6 below 0.1) does, a linear mass does not.
+  if (c.analysis == "static" && (c.gravity || c.inertia)) d.mass = "pedersen";
   if (v["interpolation"]) {
     const YAML::Node &i = v["interpolation"];
     const std::string ip = path + ".interpolation";

@@ -53,8 +53,9 @@ void add_element_pattern(const mesh::DistributedMesh &mesh, const std::vector<Pe
 void assemble_stiffness_and_mass(const mesh::DistributedMesh &mesh,
                                  const IsotropicMaterial &material, Mat &K, Mat &M);
 
-/// Adds the consistent load of a constant body force b [N/m^3] to f. Collective.
-void add_body_force(const mesh::DistributedMesh &mesh, const Eigen::Vector3d &b, Vec f);
+/// The area of a physical surface (its faces summed over all ranks) [m^2]. Collective.
+double surface_area(const mesh::DistributedMesh &mesh, const std::string &surface,
+                    const std::string &where);
 
 /// Adds the consistent load of a constant traction t [N/m^2] on the named surface to f.
 /// Collective. Throws (collectively) if the surface does not exist.

@@ -1,5 +1,6 @@
 #pragma once
-/// \file Linear elastostatics of one body: K u = f with supports, tractions and gravity.
+/// \file Linear elastostatics of one body: K u = f with supports, tractions, gravity and the
+/// d'Alembert force of a rigid motion (loads.inertia).
 ///
 /// The operator, load and solver are kept so that later users (topology optimization)
 /// re-assemble with new element modulus factors and solve again, reusing the preconditioner
@@ -43,6 +44,18 @@ public:
     double mesh = 0, assemble = 0, setup = 0, solve = 0;
   };
   const Timings &timings() const { return timings_; }
+  /// Body forces (gravity, loads.inertia): whether the case has any. Their load is
+  /// f_b = sum_e w_e f_e with f_e = M_e b(X_e) (M_e the element mass matrix, b the body
+  /// acceleration field g - a(X) at the element's nodes; exact for b affine in X).
+  bool has_body_load() const { return !body_load_.empty(); }
+  /// Re-assembles f = f_surface + sum_e w_e f_e with one factor per local element (the design's
+  /// mass interpolation; empty: all 1). Collective.
+  void set_body_load_factors(const std::vector<double> &w);
+  /// f_e of local element e (3 * nodes_per_element entries, the element's DOF order); only
+  /// if has_body_load().
+  const double *element_body_load(PetscInt e) const {
+    return body_load_.data() + e * 3 * mesh_.nodes_per_element();
+  }
   double compliance() const;       ///< f . u [J]
   double max_displacement() const; ///< max over nodes of |u| [m]
 
@@ -56,6 +69,8 @@ private:
   std::vector<PetscInt> fixed_;
   Mat K_ = nullptr;
   Vec f_ = nullptr, rhs_ = nullptr, u_ = nullptr;
+  Vec f_surface_ = nullptr;       ///< the tractions and line loads (no body forces)
+  std::vector<double> body_load_; ///< f_e of every local element, flat (empty: no body force)
   KSP ksp_ = nullptr;
   int iterations_ = 0;
   Timings timings_;

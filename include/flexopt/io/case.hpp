@@ -225,8 +225,9 @@ struct DesignSpec {
   double initial = 0.5;          ///< initial density of every design element
   double penalty = 3.0;          ///< SIMP exponent p
   double min_stiffness = 1e-9;   ///< E_min / E_0
-  /// Mass interpolation (dynamic analyses): linear | pedersen; default pedersen for an FFRF or
-  /// ACF design body, linear otherwise.
+  /// Mass interpolation (dynamic analyses; static body forces): linear | pedersen; default
+  /// pedersen for an FFRF or ACF design body and for a static design under gravity or
+  /// loads.inertia, linear otherwise.
   std::string mass = "linear";
   std::string filter_type = "helmholtz"; ///< helmholtz | cone
   double filter_radius = 0;              ///< Helmholtz length scale r, or cone radius R [m]

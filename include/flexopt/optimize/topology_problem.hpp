@@ -58,10 +58,11 @@ private:
   std::vector<fem::PointLocation> sensor_locations_; ///< per response (displacement only)
   Vec grad_physical_ = nullptr;
   Vec adjoint_rhs_ = nullptr, adjoint_ = nullptr;
-  std::vector<double> factor_;      ///< SIMP modulus factors (all local elements)
-  std::vector<double> dfactor_;     ///< d factor / d filtered density
-  std::vector<double> element_ku_;  ///< K_e^0 u_e, 3 * nodes_per_element per element
-  bool element_ku_current_ = false; ///< element_ku_ belongs to the current state
+  std::vector<double> factor_;       ///< SIMP modulus factors (all local elements)
+  std::vector<double> dfactor_;      ///< d factor / d filtered density
+  std::vector<double> mass_, dmass_; ///< mass factors (body forces) and their derivatives
+  std::vector<double> element_ku_;   ///< K_e^0 u_e, 3 * nodes_per_element per element
+  bool element_ku_current_ = false;  ///< element_ku_ belongs to the current state
   int solves_ = 0;
   double solve_s_ = 0, adjoint_s_ = 0; ///< of the last evaluation
 };
