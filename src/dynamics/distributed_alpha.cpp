@@ -810,11 +810,11 @@ DistState DistributedAlpha::initial_state(Vec q0, Vec v0, double t0, StartReport
                   "joints closed to 1e-9 of the scene's size; positions are not projected); "
                   "these constraints are violated:" +
                       bad +
-                      "\n(an interface's point is the centroid of its meshed surface: on a curved "
-                      "surface, such as a pin hole, the mesh's facets move it off the geometric "
-                      "centre by about such residuals. Scenes of rigid and FFRF bodies close "
-                      "such gaps at the start; scenes with ACF bodies do not yet: use flat "
-                      "interface faces, or a rigid or FFRF model for the body)",
+                      "\n(an interface's point is the centroid of its meshed surface placed with "
+                      "the body; gaps below 1e-4 of the scene's size count as meeting, larger ones "
+                      "are not closed in a scene with ACF bodies: place the bodies assembled, or "
+                      "give the body with an initial elastic field the field that closes them; "
+                      "docs/case-format.md \"joints\")",
                   true);
   }
   acceleration_matrix(s);

@@ -457,9 +457,41 @@ void connect(MPI_Comm comm, const io::Case &c, Scene &scene, bool report) {
   for (const io::JointSpec &j : c.joints) joints_by_name[j.name] = &j;
   // Drivers come before the joints: when rows are found redundant, joint rows are left out
   // rather than a prescribed motion.
+  // A joint's two attachments. Interface points closer than kMeshGap of the scene's size are
+  // taken to meet: a meshed curved surface's centroid (a pin hole's) misses the geometric
+  // centre by such an amount, and an over-constrained (planar) mechanism's projection would
+  // leave that misfit in its redundant rows, while ACF scenes are not projected at all. Body
+  // b's attachment is moved onto body a's point (by the gap, in b's axes), so the placement is
+  // assembled exactly. Larger gaps are left to the initial conditions (rigid and FFRF bodies:
+  // projected; ACF: refused). Prismatic joints hold for any points (their offsets are taken
+  // from the placement). docs/case-format.md "joints".
+  constexpr double kMeshGap = 1e-4;
+  double snap_scale = 1;
+  for (const SceneBody &sb : scene.bodies) snap_scale = std::max(snap_scale, sb.position.norm());
+  double max_snap = 0;
+  std::string snap_joint;
+  // (A body given an initial elastic field meets its joints through that field: left alone.)
+  auto elastic_start = [&](const std::string &body) {
+    if (body == "ground") return false;
+    const SceneBody &sb = scene.bodies[body_index.at(body)];
+    return static_cast<bool>(sb.u0) || sb.elastic0.size() > 0;
+  };
+  auto joint_attachments = [&](const io::JointSpec &j) {
+    const Attachment A = attach(j.a, j.a_interface);
+    Attachment B = attach(j.b, j.b_interface);
+    const Vec3 d = A.world - B.world;
+    const double gap = d.norm();
+    if (j.type != "prismatic" && gap > 0 && gap <= kMeshGap * snap_scale && !elastic_start(j.a) &&
+        !elastic_start(j.b)) {
+      B.s += B.body < 0 ? d : Vec3(B.R.transpose() * d);
+      B.world = A.world;
+      if (gap > max_snap) max_snap = gap, snap_joint = j.name;
+    }
+    return std::make_pair(A, B);
+  };
   for (const io::DriverSpec &d : c.drivers) {
     const io::JointSpec &j = *joints_by_name.at(d.joint);
-    const Attachment A = attach(j.a, j.a_interface), B = attach(j.b, j.b_interface);
+    const auto [A, B] = joint_attachments(j);
     mech.equations.push_back(driver_equation(j.type, A, B, v3(j.axis),
                                              std::make_shared<const Expression>(d.expression),
                                              "driver of joint " + j.name));
@@ -468,7 +500,7 @@ void connect(MPI_Comm comm, const io::Case &c, Scene &scene, bool report) {
   std::string gap_joint;
   std::map<std::string, int> joint_equation; // a joint's first equation (the coincidence)
   for (const io::JointSpec &j : c.joints) {
-    const Attachment A = attach(j.a, j.a_interface), B = attach(j.b, j.b_interface);
+    const auto [A, B] = joint_attachments(j);
     joint_equation[j.name] = static_cast<int>(mech.equations.size());
     const double gap = (A.world - B.world).norm();
     if (gap > max_gap && (j.type != "prismatic")) max_gap = gap, gap_joint = j.name;
@@ -476,6 +508,12 @@ void connect(MPI_Comm comm, const io::Case &c, Scene &scene, bool report) {
          joint_equations(j.type, A, B, v3(j.axis), "joint " + j.name + " (" + j.type + ")"))
       mech.equations.push_back(std::move(e));
   }
+  if (report && max_snap > 0)
+    print0(comm,
+           "scene: the interfaces of joint %s are %.3g m apart in the initial placement (a "
+           "meshed surface's centroid); joints with gaps below %g m are placed at their body "
+           "a's interface point\n",
+           snap_joint.c_str(), max_snap, kMeshGap * snap_scale);
   // (A scene with ACF bodies is not projected: its initial state checks the joints instead.)
   if (report && max_gap > 1e-9 && scene.acf.empty())
     print0(comm,
