@@ -25,11 +25,9 @@ void forward_loop(const Integrator &integrator, long long steps, double h, Recor
     record.substeps.clear();
     const double t_next = static_cast<double>(j) * h;
     if (!integrator.advance(record.state, h, next, info, &record.substeps)) {
-      std::ostringstream msg;
-      msg << "integrate: Newton did not converge in step " << j
-          << " (t = " << static_cast<double>(j - 1) * h << " s -> " << t_next
-          << " s) at this design; reduce time.step or check the scene";
-      throw Error(msg.str(), true);
+      throw Error(dynamics::newton_failure_message(j, static_cast<double>(j - 1) * h, t_next, info,
+                                                   dynamics::NewtonSettings{}.max_halvings),
+                  true);
     }
     for (const auto &sub : record.substeps)
       substep_sizes[static_cast<std::size_t>(j)].push_back(sub.second);

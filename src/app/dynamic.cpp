@@ -466,16 +466,10 @@ void integrate(const Context &ctx, const io::Case &c, dynamics::Scene &scene,
       dynamics::StepInfo info;
       const double t_next = static_cast<double>(n + 1) * h; // no drift of t over many steps
       if (!run->advance(h, t_next, info)) {
-        std::ostringstream msg;
-        msg << "integrate: Newton did not converge in step " << n + 1 << " (t = " << t_now
-            << " s -> " << t_next << " s) after " << (1 << dynamics::NewtonSettings{}.max_halvings)
-            << "-fold step halving; increments of the last attempt:";
-        for (double v : info.increment) msg << ' ' << v;
-        msg << "; constraint residuals:";
-        for (double v : info.violation) msg << ' ' << v;
-        msg << ". Reduce time.step or check the scene (a singular configuration, a driver "
-               "demanding impossible motion).";
-        throw Error(msg.str(), true); // every rank fails here (collective Newton loop)
+        // every rank fails here (collective Newton loop)
+        throw Error(dynamics::newton_failure_message(n + 1, t_now, t_next, info,
+                                                     dynamics::NewtonSettings{}.max_halvings),
+                    true);
       }
       after_step(n, info);
     }

@@ -12,6 +12,21 @@
 
 namespace flexopt::dynamics {
 
+std::string newton_failure_message(long long step, double t0, double t1, const StepInfo &info,
+                                   int max_halvings) {
+  std::ostringstream msg;
+  msg << "integrate: Newton did not converge in step " << step << " (t = " << t0 << " s -> " << t1
+      << " s) after " << (1 << max_halvings)
+      << "-fold step halving; increments of the last attempt:";
+  for (double v : info.increment) msg << ' ' << v;
+  msg << "; constraint residuals:";
+  for (double v : info.violation) msg << ' ' << v;
+  msg << ". Reduce time.step or check the scene (a singular configuration, a driver demanding "
+         "impossible motion, or with a design, void elements of an ACF body: "
+         "docs/theory.md section 11)";
+  return msg.str();
+}
+
 namespace detail {
 
 /// The sparse iteration matrix with its fixed structural pattern and the positions of every

@@ -180,6 +180,13 @@ void DesignField::stiffness_factors(std::vector<double> &s, std::vector<double> 
 
 void DesignField::mass_factors(std::vector<double> &w, std::vector<double> &dw) const {
   const bool pedersen = spec_.mass == "pedersen";
+  // pedersen keeps a floor of 1e-3 min_stiffness (docs/theory.md 9.1): 10^5 rho^6 underflows
+  // for the voids of a projected design (rho ~ 1e-5 gives 1e-25), and an ACF body's nodes in
+  // a massless, nearly stiffless void take unbounded accelerations from round-off forces at
+  // the start (its elements invert in the first step). Measured: a floor of 1e-6 min_stiffness
+  // suffices there; one of min_stiffness brings the void's local modes down among the lowest
+  // six (LocalModes.*); 1e-3 sits between.
+  const double floor = pedersen ? 1e-3 * spec_.min_stiffness : 0.0;
   interpolate(*this, physical_, w, dw, mesh_.local_elements(),
               [&](double r, double &f, double &df) {
                 if (pedersen && r < 0.1) {
@@ -189,6 +196,8 @@ void DesignField::mass_factors(std::vector<double> &w, std::vector<double> &dw) 
                   f = r;
                   df = 1;
                 }
+                f = floor + (1 - floor) * f;
+                df *= 1 - floor;
               });
 }
 

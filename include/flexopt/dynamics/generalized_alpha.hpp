@@ -104,6 +104,11 @@ struct StepInfo {
   std::vector<double> increment, violation; ///< per iteration of the last attempt
 };
 
+/// The message of a step whose Newton iterations failed after every halving: the step, its
+/// times, the last attempt's increments and constraint residuals, and what to try.
+std::string newton_failure_message(long long step, double t0, double t1, const StepInfo &info,
+                                   int max_halvings);
+
 class GeneralizedAlpha {
 public:
   GeneralizedAlpha(const Mechanism &mechanism, AlphaParameters parameters,
