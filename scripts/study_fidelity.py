@@ -46,13 +46,14 @@ p.add_argument("--acf-iterations", type=int, default=None, help="iterations of a
 p.add_argument("--acf-step", type=float, default=1e-4, help="time step of acf_coarse [s]")
 p.add_argument("--variants", default=",".join(VARIANTS))
 p.add_argument("--figure", default=None)
+p.add_argument("--plot-only", action="store_true", help="only draw --figure from OUT/study.json")
 args = p.parse_args()
 flexopt = os.path.abspath(args.flexopt)
 out = os.path.abspath(args.out)
 os.makedirs(out, exist_ok=True)
 env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
            OMPI_MCA_rmaps_base_oversubscribe="1")
-variants = [v for v in args.variants.split(",") if v]
+variants = [] if args.plot_only else [v for v in args.variants.split(",") if v]
 for v in variants:
     if v not in VARIANTS:
         sys.exit(f"study: unknown variant '{v}' (known: {', '.join(VARIANTS)})")
@@ -97,11 +98,12 @@ study_json = os.path.join(out, "study.json")
 report = json.load(open(study_json)) if os.path.exists(study_json) else {
     "case": "cases/slider_crank_topopt", "ranks": args.ranks, "fine_model": "ACF, Tet10 (the case's mesh)",
     "variants": {}}
-if "uniform_true_objective" not in report:
+if "uniform_true_objective" not in report and not args.plot_only:
     t = run(["simulate", fine, "--out", os.path.join(out, "fine_uniform")], os.path.join(out, "fine_uniform.log"))
     report["uniform_true_objective"] = json.load(open(os.path.join(out, "fine_uniform", "summary.json")))["responses"]["objective"]
     report["fine_evaluation_s"] = t
-print(f"uniform start: fine ACF objective {report['uniform_true_objective']:.6g} J", flush=True)
+if "uniform_true_objective" in report:
+    print(f"uniform start: fine ACF objective {report['uniform_true_objective']:.6g} J", flush=True)
 for name in variants:
     d = case_variant(name)
     its = args.acf_iterations if name == "acf_coarse" and args.acf_iterations else args.iterations
@@ -121,7 +123,8 @@ for name in variants:
           f"{r['true_objective']:.6g} J  volume fraction {r['true_volume_fraction']:.5f}", flush=True)
     with open(study_json, "w") as f:
         json.dump(report, f, indent=1)
-print(f"wrote {os.path.join(out, 'study.json')}")
+if variants:
+    print(f"wrote {study_json}")
 
 if args.figure:
     import matplotlib
