@@ -23,7 +23,7 @@ for an equivalent static load case, both evaluated in the dynamic scene.
 
 Writes OUT/study.json, and with --figure a PNG (the ESL sweep, the mid-span deflection of the
 three designs, the two designs). docs/benchmarks.md "Dynamic against static design" holds the
-figures of a run.
+figures of a run; its study.json is docs/figures/study_dynamic_vs_static.json.
 
 usage: study_dynamic_vs_static.py --flexopt BUILD/flexopt --out DIR [--ranks 2]
        [--iterations 100] [--instants 24] [--figure docs/figures/study_dynamic_vs_static.png]

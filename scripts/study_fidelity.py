@@ -22,7 +22,8 @@ against wall time. docs/benchmarks.md "Fidelity against cost" holds a run's figu
 usage: study_fidelity.py --flexopt BUILD/flexopt --out DIR [--ranks 2] [--iterations 100]
        [--acf-iterations N] [--acf-step H] [--variants ffrf4,ffrf8,...] [--figure PNG]
 A run appends to OUT/study.json: variants run separately (--variants acf_coarse) join the
-ones already there, and the uniform start's fine evaluation is made once.
+ones already there, and the uniform start's fine evaluation is made once. The recorded run is
+docs/figures/study_fidelity.json (copy it to OUT/study.json to add a variant to it).
 """
 import argparse
 import json
