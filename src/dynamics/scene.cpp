@@ -455,8 +455,6 @@ void connect(MPI_Comm comm, const io::Case &c, Scene &scene, bool report) {
   }
   std::map<std::string, const io::JointSpec *> joints_by_name;
   for (const io::JointSpec &j : c.joints) joints_by_name[j.name] = &j;
-  // Drivers come before the joints: when rows are found redundant, joint rows are left out
-  // rather than a prescribed motion.
   // A joint's two attachments. Interface points closer than kMeshGap of the scene's size are
   // taken to meet: a meshed curved surface's centroid (a pin hole's) misses the geometric
   // centre by such an amount, and an over-constrained (planar) mechanism's projection would
@@ -489,6 +487,8 @@ void connect(MPI_Comm comm, const io::Case &c, Scene &scene, bool report) {
     }
     return std::make_pair(A, B);
   };
+  // Drivers come before the joints: when rows are found redundant, joint rows are left out
+  // rather than a prescribed motion.
   for (const io::DriverSpec &d : c.drivers) {
     const io::JointSpec &j = *joints_by_name.at(d.joint);
     const auto [A, B] = joint_attachments(j);
