@@ -33,12 +33,13 @@ import csv
 import json
 import math
 import os
-import subprocess
 import sys
-import time
 
 import numpy as np
 import yaml
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from study_run import run_flexopt  # noqa: E402
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 CASE = os.path.join(ROOT, "cases", "slider_crank_topopt")
@@ -54,19 +55,10 @@ args = p.parse_args()
 flexopt = os.path.abspath(args.flexopt)
 out = os.path.abspath(args.out)
 os.makedirs(out, exist_ok=True)
-env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
-           OMPI_MCA_rmaps_base_oversubscribe="1")
 
 
 def run(cmd_args, log):
-    cmd = ["mpirun", "-n", str(args.ranks), flexopt] + cmd_args
-    print("$ " + " ".join(cmd), flush=True)
-    t0 = time.time()
-    with open(log, "w") as f:
-        r = subprocess.run(cmd, stdout=f, stderr=subprocess.STDOUT, env=env)
-    if r.returncode != 0:
-        sys.exit(f"study: failed ({r.returncode}); see {log}")
-    return time.time() - t0
+    return run_flexopt(flexopt, args.ranks, cmd_args, log)
 
 
 def absolute_paths(case):
