@@ -130,8 +130,7 @@ public:
   double tie_violation() const override { return 0; }
   double energy() const override { return scene_.mechanism.energy(state_.q, state_.v); }
   bodies::Vec3 sensor(const dynamics::BoundSensor &s) const override {
-    if (s.quantity == "reaction") return dynamics::reaction_value(s, state_.lambda);
-    return dynamics::sensor_value(scene_, s, state_.q);
+    return dynamics::sensor_value(scene_, s, state_);
   }
   std::vector<double> positions(std::size_t b, std::vector<double> &elastic) const override {
     return body_positions(scene_, b, state_.q, elastic);
@@ -171,8 +170,7 @@ public:
   double energy() const override { return da_.energy(state_); }
   bodies::Vec3 sensor(const dynamics::BoundSensor &s) const override {
     if (s.acf_body >= 0) return dynamics::acf_sensor_value(scene_, da_, s, state_, small_);
-    if (s.quantity == "reaction") return dynamics::reaction_value(s, small_.lambda);
-    return dynamics::sensor_value(scene_, s, small_.q);
+    return dynamics::sensor_value(scene_, s, small_);
   }
   std::vector<double> positions(std::size_t b, std::vector<double> &elastic) const override {
     const dynamics::SceneBody &sb = scene_.bodies[b];

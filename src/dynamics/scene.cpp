@@ -676,11 +676,12 @@ Vec3 acf_sensor_value(const Scene &scene, const DistributedAlpha &da, const Boun
   return first_interface_frame(scene, sb, small).elastic(x, s.point);
 }
 
-Vec3 reaction_value(const BoundSensor &s, const Vector &lambda) {
+Vec3 sensor_value(const Scene &scene, const BoundSensor &s, const State &state) {
+  if (s.quantity != "reaction") return sensor_value(scene, s, state.q);
   Vec3 f = Vec3::Zero();
   for (int i = 0; i < 3; ++i) {
     const int r = s.lambda_rows[static_cast<std::size_t>(i)];
-    if (r >= 0 && r < lambda.size()) f(i) = lambda(r);
+    if (r >= 0 && r < state.lambda.size()) f(i) = state.lambda(r);
   }
   return f;
 }

@@ -191,9 +191,10 @@ Vec3 acf_sensor_value(const Scene &scene, const DistributedAlpha &da, const Boun
 /// rigid body) or rotation_angle (the rotation vector of the body frame relative to its
 /// initial orientation, world frame).
 Vec3 sensor_value(const Scene &scene, const BoundSensor &s, const Vector &q);
-/// A reaction sensor's value: the force [N, world axes] its joint applies to the joint's body
-/// b at the coincident point, from the multipliers of a state of the mechanism (the
-/// constraint x_a - x_b = 0 enters M a = Q - Phi_q^T lambda: on body b, +lambda).
-Vec3 reaction_value(const BoundSensor &s, const Vector &lambda);
+/// Value of a sensor of the mechanism at a state: sensor_value of its coordinates, or for a
+/// reaction sensor the force [N, world axes] its joint applies to the joint's body b at the
+/// coincident point, from the state's multipliers (the constraint x_a - x_b = 0 enters
+/// M a = Q - Phi_q^T lambda: on body b, +lambda).
+Vec3 sensor_value(const Scene &scene, const BoundSensor &s, const State &state);
 
 } // namespace flexopt::dynamics
