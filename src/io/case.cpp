@@ -797,12 +797,18 @@ void read_design(const Reader &r, const YAML::Node &v, Case &c) {
     }
     if (i["mass"]) d.mass = r.choice(i["mass"], ip + ".mass", {"linear", "pedersen"});
   }
-  const YAML::Node &f = r.require(v, "filter", path);
-  r.require_map(f, path + ".filter");
-  r.check_keys(f, path + ".filter", {"type", "radius"});
-  if (f["type"]) d.filter_type = r.choice(f["type"], path + ".filter.type", {"helmholtz", "cone"});
-  d.filter_radius = r.number(r.require(f, "radius", path + ".filter"), path + ".filter.radius");
-  if (!(d.filter_radius > 0)) r.fail(f["radius"], path + ".filter.radius: must be positive");
+  // Without filter: or its radius, DesignField takes a radius from the design elements' size
+  // (filter_radius 0 here).
+  if (const YAML::Node &f = v["filter"]) {
+    r.require_map(f, path + ".filter");
+    r.check_keys(f, path + ".filter", {"type", "radius"});
+    if (f["type"])
+      d.filter_type = r.choice(f["type"], path + ".filter.type", {"helmholtz", "cone"});
+    if (f["radius"]) {
+      d.filter_radius = r.number(f["radius"], path + ".filter.radius");
+      if (!(d.filter_radius > 0)) r.fail(f["radius"], path + ".filter.radius: must be positive");
+    }
+  }
   if (v["projection"]) {
     const YAML::Node &p = v["projection"];
     const std::string pp = path + ".projection";

@@ -5,6 +5,7 @@
 #include "flexopt/optimize/design_problem.hpp"
 
 #include <algorithm>
+#include <cstdio>
 #include <cmath>
 
 namespace flexopt::optimize {
@@ -33,12 +34,57 @@ DesignField::DesignField(const mesh::DistributedMesh &m, const io::DesignSpec &d
   for (PetscInt e : design_elements_) local_volume += volume_[static_cast<std::size_t>(e)];
   MPI_Allreduce(&local_volume, &design_volume_, 1, MPI_DOUBLE, MPI_SUM, m.comm);
 
-  filter_ = create_density_filter(m, d.filter_type, d.filter_radius);
+  if (spec_.filter_radius == 0)
+    spec_.filter_radius =
+        default_filter_radius(m, design_elements_, spec_.filter_type, &default_edge_);
+  filter_ = create_density_filter(m, spec_.filter_type, spec_.filter_radius);
   rho_ = filter_->create_element_vector();
   FX_PETSC(VecDuplicate(rho_, &filtered_));
   FX_PETSC(VecDuplicate(rho_, &physical_));
   FX_PETSC(VecDuplicate(rho_, &work_));
   if (!d.beta.empty()) beta_ = d.beta.front();
+}
+
+double DesignField::default_filter_radius(const mesh::DistributedMesh &m,
+                                          const std::vector<PetscInt> &elements,
+                                          const std::string &type, double *mean_edge) {
+  // The edges between corner nodes: 6 of a tet, 12 of a hexahedron (Gmsh's node order).
+  static const int tet_edges[6][2] = {{0, 1}, {1, 2}, {2, 0}, {0, 3}, {1, 3}, {2, 3}};
+  static const int hex_edges[12][2] = {{0, 1}, {1, 2}, {2, 3}, {3, 0}, {4, 5}, {5, 6},
+                                       {6, 7}, {7, 4}, {0, 4}, {1, 5}, {2, 6}, {3, 7}};
+  const bool hex = fem::corner_nodes(m.type) == 8;
+  const int (*edges)[2] = hex ? hex_edges : tet_edges;
+  const int n_edges = hex ? 12 : 6;
+  const int npe = m.nodes_per_element();
+  double sum[2] = {0, 0}; // edge lengths, edges
+  for (PetscInt e : elements) {
+    const PetscInt *node = &m.connectivity[static_cast<std::size_t>(e * npe)];
+    for (int k = 0; k < n_edges; ++k) {
+      const double *a = &m.coordinates[static_cast<std::size_t>(3 * node[edges[k][0]])];
+      const double *b = &m.coordinates[static_cast<std::size_t>(3 * node[edges[k][1]])];
+      sum[0] += std::sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) +
+                          (a[2] - b[2]) * (a[2] - b[2]));
+    }
+    sum[1] += n_edges;
+  }
+  MPI_Allreduce(MPI_IN_PLACE, sum, 2, MPI_DOUBLE, MPI_SUM, m.comm);
+  const double h = sum[0] / sum[1];
+  if (mean_edge) *mean_edge = h;
+  const double cone = 2.5 * h;
+  return type == "cone" ? cone : cone / (2 * std::sqrt(3.0));
+}
+
+std::string DesignField::filter_description() const {
+  std::string s = filter_->describe();
+  if (default_edge_ > 0) {
+    char buf[160];
+    std::snprintf(buf, sizeof buf,
+                  " (design.filter.radius not given: %s2.5 x the mean element edge %.3g m)",
+                  spec_.filter_type == "cone" ? "" : "the cone-equivalent 2 sqrt(3) r = ",
+                  default_edge_);
+    s += buf;
+  }
+  return s;
 }
 
 DesignField::~DesignField() {

@@ -125,7 +125,7 @@ OptimizationResult run_optimization(MPI_Comm comm, DesignProblem &design, const 
       "optimize: %lld design variables, %zu constraint(s), at most %d iterations, move limit %g, "
       "%s\n",
       static_cast<long long>(problem->design_size()), m, c.optimizer.max_iterations,
-      c.optimizer.move_limit, problem->field().filter().describe().c_str());
+      c.optimizer.move_limit, problem->field().filter_description().c_str());
   print0(comm, "%5s %16s", "it", "objective");
   for (std::size_t i = 0; i < m; ++i)
     print0(comm, " %16s",
@@ -212,7 +212,10 @@ OptimizationResult run_optimization(MPI_Comm comm, DesignProblem &design, const 
       throw Error("optimize: iteration " + std::to_string(k) + ": the objective is not finite",
                   true);
     if (k == 1) objective_scale = std::abs(e.objective) > 0 ? 10.0 / std::abs(e.objective) : 1.0;
-    const bool write = (k - 1) % std::max(c.output.every, 1) == 0; // default: every one
+    // design.xdmf: every iteration by default; output.every thins it in a static analysis only
+    // (in a dynamic one it counts the motion's time steps, docs/case-format.md "output").
+    const int stride = c.analysis == "dynamic" ? 1 : std::max(c.output.every, 1);
+    const bool write = (k - 1) % stride == 0;
     if (write) write_densities(writer, problem->field(), k - 1);
 
     FX_PETSC(VecCopy(e.d_objective, df0));

@@ -1,10 +1,12 @@
 // Density filters. Both kinds: constants are preserved exactly and the transpose is exact
 // (dot-product test). Helmholtz: a cosine density along the beam is damped by the PDE's factor
 // 1 / (1 + r^2 k^2). Cone: the distributed matrix equals the defining sum evaluated by brute
-// force over all elements of all ranks.
+// force over all elements of all ranks. The default radius follows the design elements' mean
+// edge length.
 #include "flexopt/core/context.hpp"
 #include "flexopt/mesh/distributed_mesh.hpp"
 #include "flexopt/optimize/cone_filter.hpp"
+#include "flexopt/optimize/design_field.hpp"
 #include "flexopt/optimize/helmholtz_filter.hpp"
 #include "test_meshes.hpp"
 
@@ -196,4 +198,31 @@ TEST(ConeFilter, EqualsTheBruteForceSum) {
     VecDestroy(&rho);
     VecDestroy(&out);
   }
+}
+
+// Without design.filter.radius the radius follows the mesh: the cone radius R = 2.5 h of the
+// design elements' mean edge length h (Helmholtz: r = R / (2 sqrt 3)). beam_hex.geo is 40 x 4 x 6
+// boxes of 1/40 x 0.05/4 x 0.1/6 m, four edges of each length per element, so h is their mean
+// exactly; DesignField builds the filter with that radius.
+TEST(DefaultFilterRadius, IsTwoAndAHalfMeanEdgesOfTheDesignElements) {
+  auto m = test_support::load_test_mesh("beam_hex.geo", 0.0, 1);
+  std::vector<PetscInt> all(static_cast<std::size_t>(m.local_elements()));
+  for (PetscInt e = 0; e < m.local_elements(); ++e) all[static_cast<std::size_t>(e)] = e;
+  const double h = (1.0 / 40 + 0.05 / 4 + 0.1 / 6) / 3;
+  double edge = 0;
+  const double cone = optimize::DesignField::default_filter_radius(m, all, "cone", &edge);
+  EXPECT_NEAR(edge, h, 1e-14);
+  EXPECT_NEAR(cone, 2.5 * h, 1e-14);
+  EXPECT_NEAR(optimize::DesignField::default_filter_radius(m, all, "helmholtz"),
+              2.5 * h / (2 * std::sqrt(3.0)), 1e-14);
+
+  io::DesignSpec spec;
+  spec.region = "beam";
+  spec.filter_type = "cone";
+  optimize::DesignField field(m, spec);
+  const std::string text = field.filter_description();
+  char expect[64];
+  std::snprintf(expect, sizeof expect, "cone filter R = %g", 2.5 * h);
+  EXPECT_NE(text.find(expect), std::string::npos) << text;
+  EXPECT_NE(text.find("design.filter.radius not given"), std::string::npos) << text;
 }

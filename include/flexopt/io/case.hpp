@@ -230,7 +230,8 @@ struct DesignSpec {
   /// loads.inertia, linear otherwise.
   std::string mass = "linear";
   std::string filter_type = "helmholtz"; ///< helmholtz | cone
-  double filter_radius = 0;              ///< Helmholtz length scale r, or cone radius R [m]
+  double filter_radius = 0; ///< Helmholtz length scale r, or cone radius R [m]; 0: not given
+                            ///< (DesignField derives it from the design elements' size)
   std::vector<double> beta; ///< Heaviside projection continuation (empty: no projection)
   double eta = 0.5;         ///< projection threshold
   int beta_every = 25;      ///< iterations per beta value (continuation)

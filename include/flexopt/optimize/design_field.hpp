@@ -58,6 +58,14 @@ public:
   void set_beta(double beta) { beta_ = beta; }
   double beta() const { return beta_; }
   const DensityFilter &filter() const { return *filter_; }
+  /// The filter's description, and where its radius came from when design.filter.radius was
+  /// not given (the default below).
+  std::string filter_description() const;
+  /// The default filter radius: the cone radius R = 2.5 h of the mean edge length h of the
+  /// design elements, or the Helmholtz r = R / (2 sqrt 3) of the same smoothing. Collective.
+  static double default_filter_radius(const mesh::DistributedMesh &mesh,
+                                      const std::vector<PetscInt> &elements,
+                                      const std::string &type, double *mean_edge = nullptr);
 
   const std::vector<double> &element_volumes() const { return volume_; }
   double design_volume() const { return design_volume_; }
@@ -81,6 +89,7 @@ public:
 private:
   const mesh::DistributedMesh &mesh_;
   io::DesignSpec spec_;
+  double default_edge_ = 0; ///< mean edge length behind a default filter radius (0: given)
   std::unique_ptr<DensityFilter> filter_;
   std::vector<PetscInt> design_elements_;
   std::vector<char> is_design_;
