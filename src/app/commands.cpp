@@ -12,6 +12,7 @@
 #include "flexopt/mesh/load.hpp"
 #include "flexopt/optimize/optimizer.hpp"
 #include "flexopt/optimize/topology_problem.hpp"
+#include "flexopt/plan/plan.hpp"
 #include "flexopt/reduce/craig_bampton.hpp"
 #include "flexopt/reduce/modal.hpp"
 
@@ -88,6 +89,7 @@ io::Json base_summary(const Context &ctx, const Options &o, const io::Case &c) {
   s["command"] = o.command;
   s["case"] = c.name;
   s["ranks"] = ctx.size();
+  if (!o.plan.is_null()) s["plan"] = o.plan;
   return s;
 }
 
@@ -789,12 +791,49 @@ int run_optimize(const Context &ctx, const Options &o, const io::Case &c, double
   return 0;
 }
 
+
+/// `flexopt plan CASE`: the choice per body with its reasons, numbers and predicted cost
+/// (docs/theory.md section 12); nothing is integrated but the rigid pre-run.
+int run_plan(const Context &ctx, const Options &o, io::Case c, double t0) {
+  if (c.analysis != "dynamic")
+    throw Error(c.file + ": flexopt plan chooses the models of a dynamic analysis (this case is " +
+                    c.analysis + ")",
+                true);
+  const std::string dir = output_directory(ctx, o);
+  print0(ctx.comm(), "case %s (%s), plan, %d rank(s)%s\n", c.name.c_str(), c.file.c_str(),
+         ctx.size(), o.all_auto ? ", every body estimated as model: auto (--auto)" : "");
+  if (o.all_auto)
+    for (io::BodySpec &b : c.bodies) b.model = "auto";
+  const plan::Plan p = plan::make_plan(ctx.comm(), c);
+  plan::print_plan(ctx.comm(), p);
+  io::Json s = base_summary(ctx, o, c);
+  s["plan"] = plan::plan_json(p);
+  s["accuracy"] = p.accuracy;
+  s["prerun_s"] = p.prerun_s;
+  s["steps"] = p.steps;
+  s["plan_s"] = p.seconds;
+  write_summary(ctx, dir, s, t0);
+  print0(ctx.comm(), "wrote %s/summary.json\n", dir.c_str());
+  return 0;
+}
+
 } // namespace
 
-int run(const Context &ctx, const Options &o) {
+int run(const Context &ctx, const Options &given) {
   const double t0 = wall_time();
+  Options o = given;
   io::Case c = io::load_case(o.case_dir);
   if (!c.solver.empty()) insert_default_petsc_options(c.solver, c.file + ": solver");
+  if (o.command == "plan") return run_plan(ctx, o, c, t0);
+  // `model: auto` bodies of a dynamic case take the plan's models (docs/theory.md section 12).
+  if (c.analysis == "dynamic" && o.command != "info" &&
+      std::any_of(c.bodies.begin(), c.bodies.end(),
+                  [](const io::BodySpec &b) { return b.model == "auto"; })) {
+    const plan::Plan p = plan::make_plan(ctx.comm(), c);
+    plan::print_plan(ctx.comm(), p);
+    o.plan = plan::plan_json(p);
+    c = plan::apply_plan(c, p);
+  }
   const bool dynamic_simulate = o.command == "simulate" && c.analysis == "dynamic" && c.design;
   if (!o.design.empty() && !(dynamic_simulate || (o.command == "check-gradient" && c.design)))
     throw Error("--design applies to `flexopt simulate` of a dynamic case with a design: section "

@@ -26,6 +26,8 @@ const char *kUsage =
     "            history.csv (dynamic: also motion_initial.xdmf, motion_final.xdmf)\n"
     "  check-gradient  Taylor and finite-difference checks of the adjoint gradients of a\n"
     "            topology optimization case (design:, objective:, constraints:)\n"
+    "  plan      the model each body needs (rigid, FFRF with its modes, ACF) for the case's\n"
+    "            accuracy, with reasons and predicted cost; what `model: auto` runs\n"
     "\n"
     "options:\n"
     "  --out DIR    output directory (default CASE/out)\n"
@@ -38,6 +40,7 @@ const char *kUsage =
     "  --design FILE  simulate (dynamic, with design:), check-gradient: the design of a run's\n"
     "               restart.h5\n"
     "  --gradient   simulate (dynamic, with design:): also the adjoint gradients\n"
+    "  --auto       plan: estimate every body as if its model were auto\n"
     "  --help       this text, or a command's: flexopt <command> --help\n"
     "\n"
     "PETSc and SLEPc options (-ksp_monitor, -log_view, -eps_view, ...) pass through; the\n"
@@ -104,6 +107,19 @@ const char *command_help(const std::string &cmd) {
            "element tags,\n"
            "so any number of ranks checks the same thing. Writes out/summary.json (taylor, fd,\n"
            "max_rel_err).\n";
+  if (cmd == "plan")
+    return "usage: flexopt plan CASE [--auto] [--out DIR] [PETSc options]\n"
+           "Chooses the model of every body whose model is auto (docs/theory.md section 12),\n"
+           "for the case's `accuracy` (default 1e-2: the relative error of the sensors): a\n"
+           "rigid pre-run of the mechanism with every body that is not rigid reduced (up to 40\n"
+           "fixed-interface modes) and held rigid, the linear elastic response of each to the\n"
+           "forcing of that motion (kineto-elastodynamics), and rules that pick rigid, FFRF\n"
+           "(its modes, geometric stiffening) or ACF. Prints per body the choice, the reasons\n"
+           "with their numbers and the predicted cost; a body whose model is given keeps it,\n"
+           "with a warning where the estimates disagree. --auto estimates every body, rigid\n"
+           "ones too. `simulate`, `optimize` and `check-gradient` run the same plan first when\n"
+           "a body is auto. Writes out/summary.json (plan: [{body, model, modes,\n"
+           "geometric_stiffening, reasons, predicted_cost_s, estimates}]).\n";
   return nullptr;
 }
 
@@ -152,6 +168,8 @@ int main(int argc, char **argv) {
       opts.design = value("--design");
     else if (a == "--gradient")
       opts.gradient = true;
+    else if (a == "--auto")
+      opts.all_auto = true;
     else if (a == "--max-iterations")
       positive_int("--max-iterations", opts.max_iterations);
     else if (a == "--fd-step") {

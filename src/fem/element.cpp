@@ -855,26 +855,33 @@ ElementVector element_body_force(ElementType type, const ElementCoords &X,
   return f;
 }
 
-Voigt element_stress(ElementType type, const ElementCoords &X, const IsotropicMaterial &mat,
-                     double modulus_factor, const ElementVector &u_e, const Eigen::Vector3d &xi) {
-  check_coords(type, X, "element_stress");
+Eigen::Matrix3d displacement_gradient(ElementType type, const ElementCoords &X,
+                                      const ElementVector &u_e, const Eigen::Vector3d &xi,
+                                      const char *who) {
+  check_coords(type, X, who);
   const int n = nodes_per_element(type);
   if (u_e.size() != 3 * n)
-    throw Error(std::string("element_stress: ") + element_name(type) + " needs " +
-                std::to_string(3 * n) + " displacement entries, got " + std::to_string(u_e.size()));
-  mat.validate();
+    throw Error(std::string(who) + ": " + element_name(type) + " needs " + std::to_string(3 * n) +
+                " displacement entries, got " + std::to_string(u_e.size()));
   double dN[kMaxNodes * 3];
   shape_functions(type, xi, nullptr, dN);
   const Eigen::Matrix3d J = jacobian(X, dN);
   const double det = J.determinant();
-  if (!(det > 0.0)) throw_degenerate("element_stress", type, X, det, 0.0);
+  if (!(det > 0.0)) throw_degenerate(who, type, X, det, 0.0);
   const Eigen::Matrix3d Jinv = J.inverse();
-  // Displacement gradient H(i,j) = du_i/dx_j = sum_a u_(a,i) dN_a/dx_j.
+  // H(i,j) = du_i/dx_j = sum_a u_(a,i) dN_a/dx_j.
   Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
   for (int a = 0; a < n; ++a) {
     const Eigen::RowVector3d g = Eigen::Map<const Eigen::RowVector3d>(&dN[a * 3]) * Jinv; // dN_a/dx
     H += u_e.segment<3>(3 * a) * g;
   }
+  return H;
+}
+
+Voigt element_stress(ElementType type, const ElementCoords &X, const IsotropicMaterial &mat,
+                     double modulus_factor, const ElementVector &u_e, const Eigen::Vector3d &xi) {
+  mat.validate();
+  const Eigen::Matrix3d H = displacement_gradient(type, X, u_e, xi, "element_stress");
   const double lambda = modulus_factor * mat.lambda();
   const double mu = modulus_factor * mat.mu();
   const double trace = H.trace();

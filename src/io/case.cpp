@@ -91,7 +91,7 @@ namespace {
 const std::set<std::string> kNotYetSupported = {};
 
 /// Top-level keys that only a dynamic analysis takes.
-const char *const kDynamicOnly[] = {"ground", "joints", "drivers", "time"};
+const char *const kDynamicOnly[] = {"ground", "joints", "drivers", "time", "accuracy"};
 
 /// Top-level keys of the static analysis that a dynamic analysis does not take.
 const char *const kStaticOnly[] = {"supports", "tractions", "line_loads"};
@@ -992,7 +992,7 @@ Case load_case(const std::string &directory) {
   r.check_keys(root, "",
                {"analysis", "materials", "bodies", "ground", "joints", "drivers", "loads",
                 "supports", "tractions", "line_loads", "time", "sensors", "output", "solver",
-                "design", "objective", "constraints", "optimizer", "adjoint"});
+                "design", "objective", "constraints", "optimizer", "adjoint", "accuracy"});
 
   c.analysis = r.choice(r.require(root, "analysis", ""), "analysis", {"static", "dynamic"});
   const bool dynamic = c.analysis == "dynamic";
@@ -1050,6 +1050,12 @@ Case load_case(const std::string &directory) {
   if (root["sensors"]) read_sensors(r, root["sensors"], c);
   if (root["output"]) read_output(r, root["output"], dynamic, c);
   if (root["solver"]) c.solver = r.string(root["solver"], "solver");
+  if (root["accuracy"]) {
+    c.accuracy = r.number(root["accuracy"], "accuracy");
+    if (!(c.accuracy > 0 && c.accuracy < 1))
+      r.fail(root["accuracy"], "accuracy: the accepted relative error of the sensors must lie in "
+                               "(0, 1), e.g. 1e-2");
+  }
   if (root["design"]) read_design(r, root["design"], c);
   if (root["objective"]) c.objective = read_response(r, root["objective"], "objective", false, c);
   if (root["constraints"]) {

@@ -250,6 +250,14 @@ void Equation::evaluate(const Vector &q, double t, double *out, Sink *J, int row
     J->add_row(row, A.ref, g);
     return;
   }
+  case Kind::ElasticCoordinate: {
+    out[0] = q(oa + 7 + coordinate);
+    if (!J) return;
+    Row g = Row::Zero(A.size());
+    g(7 + coordinate) = 1;
+    J->add_row(row, A.ref, g);
+    return;
+  }
   }
 }
 
@@ -299,6 +307,8 @@ void Equation::add_hessian(const Vector &q, double t, const double *lambda, Sink
   }
   case Kind::Normalize:
     H.add_block(A.ref, A.ref, 3, 3, lambda[0] * Mat4::Identity());
+    return;
+  case Kind::ElasticCoordinate: // linear in q
     return;
   }
 }

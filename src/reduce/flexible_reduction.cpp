@@ -146,6 +146,7 @@ void reduce_flexible_body(const mesh::DistributedMesh &mesh, const fem::Isotropi
   // needs to span (its noise is a change of coordinates), K_r must be accurate.
   out.K = fem::project_stiffness(mesh, material, s, out.basis);
   out.M = Y.transpose() * cb.M * Y;
+  out.craig_bampton = Y.transpose() * cb.M;
   out.eigenvalues = out.K.diagonal();
   out.invariants = ffrf_invariants(mesh, M, out.basis, out.origin);
   out.translation.resize(interfaces.size());

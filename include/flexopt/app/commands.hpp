@@ -1,13 +1,15 @@
 #pragma once
-/// \file The flexopt commands (info, simulate, modes) behind the command line.
+/// \file The flexopt commands (info, simulate, modes, optimize, check-gradient, plan) behind the
+/// command line.
 #include "flexopt/core/context.hpp"
+#include "flexopt/io/json.hpp"
 
 #include <string>
 
 namespace flexopt::app {
 
 struct Options {
-  std::string command; ///< info | simulate | modes
+  std::string command; ///< info | simulate | modes | optimize | check-gradient | plan
   std::string case_dir;
   std::string out;        ///< output directory; empty: <case>/out
   int count = 10;         ///< modes: number of modes
@@ -18,6 +20,10 @@ struct Options {
   double fd_step = 0;     ///< check-gradient: finite-difference step h (0: the problem's)
   std::string design;     ///< simulate (dynamic): the design of this restart.h5
   bool gradient = false;  ///< simulate (dynamic): also the adjoint gradients
+  bool all_auto = false;  ///< plan: estimate every body as if its model were auto (--auto)
+  /// The plan that resolved the case's `model: auto` bodies (set by run(); null: none), for
+  /// summary.json.
+  io::Json plan;
 };
 
 /// Runs one command. Collective. Returns the process exit status; throws flexopt::Error.

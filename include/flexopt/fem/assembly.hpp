@@ -79,6 +79,10 @@ std::vector<double> element_von_mises(const mesh::DistributedMesh &mesh,
                                       const IsotropicMaterial &material,
                                       const std::vector<double> &modulus_factor, Vec u_ghosted);
 
+/// The small rotation |(1/2) curl u| [rad] at the centroid of each local element from a ghosted
+/// displacement vector whose ghost values are up to date.
+std::vector<double> element_rotations(const mesh::DistributedMesh &mesh, Vec u_ghosted);
+
 /// The co-rotated elements (fem::corotated_element) of the local elements, in local order, with
 /// E scaled by modulus_factor[e] (empty: 1). Throws like element_stiffness (abort_local with the
 /// element named: only this rank holds it).

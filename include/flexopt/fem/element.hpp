@@ -132,6 +132,12 @@ double element_volume(ElementType type, const ElementCoords &X);
 /// elements.
 ElementVector element_body_force(ElementType type, const ElementCoords &X,
                                  const Eigen::Vector3d &b);
+/// Displacement gradient H(i, j) = du_i/dx_j at reference point xi for the element displacement
+/// vector u_e (node-major, 3n entries). Throws flexopt::Error naming `who` if det J <= 0 at xi
+/// or u_e has the wrong size.
+Eigen::Matrix3d displacement_gradient(ElementType type, const ElementCoords &X,
+                                      const ElementVector &u_e, const Eigen::Vector3d &xi,
+                                      const char *who = "displacement_gradient");
 /// Stress (Voigt) [Pa] at reference point xi for the element displacement vector u_e [m]
 /// (node-major, 3n entries): sigma = modulus_factor * D * B(xi) u_e. Throws if det J <= 0 at xi.
 Voigt element_stress(ElementType type, const ElementCoords &X, const IsotropicMaterial &mat,

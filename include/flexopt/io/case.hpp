@@ -76,7 +76,7 @@ struct ReductionSpec {
 /// (model_settings(), unused_settings()), so that switching a body's model is one word.
 struct BodySpec {
   std::string name;
-  std::string model = "auto"; ///< rigid | ffrf | acf | auto (dynamic: auto = rigid for now)
+  std::string model = "auto"; ///< rigid | ffrf | acf | auto (dynamic: the plan's choice)
   std::string geometry;       ///< path, resolved against the case directory
   std::string geometry_key;   ///< as written in case.yaml
   MeshSpec mesh;
@@ -105,7 +105,8 @@ struct ModelSetting {
 const std::vector<ModelSetting> &model_settings();
 
 /// The formulation that simulates a body of `model` in a dynamic analysis: the model itself,
-/// or for `auto` the one chosen for it (this version: rigid).
+/// or for `auto` rigid — the commands that integrate resolve `auto` by the plan first
+/// (plan::apply_plan, docs/theory.md section 12); only `info` sees an unresolved auto.
 std::string simulated_model(const std::string &model);
 
 /// The keys of model_settings() that a body of `model` uses (`auto`: those of
@@ -297,6 +298,9 @@ struct Case {
   std::vector<ResponseSpec> constraints;   ///< topology optimization: each <= max
   OptimizerSpec optimizer;
   AdjointSpec adjoint; ///< dynamic optimization: checkpointing of the backward sweep
+  /// `accuracy`: the relative error of the sensors the user accepts; `model: auto` and
+  /// `flexopt plan` choose each body's model for it (docs/theory.md section 12).
+  double accuracy = 1e-2;
 
   const MaterialSpec &material(const std::string &name) const;
   const BodySpec &body(const std::string &name) const;

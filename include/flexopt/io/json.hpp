@@ -42,6 +42,7 @@ public:
   /// Appends to an array (turns a null into an array).
   void push_back(Json v);
 
+  bool is_null() const { return std::holds_alternative<std::nullptr_t>(value_); }
   /// Serialises with two-space indentation; numbers with 17 significant digits.
   std::string dump(int indent = 0) const;
 

@@ -86,7 +86,9 @@ struct Equation {
     PointOnPlane,     ///< u_a . (x_b(s_b) - x_a(s_a)) - c = 0              (1 row)
     Normalize,        ///< (p_a . p_a - 1) / 2 = 0                          (1 row)
     RotationDriver,   ///< u_a(t) . v_b - c = 0, u_a(t) = sin f(t) u1 - cos f(t) u2 (1 row)
-    TranslationDriver ///< u_a . (x_b - x_a) - c - f(t) = 0                (1 row)
+    TranslationDriver, ///< u_a . (x_b - x_a) - c - f(t) = 0               (1 row)
+    ElasticCoordinate  ///< zeta_a[coordinate] = 0: holds one elastic coordinate of body a
+                       ///< (the plan's rigid pre-run, docs/theory.md section 12.1)  (1 row)
   };
   Kind kind = Kind::Coincide;
   int a = -1, b = -1;            ///< bodies (-1: ground)
@@ -101,6 +103,7 @@ struct Equation {
   /// Elastic coordinates of bodies a and b (Mechanism::finalize() sets them).
   int na = 0, nb = 0;
   double c = 0;
+  int coordinate = 0; ///< ElasticCoordinate: which of body a's elastic coordinates
   std::shared_ptr<const Expression> driver; ///< f(t) for drivers
   std::string owner;                        ///< joint / driver / body name, for messages
   int row_in_owner = 0;                     ///< index of the first row within its owner

@@ -41,6 +41,10 @@ struct FlexibleReduction {
   std::vector<Vec> basis;
   Eigen::VectorXd eigenvalues; ///< w^2 of the reduced model (frame held), ascending
   Eigen::MatrixXd K, M;        ///< Psi^T K Psi, Psi^T M Psi (replicated)
+  /// The Craig-Bampton vectors in the basis: V = Psi C, C = Y^-1 = Y^T M_cb (n x n; columns:
+  /// the static modes, then the fixed-interface modes by frequency). The model with the
+  /// static modes and the first j fixed-interface modes spans Psi C(:, 0 : static + j).
+  Eigen::MatrixXd craig_bampton;
   FfrfInvariants invariants;   ///< about `origin`
   Eigen::Vector3d origin = Eigen::Vector3d::Zero(); ///< frame origin: centroid of interface 0
   std::vector<Eigen::Vector3d> centroids;           ///< per interface (mesh coordinates)

@@ -1,0 +1,33 @@
+#pragma once
+/// \file Kineto-elastodynamics (KED): the linear elastic response of a body's reduced model to
+/// the forcing of its rigid motion, one-way coupled (docs/theory.md section 12.1). Small dense
+/// algebra (Eigen), the same on every rank.
+#include <Eigen/Dense>
+
+namespace flexopt::plan {
+
+/// The responses x_k of x_k'' + w2_k x_k = f_k(t), x(0) = x'(0) = 0, for forcing f linear
+/// between the samples t_n = n h (row n of F is f(t_n)); exact (Duhamel's integral of each
+/// mode). Returns the (rows of F) x (modes) displacements. w2_k > 0.
+Eigen::MatrixXd modal_response(const Eigen::VectorXd &w2, const Eigen::MatrixXd &F, double h);
+
+/// A reduced model of a body: the M-orthonormal modes E (coordinates in the full basis, one
+/// column per mode) and their squared frequencies w2 (ascending).
+struct ModalModel {
+  Eigen::MatrixXd E;
+  Eigen::VectorXd w2;
+};
+
+/// The model spanned by the first `columns` columns of B (coordinates in a basis where the
+/// stiffness is K and the mass M): the eigenpairs of (B^T K B, B^T M B), the modes mapped back
+/// to the full basis. With B = I it is the full model. Throws flexopt::Error if the projected
+/// mass is singular.
+ModalModel modal_model(const Eigen::MatrixXd &K, const Eigen::MatrixXd &M,
+                       const Eigen::MatrixXd &B, int columns);
+
+/// The KED response of `model` to the forcing Q (rows: samples at t_n = n h; columns: the full
+/// basis' generalized forces): the full-basis coordinates zeta(t_n) = E x(t_n), one row per
+/// sample.
+Eigen::MatrixXd ked_response(const ModalModel &model, const Eigen::MatrixXd &Q, double h);
+
+} // namespace flexopt::plan

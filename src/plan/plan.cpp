@@ -1,0 +1,562 @@
+#include "flexopt/plan/plan.hpp"
+
+#include "flexopt/bodies/quaternion.hpp"
+#include "flexopt/core/context.hpp"
+#include "flexopt/core/error.hpp"
+#include "flexopt/dynamics/generalized_alpha.hpp"
+#include "flexopt/dynamics/scene.hpp"
+#include "flexopt/fem/assembly.hpp"
+#include "flexopt/plan/ked.hpp"
+#include "flexopt/reduce/flexible_reduction.hpp"
+
+#include <algorithm>
+#include <cstdarg>
+#include <cmath>
+#include <cstdio>
+#include <unsupported/Eigen/FFT>
+
+namespace flexopt::plan {
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+/// ACF cost model (docs/theory.md section 12.4): rank-seconds per DOF and Newton iteration, and
+/// Newton iterations per step, from the ACF runs of docs/benchmarks.md ("FFRF against ACF").
+constexpr double kAcfSecondsPerDofIteration = 1.9e-6;
+constexpr double kAcfIterationsPerStep = 4.2;
+/// The most steps of the rigid pre-run (section 12.1).
+constexpr long long kPrerunSteps = 2000;
+
+std::string fmt(const char *format, ...) __attribute__((format(printf, 1, 2)));
+std::string fmt(const char *format, ...) {
+  char buf[512];
+  va_list ap;
+  va_start(ap, format);
+  std::vsnprintf(buf, sizeof buf, format, ap);
+  va_end(ap);
+  return buf;
+}
+
+/// A place where a body's elastic deflection is measured (section 12.2): a 3 x n map from the
+/// elastic coordinates and the scale its error is relative to.
+struct Measure {
+  std::string name;
+  Eigen::Matrix3Xd S;
+  double scale = 0;
+  bool elastic_sensor = false; ///< an elastic_displacement sensor: a rigid model misses all of it
+};
+
+/// One estimated body during the pre-run.
+struct Candidate {
+  std::size_t body = 0; ///< case body
+  int mech = -1;        ///< mechanism body
+  int n = 0;            ///< elastic coordinates of the plan's reduction
+  std::vector<int> lambda; ///< the hold rows' entries in lambda
+  Eigen::MatrixXd Q;    ///< (steps + 1) x n: the hold rows' multipliers
+  double spin = 0;
+};
+
+double body_extent(const mesh::DistributedMesh &m) {
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e300), hi = Eigen::Vector3d::Constant(-1e300);
+  for (PetscInt i = 0; i < m.owned_nodes; ++i)
+    for (int k = 0; k < 3; ++k) {
+      lo(k) = std::min(lo(k), m.coordinates[static_cast<std::size_t>(3 * i + k)]);
+      hi(k) = std::max(hi(k), m.coordinates[static_cast<std::size_t>(3 * i + k)]);
+    }
+  MPI_Allreduce(MPI_IN_PLACE, lo.data(), 3, MPI_DOUBLE, MPI_MIN, m.comm);
+  MPI_Allreduce(MPI_IN_PLACE, hi.data(), 3, MPI_DOUBLE, MPI_MAX, m.comm);
+  return (hi - lo).maxCoeff();
+}
+
+/// The frequency [Hz] below which all but a fraction `tail` of the energy of the columns of Y
+/// (samples every h) lies: one-sided spectra of the mean-free columns plus the mean at f = 0.
+double energy_frequency(const Eigen::MatrixXd &Y, double h, double tail) {
+  const Eigen::Index N = Y.rows();
+  if (N < 4) return 0;
+  Eigen::FFT<double> fft;
+  std::vector<double> energy(static_cast<std::size_t>(N / 2 + 1), 0.0);
+  std::vector<double> column(static_cast<std::size_t>(N));
+  std::vector<std::complex<double>> spectrum;
+  for (Eigen::Index k = 0; k < Y.cols(); ++k) {
+    for (Eigen::Index i = 0; i < N; ++i) column[static_cast<std::size_t>(i)] = Y(i, k);
+    fft.fwd(spectrum, column);
+    for (std::size_t f = 0; f < energy.size(); ++f)
+      energy[f] += std::norm(spectrum[f]) * (f == 0 || 2 * f == static_cast<std::size_t>(N) ? 1 : 2);
+  }
+  double total = 0;
+  for (double e : energy) total += e;
+  if (!(total > 0)) return 0;
+  double below = 0;
+  for (std::size_t f = 0; f < energy.size(); ++f) {
+    below += energy[f];
+    if (below >= (1 - tail) * total) return static_cast<double>(f) / (static_cast<double>(N) * h);
+  }
+  return 0.5 / h;
+}
+
+/// max over the samples (rows of Z) of |S z|.
+double max_norm(const Eigen::Matrix3Xd &S, const Eigen::MatrixXd &Z) {
+  return (Z * S.transpose()).rowwise().norm().maxCoeff();
+}
+
+} // namespace
+
+Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
+  const double t_plan = wall_time();
+  if (c.analysis != "dynamic")
+    throw Error(c.file + ": plan: models are chosen for dynamic analyses (this case is " +
+                    c.analysis + ")",
+                true);
+  Plan plan;
+  plan.accuracy = c.accuracy;
+  const double eps = c.accuracy;
+
+  // The pre-run's case: every body that is not rigid by the user's choice is an FFRF body with
+  // the plan's reduction and no initial elastic state; no design.
+  io::Case pre = c;
+  pre.design.reset();
+  pre.objective.reset();
+  pre.constraints.clear();
+  std::vector<std::size_t> estimated;
+  for (std::size_t b = 0; b < pre.bodies.size(); ++b) {
+    io::BodySpec &body = pre.bodies[b];
+    BodyPlan bp;
+    bp.body = body.name;
+    bp.given = c.bodies[b].model;
+    bp.model = bp.given;
+    if (body.model == "rigid" || body.interfaces.empty()) {
+      bp.recommended = "rigid";
+      if (body.model != "rigid") {
+        bp.model = bp.given == "auto" ? "rigid" : bp.given;
+        bp.reasons.push_back("no interfaces: a flexible model needs one as its frame; estimated "
+                             "as rigid");
+      }
+      body.model = "rigid";
+      plan.bodies.push_back(bp);
+      continue;
+    }
+    const int interfaces = static_cast<int>(body.interfaces.size());
+    body.model = "ffrf";
+    body.reduction.modes = std::min(o.max_modes, bodies::kMaxBodyCoordinates - 7 - 6 * (interfaces - 1));
+    body.reduction.geometric_stiffening = false;
+    body.initial.elastic_displacement = {};
+    body.initial.elastic_velocity = {};
+    body.rayleigh = {0, 0};
+    bp.estimated = true;
+    estimated.push_back(b);
+    plan.bodies.push_back(bp);
+  }
+  if (estimated.empty()) {
+    plan.seconds = wall_time() - t_plan;
+    return plan;
+  }
+  if (o.report)
+    print0(comm, "plan: the rigid pre-run: every body that is not rigid reduced with up to %d "
+                 "fixed-interface modes and held rigid\n",
+           o.max_modes);
+  dynamics::Scene scene = dynamics::build_scene(comm, pre);
+
+  // Hold every elastic coordinate of the estimated bodies at zero: rows right after the
+  // Euler-parameter normalizations, so that the joint rows they make redundant are dropped.
+  dynamics::Mechanism &mech = scene.mechanism;
+  std::vector<Candidate> cand;
+  std::vector<joints::Equation> holds;
+  for (std::size_t b : estimated) {
+    Candidate cd;
+    cd.body = b;
+    cd.mech = scene.bodies[b].mechanism;
+    cd.n = mech.size(cd.mech) - 7;
+    for (int k = 0; k < cd.n; ++k) {
+      joints::Equation e;
+      e.kind = joints::Equation::Kind::ElasticCoordinate;
+      e.a = cd.mech;
+      e.coordinate = k;
+      e.owner = c.bodies[b].name + " (held rigid)";
+      e.row_in_owner = k;
+      holds.push_back(e);
+    }
+    cand.push_back(std::move(cd));
+  }
+  std::size_t first_joint = 0;
+  while (first_joint < mech.equations.size() &&
+         mech.equations[first_joint].kind == joints::Equation::Kind::Normalize)
+    ++first_joint;
+  mech.equations.insert(mech.equations.begin() + static_cast<std::ptrdiff_t>(first_joint),
+                        holds.begin(), holds.end());
+  mech.finalize();
+  mech.drop_redundant_rows(scene.q0, 0.0);
+  {
+    std::size_t e = first_joint;
+    for (Candidate &cd : cand)
+      for (int k = 0; k < cd.n; ++k, ++e) {
+        const int row = mech.enforced_index(mech.first_row(static_cast<int>(e)));
+        if (row < 0)
+          throw Error("plan: body " + c.bodies[cd.body].name +
+                          ": a hold row was found redundant (an internal error)",
+                      true);
+        cd.lambda.push_back(row);
+      }
+  }
+
+  // Sensors: the scale of each position or displacement sensor is its largest displacement
+  // over the pre-run.
+  std::vector<dynamics::BoundSensor> track;
+  std::vector<std::size_t> track_of;
+  for (std::size_t i = 0; i < scene.sensors.size(); ++i) {
+    const dynamics::BoundSensor &s = scene.sensors[i];
+    if (s.quantity == "position" || s.quantity == "displacement") {
+      dynamics::BoundSensor p = s;
+      p.quantity = "position";
+      track.push_back(p);
+      track_of.push_back(i);
+    }
+  }
+  std::vector<bodies::Vec3> start(track.size());
+  std::vector<double> scale(track.size(), 0.0);
+
+  // The pre-run's grid: the case's, or at most kPrerunSteps steps over the same time (a rigid
+  // motion needs no more; the KED integration is exact for the sampled forcing, and the
+  // index-3 multipliers carry less round-off at larger steps, section 6.4).
+  const long long case_steps = std::max(1LL, std::llround(c.time.end / c.time.step));
+  const long long steps = std::min(case_steps, kPrerunSteps);
+  const double h = c.time.end / static_cast<double>(steps);
+  plan.steps = steps;
+  for (Candidate &cd : cand) cd.Q.resize(steps + 1, cd.n);
+  // rho_inf at most 0.5: the multipliers' start-up oscillation of the index-3 scheme decays as
+  // rho_inf^n (section 6.4), and the forcing is the multipliers; the rigid motion is second-order
+  // accurate for any rho_inf.
+  const auto par = dynamics::AlphaParameters::from_rho_inf(std::min(c.time.rho_inf, 0.5));
+  dynamics::NewtonSettings newton;
+  newton.reuse_contraction = c.time.newton_reuse;
+  const dynamics::GeneralizedAlpha ga(mech, par, newton);
+  const double t0 = wall_time();
+  dynamics::State state = ga.initial_state(scene.q0, scene.v0, 0.0), next;
+  auto record = [&](long long n) {
+    for (Candidate &cd : cand) {
+      for (int k = 0; k < cd.n; ++k)
+        cd.Q(n, k) = state.lambda(cd.lambda[static_cast<std::size_t>(k)]);
+      const int off = mech.offset(cd.mech);
+      const bodies::Vec4 p = state.q.segment<4>(off + 3), pd = state.v.segment<4>(off + 3);
+      cd.spin = std::max(cd.spin, (2.0 * bodies::gbar_matrix(p) * pd).norm());
+    }
+    for (std::size_t i = 0; i < track.size(); ++i) {
+      const bodies::Vec3 x = dynamics::sensor_value(scene, track[i], state.q);
+      if (n == 0) start[i] = x;
+      scale[i] = std::max(scale[i], (x - start[i]).norm());
+    }
+  };
+  record(0);
+  for (long long n = 0; n < steps; ++n) {
+    dynamics::StepInfo info;
+    const double t1 = static_cast<double>(n + 1) * h;
+    if (!ga.advance(state, h, next, info))
+      throw Error("plan: the rigid pre-run: " +
+                      dynamics::newton_failure_message(n + 1, state.t, t1, info,
+                                                       newton.max_halvings),
+                  true);
+    next.t = t1;
+    state = next;
+    record(n + 1);
+  }
+  plan.prerun_s = wall_time() - t0;
+  if (o.report)
+    print0(comm, "plan: pre-run: %lld steps of %g s in %.2f s\n", steps, h, plan.prerun_s);
+
+  // The smallest position scale among the scene's sensors (the propagation of a body's
+  // interface motion to the other bodies' sensors).
+  int size = 1;
+  MPI_Comm_size(comm, &size);
+  for (Candidate &cd : cand) {
+    BodyPlan &bp = plan.bodies[cd.body];
+    Estimates &est = bp.est;
+    const dynamics::SceneBody &sb = scene.bodies[cd.body];
+    const reduce::FlexibleReduction &red = *sb.reduction;
+    const mesh::DistributedMesh &mesh = scene.meshes[cd.body];
+    est.dofs = static_cast<int>(3 * mesh.global_nodes);
+    est.length = body_extent(mesh);
+    est.reduction_s = scene.reduction_seconds[cd.body];
+    est.spin = cd.spin;
+    const double w1 = std::sqrt(red.eigenvalues(0));
+    est.f1 = w1 / (2 * kPi);
+
+    // The KED response of the full plan model and of the sub-models.
+    const ModalModel full = modal_model(red.K, red.M, Eigen::MatrixXd::Identity(cd.n, cd.n), cd.n);
+    const Eigen::MatrixXd Z = ked_response(full, cd.Q, h);
+    // Excitation: the spectrum of the quasi-static modal response Q_k / w_k^2.
+    {
+      const Eigen::MatrixXd Y = (cd.Q * full.E) * full.w2.cwiseInverse().asDiagonal();
+      est.f_excitation = energy_frequency(Y, h, eps * eps);
+    }
+
+    // Where the deflection is measured.
+    double other_scale = 0;
+    bool other_sensors = false;
+    for (std::size_t i = 0; i < track.size(); ++i)
+      if (scene.sensors[track_of[i]].body != cd.mech && scale[i] > 0) {
+        other_scale = other_sensors ? std::min(other_scale, scale[i]) : scale[i];
+        other_sensors = true;
+      }
+    std::vector<Measure> measures;
+    for (std::size_t i = 0; i < scene.sensors.size(); ++i) {
+      const dynamics::BoundSensor &s = scene.sensors[i];
+      if (s.body != cd.mech || s.S.cols() != cd.n) continue;
+      Measure m;
+      m.name = "sensor " + s.name;
+      m.S = s.S;
+      if (s.quantity == "elastic_displacement") {
+        m.elastic_sensor = true;
+        m.scale = max_norm(s.S, Z);
+      } else if (s.quantity == "position" || s.quantity == "displacement") {
+        for (std::size_t j = 0; j < track.size(); ++j)
+          if (track_of[j] == i) m.scale = scale[j];
+      } else {
+        continue;
+      }
+      est.sensor_deflection.emplace_back(s.name, max_norm(s.S, Z));
+      if (m.scale > 0) measures.push_back(m);
+    }
+    // Each interface's elastic displacement relative to the rigid motion of interface 0 (which
+    // turns elastically in a chord frame): T_I + [c_I - c_0]x Theta_0, what the joints pass on.
+    if (other_sensors)
+      for (std::size_t I = 1; I < red.translation.size(); ++I) {
+        const Eigen::Vector3d d = red.centroids[I] - red.centroids[0];
+        const Eigen::Matrix3Xd S = red.translation[I] + bodies::skew(d) * red.rotation[0];
+        if (S.cwiseAbs().maxCoeff() > 0)
+          measures.push_back({"interface " + c.bodies[cd.body].interfaces[I], S, other_scale,
+                              false});
+      }
+
+    // The worst instant: the largest strain energy; the nodes and elements there.
+    Eigen::Index worst = 0;
+    {
+      const Eigen::VectorXd energy = ((Z * red.K).cwiseProduct(Z)).rowwise().sum();
+      energy.maxCoeff(&worst);
+    }
+    const Eigen::VectorXd zeta = Z.row(worst).transpose();
+    {
+      const Eigen::MatrixXd &U = scene.owned_modes[cd.body];
+      double umax = U.rows() ? (U * zeta).reshaped(3, U.rows() / 3).colwise().norm().maxCoeff() : 0;
+      MPI_Allreduce(MPI_IN_PLACE, &umax, 1, MPI_DOUBLE, MPI_MAX, comm);
+      est.deflection = umax;
+      Vec u = fem::create_ghosted_vector(mesh);
+      FX_PETSC(VecZeroEntries(u));
+      std::vector<Vec> basis = red.basis;
+      FX_PETSC(VecMAXPY(u, cd.n, zeta.data(), basis.data()));
+      FX_PETSC(VecGhostUpdateBegin(u, INSERT_VALUES, SCATTER_FORWARD));
+      FX_PETSC(VecGhostUpdateEnd(u, INSERT_VALUES, SCATTER_FORWARD));
+      const std::vector<double> theta = fem::element_rotations(mesh, u);
+      double tmax = theta.empty() ? 0 : *std::max_element(theta.begin(), theta.end());
+      MPI_Allreduce(MPI_IN_PLACE, &tmax, 1, MPI_DOUBLE, MPI_MAX, comm);
+      est.rotation = tmax;
+      FX_PETSC(VecDestroy(&u));
+    }
+    const bool nodes_only = measures.empty();
+
+    // Rigid: the whole KED deflection is the rigid model's error.
+    est.rigid_error = 0;
+    if (!measures.empty()) est.rigid_error_at = measures.front().name;
+    bool elastic_sensor = false;
+    for (const Measure &m : measures) {
+      const double e = m.elastic_sensor ? 1.0 : max_norm(m.S, Z) / m.scale;
+      elastic_sensor = elastic_sensor || m.elastic_sensor;
+      if (e > est.rigid_error) est.rigid_error = e, est.rigid_error_at = m.name;
+    }
+    if (nodes_only) {
+      est.rigid_error = est.deflection / est.length;
+      est.rigid_error_at = "largest nodal deflection / body size";
+    }
+
+    // FFRF with j fixed-interface modes against the plan's model.
+    const int s0 = red.static_modes, fixed = red.fixed_modes;
+    int chosen = -1;
+    for (int j = 0; j <= fixed; ++j) {
+      if (s0 + j == 0) {
+        est.mode_errors.push_back(est.rigid_error);
+        continue;
+      }
+      double e = 0;
+      if (j < fixed) {
+        const ModalModel sub = modal_model(red.K, red.M, red.craig_bampton, s0 + j);
+        const Eigen::MatrixXd D = ked_response(sub, cd.Q, h) - Z;
+        for (const Measure &m : measures) e = std::max(e, max_norm(m.S, D) / m.scale);
+        if (nodes_only) {
+          const Eigen::MatrixXd &U = scene.owned_modes[cd.body];
+          const Eigen::VectorXd d = D.row(worst).transpose();
+          double dmax =
+              U.rows() ? (U * d).reshaped(3, U.rows() / 3).colwise().norm().maxCoeff() : 0;
+          MPI_Allreduce(MPI_IN_PLACE, &dmax, 1, MPI_DOUBLE, MPI_MAX, comm);
+          e = dmax / est.length;
+        }
+      }
+      est.mode_errors.push_back(e);
+      if (chosen < 0 && e <= 0.5 * eps) chosen = j;
+    }
+    if (chosen < 0) chosen = fixed;
+
+    // The rules (section 12.3).
+    const bool flexible_design = c.design && c.design->body == bp.body;
+    const double spin_ratio = w1 > 0 ? est.spin / w1 : 0;
+    bp.modes = chosen;
+    bp.geometric_stiffening = spin_ratio * spin_ratio > eps;
+    if (!elastic_sensor && !flexible_design && est.rigid_error <= eps) {
+      bp.recommended = "rigid";
+      bp.reasons.push_back(fmt("rigid: the elastic deflection changes %s by %.2g of its scale, "
+                               "within the accuracy %g",
+                               est.rigid_error_at.c_str(), est.rigid_error, eps));
+    } else if (est.rotation * est.rotation > eps) {
+      bp.recommended = "acf";
+      bp.reasons.push_back(fmt("acf: the elastic rotation reaches %.3g rad; FFRF's linear strain "
+                               "in a floating frame leaves out terms of order rotation^2 = %.2g "
+                               "> %g",
+                               est.rotation, est.rotation * est.rotation, eps));
+    } else {
+      bp.recommended = "ffrf";
+      if (elastic_sensor)
+        bp.reasons.push_back("flexible: a sensor measures this body's elastic displacement");
+      else if (flexible_design)
+        bp.reasons.push_back("flexible: the design body of the optimization");
+      else
+        bp.reasons.push_back(fmt("flexible: a rigid model misses %.2g of %s's scale (> %g)",
+                                 est.rigid_error, est.rigid_error_at.c_str(), eps));
+      bp.reasons.push_back(fmt("ffrf: elastic rotation %.3g rad (rotation^2 = %.2g <= %g)",
+                               est.rotation, est.rotation * est.rotation, eps));
+      std::string errs;
+      for (std::size_t j = 0; j < est.mode_errors.size() && j <= static_cast<std::size_t>(chosen) + 2;
+           ++j)
+        errs += fmt("%s%zu: %.2g", errs.empty() ? "" : ", ", j, est.mode_errors[j]);
+      bp.reasons.push_back(fmt("modes: %d (relative error against %d modes, KED: %s; <= %g)",
+                               chosen, fixed, errs.c_str(), 0.5 * eps));
+      if (bp.geometric_stiffening)
+        bp.reasons.push_back(fmt("geometric stiffening: spin %.3g rad/s is %.3g times the first "
+                                 "frequency %.4g rad/s; (spin/w1)^2 = %.2g > %g",
+                                 est.spin, spin_ratio, w1, spin_ratio * spin_ratio, eps));
+      else
+        bp.reasons.push_back(fmt("no geometric stiffening: (spin/w1)^2 = %.2g <= %g",
+                                 spin_ratio * spin_ratio, eps));
+    }
+    bp.reasons.push_back(fmt("estimates: first frequency %.4g Hz, excitation below %.3g Hz, spin "
+                             "%.3g rad/s, KED deflection %.3g m, rotation %.3g rad",
+                             est.f1, est.f_excitation, est.spin, est.deflection, est.rotation));
+
+    // What runs, and where a given model disagrees.
+    if (bp.given == "auto") {
+      bp.model = bp.recommended;
+    } else {
+      bp.model = bp.given;
+      const io::ReductionSpec &r = c.bodies[cd.body].reduction;
+      if (bp.given == "ffrf" && !r.geometric_stiffening && spin_ratio >= 1)
+        bp.warnings.push_back(fmt("linear FFRF will diverge at this spin rate: %.3g rad/s is "
+                                  "%.3g times the first frequency %.4g rad/s (give reduction: "
+                                  "{geometric_stiffening: true})",
+                                  est.spin, spin_ratio, w1));
+      else if (bp.given == "ffrf" && !r.geometric_stiffening && bp.geometric_stiffening)
+        bp.warnings.push_back(fmt("the spin changes the first frequency by about (spin/w1)^2 = "
+                                  "%.2g > %g; reduction: {geometric_stiffening: true} takes it in",
+                                  spin_ratio * spin_ratio, eps));
+      if (bp.given == "ffrf" && bp.recommended == "acf")
+        bp.warnings.push_back(fmt("FFRF's small-deformation assumption: the elastic rotation "
+                                  "reaches %.3g rad (rotation^2 = %.2g > %g); model: acf",
+                                  est.rotation, est.rotation * est.rotation, eps));
+      if (bp.given == "ffrf" && bp.recommended == "ffrf" && r.modes < chosen)
+        bp.warnings.push_back(fmt("%d modes leave %.2g of the sensors' scale (the estimates "
+                                  "need %d for %g)",
+                                  r.modes,
+                                  est.mode_errors[static_cast<std::size_t>(std::min(r.modes, fixed))],
+                                  chosen, eps));
+      if (bp.given == "rigid" && bp.recommended != "rigid")
+        bp.warnings.push_back(fmt("a rigid model misses %.2g of %s's scale (> %g)",
+                                  est.rigid_error, est.rigid_error_at.c_str(), eps));
+      if (bp.given == "acf" && bp.recommended != "acf")
+        bp.warnings.push_back("the estimates find " + bp.recommended +
+                              " enough for the accuracy, at a fraction of ACF's cost");
+    }
+    // Predicted cost of the body in the run.
+    if (bp.model == "ffrf")
+      bp.predicted_cost_s = est.reduction_s + plan.prerun_s * static_cast<double>(case_steps) /
+                                                   static_cast<double>(steps);
+    else if (bp.model == "acf")
+      bp.predicted_cost_s = static_cast<double>(case_steps) * kAcfIterationsPerStep * est.dofs *
+                            kAcfSecondsPerDofIteration / size;
+    else
+      bp.predicted_cost_s = 0;
+  }
+  plan.seconds = wall_time() - t_plan;
+  return plan;
+}
+
+void print_plan(MPI_Comm comm, const Plan &plan) {
+  print0(comm, "plan: accuracy %g (relative error of the sensors)\n", plan.accuracy);
+  for (const BodyPlan &bp : plan.bodies) {
+    std::string what = bp.model;
+    if (bp.model == "ffrf")
+      what += fmt(", %d modes%s", bp.modes, bp.geometric_stiffening ? ", geometric stiffening" : "");
+    if (bp.given != "auto") what += " (given)";
+    print0(comm, "plan: body %s (%s): %s; predicted cost %.3g s\n", bp.body.c_str(),
+           bp.given.c_str(), what.c_str(), bp.predicted_cost_s);
+    if (bp.given != "auto" && bp.estimated && bp.recommended != bp.model)
+      print0(comm, "      the estimates recommend %s\n", bp.recommended.c_str());
+    for (const std::string &r : bp.reasons) print0(comm, "      %s\n", r.c_str());
+    for (const std::string &w : bp.warnings) print0(comm, "      warning: %s\n", w.c_str());
+  }
+}
+
+io::Json plan_json(const Plan &plan) {
+  io::Json a = io::Json::array();
+  for (const BodyPlan &bp : plan.bodies) {
+    io::Json j = io::Json::object();
+    j["body"] = bp.body;
+    j["model"] = bp.model;
+    j["given"] = bp.given;
+    j["recommended"] = bp.recommended;
+    j["modes"] = bp.modes;
+    j["geometric_stiffening"] = bp.geometric_stiffening;
+    io::Json r = io::Json::array();
+    for (const auto &s : bp.reasons) r.push_back(s);
+    j["reasons"] = r;
+    io::Json w = io::Json::array();
+    for (const auto &s : bp.warnings) w.push_back(s);
+    j["warnings"] = w;
+    j["predicted_cost_s"] = bp.predicted_cost_s;
+    if (bp.estimated) {
+      io::Json e = io::Json::object();
+      e["dofs"] = bp.est.dofs;
+      e["length_m"] = bp.est.length;
+      e["first_frequency_hz"] = bp.est.f1;
+      e["spin_rad_s"] = bp.est.spin;
+      e["excitation_hz"] = bp.est.f_excitation;
+      e["deflection_m"] = bp.est.deflection;
+      e["rotation_rad"] = bp.est.rotation;
+      e["rigid_error"] = bp.est.rigid_error;
+      e["rigid_error_at"] = bp.est.rigid_error_at;
+      e["mode_errors"] = io::Json(bp.est.mode_errors);
+      e["reduction_s"] = bp.est.reduction_s;
+      io::Json sd = io::Json::object();
+      for (const auto &[name, value] : bp.est.sensor_deflection) sd[name] = value;
+      e["sensor_deflection_m"] = sd;
+      j["estimates"] = e;
+    }
+    a.push_back(j);
+  }
+  return a;
+}
+
+io::Case apply_plan(const io::Case &c, const Plan &plan) {
+  io::Case out = c;
+  for (std::size_t b = 0; b < out.bodies.size(); ++b) {
+    io::BodySpec &body = out.bodies[b];
+    if (body.model != "auto") continue;
+    const BodyPlan &bp = plan.bodies.at(b);
+    body.model = bp.model;
+    if (bp.model == "ffrf") {
+      body.reduction.modes = bp.modes;
+      body.reduction.geometric_stiffening = bp.geometric_stiffening;
+      // The chord frame does not take geometric stiffening (case-format "reduction").
+      if (!body.reduction.frame_given)
+        body.reduction.frame =
+            body.interfaces.size() >= 2 && !bp.geometric_stiffening ? "chord" : "clamped";
+    }
+  }
+  return out;
+}
+
+} // namespace flexopt::plan
