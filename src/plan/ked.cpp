@@ -6,7 +6,8 @@
 
 namespace flexopt::plan {
 
-Eigen::MatrixXd modal_response(const Eigen::VectorXd &w2, const Eigen::MatrixXd &F, double h) {
+Eigen::MatrixXd modal_response(const Eigen::VectorXd &w2, const Eigen::MatrixXd &F, double h,
+                               Start start) {
   const Eigen::Index steps = F.rows(), n = F.cols();
   Eigen::MatrixXd X = Eigen::MatrixXd::Zero(steps, n);
   for (Eigen::Index k = 0; k < n; ++k) {
@@ -16,6 +17,11 @@ Eigen::MatrixXd modal_response(const Eigen::VectorXd &w2, const Eigen::MatrixXd 
     // c = cos(w tau), s = sin(w tau).
     const double w = std::sqrt(w2(k)), c = std::cos(w * h), s = std::sin(w * h);
     double x = 0, v = 0;
+    if (start == Start::QuasiStatic) {
+      x = F(0, k) / w2(k);
+      v = steps > 1 ? (F(1, k) - F(0, k)) / (h * w2(k)) : 0.0;
+      X(0, k) = x;
+    }
     for (Eigen::Index i = 0; i + 1 < steps; ++i) {
       const double f0 = F(i, k), df = F(i + 1, k) - f0;
       const double xn = x * c + v * s / w + f0 * (1 - c) / w2(k) + df * (h - s / w) / (w2(k) * h);
@@ -39,9 +45,10 @@ ModalModel modal_model(const Eigen::MatrixXd &K, const Eigen::MatrixXd &M,
 }
 
 Eigen::MatrixXd ked_response(const ModalModel &model, const Eigen::MatrixXd &Q, double h) {
-  // Modal forcing E^T Q(t), responses x(t), back to the full basis: zeta = E x.
+  // Modal forcing E^T Q(t), responses x(t) from the quasi-static start, back to the full
+  // basis: zeta = E x.
   const Eigen::MatrixXd F = Q * model.E;
-  return modal_response(model.w2, F, h) * model.E.transpose();
+  return modal_response(model.w2, F, h, Start::QuasiStatic) * model.E.transpose();
 }
 
 } // namespace flexopt::plan

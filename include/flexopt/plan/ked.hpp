@@ -6,10 +6,15 @@
 
 namespace flexopt::plan {
 
-/// The responses x_k of x_k'' + w2_k x_k = f_k(t), x(0) = x'(0) = 0, for forcing f linear
-/// between the samples t_n = n h (row n of F is f(t_n)); exact (Duhamel's integral of each
-/// mode). Returns the (rows of F) x (modes) displacements. w2_k > 0.
-Eigen::MatrixXd modal_response(const Eigen::VectorXd &w2, const Eigen::MatrixXd &F, double h);
+/// How the modal responses start: at rest (x = x' = 0), or in the quasi-static state of the
+/// first forcing sample, x(0) = f(0) / w^2, x'(0) = (f(h) - f(0)) / (h w^2).
+enum class Start { Rest, QuasiStatic };
+
+/// The responses x_k of x_k'' + w2_k x_k = f_k(t) from `start`, for forcing f linear between
+/// the samples t_n = n h (row n of F is f(t_n)); exact (Duhamel's integral of each mode).
+/// Returns the (rows of F) x (modes) displacements. w2_k > 0.
+Eigen::MatrixXd modal_response(const Eigen::VectorXd &w2, const Eigen::MatrixXd &F, double h,
+                               Start start = Start::Rest);
 
 /// A reduced model of a body: the M-orthonormal modes E (coordinates in the full basis, one
 /// column per mode) and their squared frequencies w2 (ascending).
@@ -26,8 +31,8 @@ ModalModel modal_model(const Eigen::MatrixXd &K, const Eigen::MatrixXd &M,
                        const Eigen::MatrixXd &B, int columns);
 
 /// The KED response of `model` to the forcing Q (rows: samples at t_n = n h; columns: the full
-/// basis' generalized forces): the full-basis coordinates zeta(t_n) = E x(t_n), one row per
-/// sample.
+/// basis' generalized forces), started quasi-statically (docs/theory.md section 12.1): the
+/// full-basis coordinates zeta(t_n) = E x(t_n), one row per sample.
 Eigen::MatrixXd ked_response(const ModalModel &model, const Eigen::MatrixXd &Q, double h);
 
 } // namespace flexopt::plan
