@@ -10,8 +10,8 @@
 #include "flexopt/reduce/flexible_reduction.hpp"
 
 #include <algorithm>
-#include <cstdarg>
 #include <cmath>
+#include <cstdarg>
 #include <cstdio>
 #include <unsupported/Eigen/FFT>
 
@@ -43,16 +43,17 @@ struct Measure {
   std::string name;
   Eigen::Matrix3Xd S;
   double scale = 0;
+  double deflection = 0;       ///< max over time of |S zeta| (the full model's KED)
   bool elastic_sensor = false; ///< an elastic_displacement sensor: a rigid model misses all of it
 };
 
 /// One estimated body during the pre-run.
 struct Candidate {
-  std::size_t body = 0; ///< case body
-  int mech = -1;        ///< mechanism body
-  int n = 0;            ///< elastic coordinates of the plan's reduction
+  std::size_t body = 0;    ///< case body
+  int mech = -1;           ///< mechanism body
+  int n = 0;               ///< elastic coordinates of the plan's reduction
   std::vector<int> lambda; ///< the hold rows' entries in lambda
-  Eigen::MatrixXd Q;    ///< (steps + 1) x n: the hold rows' multipliers
+  Eigen::MatrixXd Q;       ///< (steps + 1) x n: the hold rows' multipliers
   double spin = 0;
 };
 
@@ -81,7 +82,8 @@ double energy_frequency(const Eigen::MatrixXd &Y, double h, double tail) {
     for (Eigen::Index i = 0; i < N; ++i) column[static_cast<std::size_t>(i)] = Y(i, k);
     fft.fwd(spectrum, column);
     for (std::size_t f = 0; f < energy.size(); ++f)
-      energy[f] += std::norm(spectrum[f]) * (f == 0 || 2 * f == static_cast<std::size_t>(N) ? 1 : 2);
+      energy[f] +=
+          std::norm(spectrum[f]) * (f == 0 || 2 * f == static_cast<std::size_t>(N) ? 1 : 2);
   }
   double total = 0;
   for (double e : energy) total += e;
@@ -97,6 +99,13 @@ double energy_frequency(const Eigen::MatrixXd &Y, double h, double tail) {
 /// max over the samples (rows of Z) of |S z|.
 double max_norm(const Eigen::Matrix3Xd &S, const Eigen::MatrixXd &Z) {
   return (Z * S.transpose()).rowwise().norm().maxCoeff();
+}
+
+/// The largest nodal |U z| over all ranks (U: the basis at the owned nodes, node-major).
+double max_nodal_norm(const Eigen::MatrixXd &U, const Eigen::VectorXd &z, MPI_Comm comm) {
+  double m = U.rows() ? (U * z).reshaped(3, U.rows() / 3).colwise().norm().maxCoeff() : 0;
+  MPI_Allreduce(MPI_IN_PLACE, &m, 1, MPI_DOUBLE, MPI_MAX, comm);
+  return m;
 }
 
 } // namespace
@@ -137,7 +146,8 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
     }
     const int interfaces = static_cast<int>(body.interfaces.size());
     body.model = "ffrf";
-    body.reduction.modes = std::min(o.max_modes, bodies::kMaxBodyCoordinates - 7 - 6 * (interfaces - 1));
+    body.reduction.modes =
+        std::min(o.max_modes, bodies::kMaxBodyCoordinates - 7 - 6 * (interfaces - 1));
     body.reduction.geometric_stiffening = false;
     body.initial.elastic_displacement = {};
     body.initial.elastic_velocity = {};
@@ -151,8 +161,9 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
     return plan;
   }
   if (o.report)
-    print0(comm, "plan: the rigid pre-run: every body that is not rigid reduced with up to %d "
-                 "fixed-interface modes and held rigid\n",
+    print0(comm,
+           "plan: the rigid pre-run: every body that is not rigid reduced with up to %d "
+           "fixed-interface modes and held rigid\n",
            o.max_modes);
   dynamics::Scene scene = dynamics::build_scene(comm, pre);
 
@@ -250,9 +261,8 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
     dynamics::StepInfo info;
     const double t1 = static_cast<double>(n + 1) * h;
     if (!ga.advance(state, h, next, info))
-      throw Error("plan: the rigid pre-run: " +
-                      dynamics::newton_failure_message(n + 1, state.t, t1, info,
-                                                       newton.max_halvings),
+      throw Error("plan: the rigid pre-run: " + dynamics::newton_failure_message(
+                                                    n + 1, state.t, t1, info, newton.max_halvings),
                   true);
     next.t = t1;
     state = next;
@@ -303,16 +313,17 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
       Measure m;
       m.name = "sensor " + s.name;
       m.S = s.S;
+      m.deflection = max_norm(s.S, Z);
       if (s.quantity == "elastic_displacement") {
         m.elastic_sensor = true;
-        m.scale = max_norm(s.S, Z);
+        m.scale = m.deflection;
       } else if (s.quantity == "position" || s.quantity == "displacement") {
         for (std::size_t j = 0; j < track.size(); ++j)
           if (track_of[j] == i) m.scale = scale[j];
       } else {
         continue;
       }
-      est.sensor_deflection.emplace_back(s.name, max_norm(s.S, Z));
+      est.sensor_deflection.emplace_back(s.name, m.deflection);
       if (m.scale > 0) measures.push_back(m);
     }
     // Each interface's elastic displacement relative to the rigid motion of interface 0 (which
@@ -323,7 +334,7 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
         const Eigen::Matrix3Xd S = red.translation[I] + bodies::skew(d) * red.rotation[0];
         if (S.cwiseAbs().maxCoeff() > 0)
           measures.push_back({"interface " + c.bodies[cd.body].interfaces[I], S, other_scale,
-                              false});
+                              max_norm(S, Z), false});
       }
 
     // The worst instant: the largest strain energy; the nodes and elements there.
@@ -335,9 +346,7 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
     const Eigen::VectorXd zeta = Z.row(worst).transpose();
     {
       const Eigen::MatrixXd &U = scene.owned_modes[cd.body];
-      double umax = U.rows() ? (U * zeta).reshaped(3, U.rows() / 3).colwise().norm().maxCoeff() : 0;
-      MPI_Allreduce(MPI_IN_PLACE, &umax, 1, MPI_DOUBLE, MPI_MAX, comm);
-      est.deflection = umax;
+      est.deflection = max_nodal_norm(U, zeta, comm);
       Vec u = fem::create_ghosted_vector(mesh);
       FX_PETSC(VecZeroEntries(u));
       std::vector<Vec> basis = red.basis;
@@ -357,7 +366,7 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
     if (!measures.empty()) est.rigid_error_at = measures.front().name;
     bool elastic_sensor = false;
     for (const Measure &m : measures) {
-      const double e = m.elastic_sensor ? 1.0 : max_norm(m.S, Z) / m.scale;
+      const double e = m.elastic_sensor ? 1.0 : m.deflection / m.scale;
       elastic_sensor = elastic_sensor || m.elastic_sensor;
       if (e > est.rigid_error) est.rigid_error = e, est.rigid_error_at = m.name;
     }
@@ -379,14 +388,9 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
         const ModalModel sub = modal_model(red.K, red.M, red.craig_bampton, s0 + j);
         const Eigen::MatrixXd D = ked_response(sub, cd.Q, h) - Z;
         for (const Measure &m : measures) e = std::max(e, max_norm(m.S, D) / m.scale);
-        if (nodes_only) {
-          const Eigen::MatrixXd &U = scene.owned_modes[cd.body];
-          const Eigen::VectorXd d = D.row(worst).transpose();
-          double dmax =
-              U.rows() ? (U * d).reshaped(3, U.rows() / 3).colwise().norm().maxCoeff() : 0;
-          MPI_Allreduce(MPI_IN_PLACE, &dmax, 1, MPI_DOUBLE, MPI_MAX, comm);
-          e = dmax / est.length;
-        }
+        if (nodes_only)
+          e = max_nodal_norm(scene.owned_modes[cd.body], D.row(worst).transpose(), comm) /
+              est.length;
       }
       est.mode_errors.push_back(e);
       if (chosen < 0 && e <= 0.5 * eps) chosen = j;
@@ -421,8 +425,8 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
       bp.reasons.push_back(fmt("ffrf: elastic rotation %.3g rad (rotation^2 = %.2g <= %g)",
                                est.rotation, est.rotation * est.rotation, eps));
       std::string errs;
-      for (std::size_t j = 0; j < est.mode_errors.size() && j <= static_cast<std::size_t>(chosen) + 2;
-           ++j)
+      for (std::size_t j = 0;
+           j < est.mode_errors.size() && j <= static_cast<std::size_t>(chosen) + 2; ++j)
         errs += fmt("%s%zu: %.2g", errs.empty() ? "" : ", ", j, est.mode_errors[j]);
       bp.reasons.push_back(fmt("modes: %d (relative error against %d modes, KED: %s; <= %g)",
                                chosen, fixed, errs.c_str(), 0.5 * eps));
@@ -431,8 +435,8 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
                                  "frequency %.4g rad/s; (spin/w1)^2 = %.2g > %g",
                                  est.spin, spin_ratio, w1, spin_ratio * spin_ratio, eps));
       else
-        bp.reasons.push_back(fmt("no geometric stiffening: (spin/w1)^2 = %.2g <= %g",
-                                 spin_ratio * spin_ratio, eps));
+        bp.reasons.push_back(
+            fmt("no geometric stiffening: (spin/w1)^2 = %.2g <= %g", spin_ratio * spin_ratio, eps));
     }
     bp.reasons.push_back(fmt("estimates: first frequency %.4g Hz, excitation below %.3g Hz, spin "
                              "%.3g rad/s, KED deflection %.3g m, rotation %.3g rad",
@@ -458,14 +462,14 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
                                   "reaches %.3g rad (rotation^2 = %.2g > %g); model: acf",
                                   est.rotation, est.rotation * est.rotation, eps));
       if (bp.given == "ffrf" && bp.recommended == "ffrf" && r.modes < chosen)
-        bp.warnings.push_back(fmt("%d modes leave %.2g of the sensors' scale (the estimates "
-                                  "need %d for %g)",
-                                  r.modes,
-                                  est.mode_errors[static_cast<std::size_t>(std::min(r.modes, fixed))],
-                                  chosen, eps));
+        bp.warnings.push_back(
+            fmt("%d modes leave %.2g of the sensors' scale (the estimates "
+                "need %d for %g)",
+                r.modes, est.mode_errors[static_cast<std::size_t>(std::min(r.modes, fixed))],
+                chosen, eps));
       if (bp.given == "rigid" && bp.recommended != "rigid")
-        bp.warnings.push_back(fmt("a rigid model misses %.2g of %s's scale (> %g)",
-                                  est.rigid_error, est.rigid_error_at.c_str(), eps));
+        bp.warnings.push_back(fmt("a rigid model misses %.2g of %s's scale (> %g)", est.rigid_error,
+                                  est.rigid_error_at.c_str(), eps));
       if (bp.given == "acf" && bp.recommended != "acf")
         bp.warnings.push_back("the estimates find " + bp.recommended +
                               " enough for the accuracy, at a fraction of ACF's cost");
@@ -473,7 +477,7 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
     // Predicted cost of the body in the run.
     if (bp.model == "ffrf")
       bp.predicted_cost_s = est.reduction_s + plan.prerun_s * static_cast<double>(case_steps) /
-                                                   static_cast<double>(steps);
+                                                  static_cast<double>(steps);
     else if (bp.model == "acf")
       bp.predicted_cost_s = static_cast<double>(case_steps) * kAcfIterationsPerStep * est.dofs *
                             kAcfSecondsPerDofIteration / size;
@@ -489,7 +493,8 @@ void print_plan(MPI_Comm comm, const Plan &plan) {
   for (const BodyPlan &bp : plan.bodies) {
     std::string what = bp.model;
     if (bp.model == "ffrf")
-      what += fmt(", %d modes%s", bp.modes, bp.geometric_stiffening ? ", geometric stiffening" : "");
+      what +=
+          fmt(", %d modes%s", bp.modes, bp.geometric_stiffening ? ", geometric stiffening" : "");
     if (bp.given != "auto") what += " (given)";
     print0(comm, "plan: body %s (%s): %s; predicted cost %.3g s\n", bp.body.c_str(),
            bp.given.c_str(), what.c_str(), bp.predicted_cost_s);
