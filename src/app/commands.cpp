@@ -791,7 +791,6 @@ int run_optimize(const Context &ctx, const Options &o, const io::Case &c, double
   return 0;
 }
 
-
 /// `flexopt plan CASE`: the choice per body with its reasons, numbers and predicted cost
 /// (docs/theory.md section 12); nothing is integrated but the rigid pre-run.
 int run_plan(const Context &ctx, const Options &o, io::Case c, double t0) {

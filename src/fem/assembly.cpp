@@ -529,9 +529,9 @@ std::vector<double> element_rotations(const mesh::DistributedMesh &mesh, Vec u_g
   std::vector<double> theta(static_cast<std::size_t>(mesh.local_elements()));
   const Eigen::Vector3d xi = reference_centroid(mesh.type);
   for (PetscInt e = 0; e < mesh.local_elements(); ++e) {
-    const Eigen::Matrix3d H = displacement_gradient(mesh.type, mesh.element_coordinates(e),
-                                                    gather_element(mesh, e, u), xi,
-                                                    "element_rotations");
+    const Eigen::Matrix3d H =
+        displacement_gradient(mesh.type, mesh.element_coordinates(e), gather_element(mesh, e, u),
+                              xi, "element_rotations");
     const Eigen::Vector3d w(H(2, 1) - H(1, 2), H(0, 2) - H(2, 0), H(1, 0) - H(0, 1));
     theta[static_cast<std::size_t>(e)] = 0.5 * w.norm();
   }

@@ -990,9 +990,9 @@ Case load_case(const std::string &directory) {
                            "flexopt");
   }
   r.check_keys(root, "",
-               {"analysis", "materials", "bodies", "ground", "joints", "drivers", "loads",
-                "supports", "tractions", "line_loads", "time", "sensors", "output", "solver",
-                "design", "objective", "constraints", "optimizer", "adjoint", "accuracy"});
+               {"analysis", "materials", "bodies",      "ground",    "joints",  "drivers", "loads",
+                "supports", "tractions", "line_loads",  "time",      "sensors", "output",  "solver",
+                "design",   "objective", "constraints", "optimizer", "adjoint", "accuracy"});
 
   c.analysis = r.choice(r.require(root, "analysis", ""), "analysis", {"static", "dynamic"});
   const bool dynamic = c.analysis == "dynamic";

@@ -5,8 +5,8 @@
 #include "flexopt/optimize/design_problem.hpp"
 
 #include <algorithm>
-#include <cstdio>
 #include <cmath>
+#include <cstdio>
 
 namespace flexopt::optimize {
 
@@ -53,7 +53,7 @@ double DesignField::default_filter_radius(const mesh::DistributedMesh &m,
   static const int hex_edges[12][2] = {{0, 1}, {1, 2}, {2, 3}, {3, 0}, {4, 5}, {5, 6},
                                        {6, 7}, {7, 4}, {0, 4}, {1, 5}, {2, 6}, {3, 7}};
   const bool hex = fem::corner_nodes(m.type) == 8;
-  const int (*edges)[2] = hex ? hex_edges : tet_edges;
+  const int(*edges)[2] = hex ? hex_edges : tet_edges;
   const int n_edges = hex ? 12 : 6;
   const int npe = m.nodes_per_element();
   double sum[2] = {0, 0}; // edge lengths, edges
@@ -78,10 +78,9 @@ std::string DesignField::filter_description() const {
   std::string s = filter_->describe();
   if (default_edge_ > 0) {
     char buf[160];
-    std::snprintf(buf, sizeof buf,
-                  " (design.filter.radius not given: %s2.5 x the mean element edge %.3g m)",
-                  spec_.filter_type == "cone" ? "" : "the cone-equivalent 2 sqrt(3) r = ",
-                  default_edge_);
+    std::snprintf(
+        buf, sizeof buf, " (design.filter.radius not given: %s2.5 x the mean element edge %.3g m)",
+        spec_.filter_type == "cone" ? "" : "the cone-equivalent 2 sqrt(3) r = ", default_edge_);
     s += buf;
   }
   return s;

@@ -33,8 +33,8 @@ Eigen::MatrixXd modal_response(const Eigen::VectorXd &w2, const Eigen::MatrixXd 
   return X;
 }
 
-ModalModel modal_model(const Eigen::MatrixXd &K, const Eigen::MatrixXd &M,
-                       const Eigen::MatrixXd &B, int columns) {
+ModalModel modal_model(const Eigen::MatrixXd &K, const Eigen::MatrixXd &M, const Eigen::MatrixXd &B,
+                       int columns) {
   const Eigen::MatrixXd Bs = B.leftCols(columns);
   const Eigen::MatrixXd Ks = Bs.transpose() * K * Bs, Ms = Bs.transpose() * M * Bs;
   const Eigen::GeneralizedSelfAdjointEigenSolver<Eigen::MatrixXd> eig(0.5 * (Ks + Ks.transpose()),

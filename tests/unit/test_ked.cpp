@@ -61,8 +61,8 @@ TEST(Ked, SecondOrderForASine) {
     double e = 0;
     for (int i = 0; i <= steps; ++i) {
       const double t = i * h;
-      e = std::max(e, std::abs(X(i, 0) - (std::sin(p * t) - p / w * std::sin(w * t)) /
-                                             (w * w - p * p)));
+      e = std::max(
+          e, std::abs(X(i, 0) - (std::sin(p * t) - p / w * std::sin(w * t)) / (w * w - p * p)));
     }
     errors[k] = e;
   }

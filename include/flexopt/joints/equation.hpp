@@ -81,11 +81,11 @@ private:
 /// A primitive constraint equation (or the 3 equations of a point coincidence).
 struct Equation {
   enum class Kind {
-    Coincide,         ///< x_a(s_a) - x_b(s_b) = 0                          (3 rows)
-    Perpendicular,    ///< u_a . v_b - c = 0                                (1 row)
-    PointOnPlane,     ///< u_a . (x_b(s_b) - x_a(s_a)) - c = 0              (1 row)
-    Normalize,        ///< (p_a . p_a - 1) / 2 = 0                          (1 row)
-    RotationDriver,   ///< u_a(t) . v_b - c = 0, u_a(t) = sin f(t) u1 - cos f(t) u2 (1 row)
+    Coincide,          ///< x_a(s_a) - x_b(s_b) = 0                          (3 rows)
+    Perpendicular,     ///< u_a . v_b - c = 0                                (1 row)
+    PointOnPlane,      ///< u_a . (x_b(s_b) - x_a(s_a)) - c = 0              (1 row)
+    Normalize,         ///< (p_a . p_a - 1) / 2 = 0                          (1 row)
+    RotationDriver,    ///< u_a(t) . v_b - c = 0, u_a(t) = sin f(t) u1 - cos f(t) u2 (1 row)
     TranslationDriver, ///< u_a . (x_b - x_a) - c - f(t) = 0               (1 row)
     ElasticCoordinate  ///< zeta_a[coordinate] = 0: holds one elastic coordinate of body a
                        ///< (the plan's rigid pre-run, docs/theory.md section 12.1)  (1 row)

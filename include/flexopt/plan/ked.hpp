@@ -27,8 +27,8 @@ struct ModalModel {
 /// stiffness is K and the mass M): the eigenpairs of (B^T K B, B^T M B), the modes mapped back
 /// to the full basis. With B = I it is the full model. Throws flexopt::Error if the projected
 /// mass is singular.
-ModalModel modal_model(const Eigen::MatrixXd &K, const Eigen::MatrixXd &M,
-                       const Eigen::MatrixXd &B, int columns);
+ModalModel modal_model(const Eigen::MatrixXd &K, const Eigen::MatrixXd &M, const Eigen::MatrixXd &B,
+                       int columns);
 
 /// The KED response of `model` to the forcing Q (rows: samples at t_n = n h; columns: the full
 /// basis' generalized forces), started quasi-statically (docs/theory.md section 12.1): the

@@ -15,28 +15,28 @@ namespace flexopt::plan {
 
 /// The estimates behind one body's choice (docs/theory.md section 12.2).
 struct Estimates {
-  int dofs = 0;                 ///< FE DOFs of the body's mesh
-  double length = 0;            ///< largest extent of the body [m]
-  double f1 = 0;                ///< lowest frequency of the reduction (body on its frame) [Hz]
-  double spin = 0;              ///< max |omega| of the pre-run [rad/s]
-  double f_excitation = 0;      ///< frequency below which 1 - eps^2 of the forcing's energy lies [Hz]
-  double deflection = 0;        ///< max elastic displacement over time and nodes (KED) [m]
-  double rotation = 0;          ///< max elastic rotation over time and elements (KED) [rad]
-  double rigid_error = 0;       ///< relative sensor error of the rigid model (section 12.2)
-  std::string rigid_error_at;   ///< the sensor, interface or "nodes" that sets it
+  int dofs = 0;               ///< FE DOFs of the body's mesh
+  double length = 0;          ///< largest extent of the body [m]
+  double f1 = 0;              ///< lowest frequency of the reduction (body on its frame) [Hz]
+  double spin = 0;            ///< max |omega| of the pre-run [rad/s]
+  double f_excitation = 0;    ///< frequency below which 1 - eps^2 of the forcing's energy lies [Hz]
+  double deflection = 0;      ///< max elastic displacement over time and nodes (KED) [m]
+  double rotation = 0;        ///< max elastic rotation over time and elements (KED) [rad]
+  double rigid_error = 0;     ///< relative sensor error of the rigid model (section 12.2)
+  std::string rigid_error_at; ///< the sensor, interface or "nodes" that sets it
   std::vector<double> mode_errors; ///< relative sensor error of FFRF with j fixed-interface modes
-  double reduction_s = 0;       ///< the plan's reduction of the body [s]
+  double reduction_s = 0;          ///< the plan's reduction of the body [s]
   /// The KED estimate of each of the body's sensors: max over time of |elastic displacement| [m].
   std::vector<std::pair<std::string, double>> sensor_deflection;
 };
 
 struct BodyPlan {
   std::string body;
-  std::string given;     ///< the case's model: rigid | ffrf | acf | auto
+  std::string given;       ///< the case's model: rigid | ffrf | acf | auto
   std::string recommended; ///< what the estimates choose: rigid | ffrf | acf
-  int modes = 0;          ///< ffrf: fixed-interface modes
+  int modes = 0;           ///< ffrf: fixed-interface modes
   bool geometric_stiffening = false;
-  std::string model;      ///< what runs: the given model, or the recommendation for auto
+  std::string model;                 ///< what runs: the given model, or the recommendation for auto
   std::vector<std::string> reasons;  ///< why (with numbers)
   std::vector<std::string> warnings; ///< where a given model disagrees with the estimates
   double predicted_cost_s = 0;       ///< predicted wall time of the body in the run
@@ -49,11 +49,12 @@ struct Plan {
   std::vector<BodyPlan> bodies; ///< per case body, in the case's order
   double prerun_s = 0;          ///< the rigid pre-run's integration [s]
   long long steps = 0;
-  double seconds = 0;           ///< the whole plan [s]
+  double seconds = 0; ///< the whole plan [s]
 };
 
 struct PlanOptions {
-  int max_modes = 40; ///< fixed-interface modes of the plan's reduction (fewer if the body has fewer)
+  int max_modes =
+      40; ///< fixed-interface modes of the plan's reduction (fewer if the body has fewer)
   bool report = true; ///< progress and the scene's notes on rank 0
 };
 

@@ -45,7 +45,7 @@ struct FlexibleReduction {
   /// the static modes, then the fixed-interface modes by frequency). The model with the
   /// static modes and the first j fixed-interface modes spans Psi C(:, 0 : static + j).
   Eigen::MatrixXd craig_bampton;
-  FfrfInvariants invariants;   ///< about `origin`
+  FfrfInvariants invariants;                        ///< about `origin`
   Eigen::Vector3d origin = Eigen::Vector3d::Zero(); ///< frame origin: centroid of interface 0
   std::vector<Eigen::Vector3d> centroids;           ///< per interface (mesh coordinates)
   /// Per interface: the translation and (small) rotation of its rigid interface node per unit
