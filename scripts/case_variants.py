@@ -38,6 +38,27 @@ def without_optimization(text):
     return "\n".join(out)
 
 
+def case_dict(case):
+    """CASE's case.yaml as a dict for `simulate` or `plan` variants: the optimization sections
+    (design, objective, constraints) left out and the geometry paths made absolute."""
+    import yaml
+    c = yaml.safe_load(open(os.path.join(case, "case.yaml")))
+    for key in ("design", "objective", "constraints"):
+        c.pop(key, None)
+    for b in c["bodies"]:
+        b["geometry"] = os.path.abspath(os.path.join(case, b["geometry"]))
+    return c
+
+
+def write_case(c, d):
+    """Writes case dict C as D/case.yaml; returns D."""
+    import yaml
+    os.makedirs(d, exist_ok=True)
+    with open(os.path.join(d, "case.yaml"), "w") as f:
+        yaml.safe_dump(c, f, default_flow_style=None, sort_keys=False, width=1000)
+    return d
+
+
 def run_variant(flexopt, case, out, name, replace, ranks=2, end=None, output=False):
     """Runs `flexopt simulate` on CASE's case.yaml with each (old, new) of `replace` applied
     (old must occur) and, if given, time.end set to `end`; returns the summary, or with

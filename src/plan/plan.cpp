@@ -54,6 +54,7 @@ struct Candidate {
   int n = 0;               ///< elastic coordinates of the plan's reduction
   std::vector<int> lambda; ///< the hold rows' entries in lambda
   Eigen::MatrixXd Q;       ///< (steps + 1) x n: the hold rows' multipliers
+  Eigen::MatrixXd QJ;      ///< (steps + 1) x n: the joints' part of Q, -Phi_zeta^T lambda
   double spin = 0;
 };
 
@@ -99,6 +100,42 @@ double energy_frequency(const Eigen::MatrixXd &Y, double h, double tail) {
 /// max over the samples (rows of Z) of |S z|.
 double max_norm(const Eigen::Matrix3Xd &S, const Eigen::MatrixXd &Z) {
   return (Z * S.transpose()).rowwise().norm().maxCoeff();
+}
+
+/// The reduced geometric stiffness G_k = Psi^T K_sigma(Psi d_k) Psi of each displacement Psi d_k
+/// (d_k: the columns of D, in the basis Psi), replicated and symmetrized. Collective.
+std::vector<Eigen::MatrixXd> geometric_stiffness_of(const mesh::DistributedMesh &mesh,
+                                                    const io::MaterialSpec &mat,
+                                                    const std::vector<Vec> &basis,
+                                                    const Eigen::MatrixXd &D) {
+  const fem::IsotropicMaterial material{mat.E, mat.nu, mat.density};
+  const auto n = static_cast<Eigen::Index>(basis.size());
+  std::vector<Eigen::MatrixXd> G(static_cast<std::size_t>(D.cols()), Eigen::MatrixXd::Zero(n, n));
+  {
+    const fem::ElementGather vg(mesh, basis);
+    Eigen::MatrixXd Ve;
+    for (PetscInt e = 0; e < mesh.local_elements(); ++e) {
+      vg.element(e, Ve);
+      const fem::ElementCoords X = mesh.element_coordinates(e);
+      for (Eigen::Index k = 0; k < D.cols(); ++k) {
+        fem::ElementMatrix Ks;
+        try {
+          Ks = fem::element_geometric_stiffness(mesh.type, X, material, Ve * D.col(k));
+        } catch (const std::exception &err) {
+          abort_local(std::string("plan: stress stiffening: element ") +
+                      std::to_string(mesh.element_tags[static_cast<std::size_t>(e)]) + ": " +
+                      err.what());
+        }
+        G[static_cast<std::size_t>(k)].noalias() += Ve.transpose() * (Ks * Ve);
+      }
+    }
+  }
+  for (Eigen::MatrixXd &g : G) {
+    MPI_Allreduce(MPI_IN_PLACE, g.data(), static_cast<int>(g.size()), MPI_DOUBLE, MPI_SUM,
+                  mesh.comm);
+    g = 0.5 * (g + g.transpose()).eval();
+  }
+  return G;
 }
 
 /// The largest nodal |U z| over all ranks (U: the basis at the owned nodes, node-major).
@@ -232,7 +269,7 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
   const long long steps = std::min(case_steps, kPrerunSteps);
   const double h = c.time.end / static_cast<double>(steps);
   plan.steps = steps;
-  for (Candidate &cd : cand) cd.Q.resize(steps + 1, cd.n);
+  for (Candidate &cd : cand) cd.Q.resize(steps + 1, cd.n), cd.QJ.resize(steps + 1, cd.n);
   // rho_inf at most 0.5: the multipliers' start-up oscillation of the index-3 scheme decays as
   // rho_inf^n (section 6.4), and the forcing is the multipliers; the rigid motion is second-order
   // accurate for any rho_inf.
@@ -242,12 +279,19 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
   const dynamics::GeneralizedAlpha ga(mech, par, newton);
   const double t0 = wall_time();
   dynamics::State state = ga.initial_state(scene.q0, scene.v0, 0.0), next;
+  dynamics::Vector phi;
+  dynamics::Matrix J;
   auto record = [&](long long n) {
+    // The joints' (and drivers') generalized forces on the elastic coordinates: Q less the
+    // holds' own rows, -Phi_zeta^T lambda over the rows that are not holds.
+    mech.constraint(state.q, state.t, phi, &J);
     for (Candidate &cd : cand) {
       for (int k = 0; k < cd.n; ++k)
         cd.Q(n, k) = state.lambda(cd.lambda[static_cast<std::size_t>(k)]);
-      const int off = mech.offset(cd.mech);
-      const bodies::Vec4 p = state.q.segment<4>(off + 3), pd = state.v.segment<4>(off + 3);
+      const int off = mech.offset(cd.mech) + 7;
+      cd.QJ.row(n) = cd.Q.row(n) - (J.middleCols(off, cd.n).transpose() * state.lambda).transpose();
+      const int rigid = mech.offset(cd.mech);
+      const bodies::Vec4 p = state.q.segment<4>(rigid + 3), pd = state.v.segment<4>(rigid + 3);
       cd.spin = std::max(cd.spin, (2.0 * bodies::gbar_matrix(p) * pd).norm());
     }
     for (std::size_t i = 0; i < track.size(); ++i) {
@@ -299,10 +343,13 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
     }
 
     // Where the deflection is measured.
+    // A sensor that moves by less than 1e-9 of the body's extent over the pre-run (a scene at
+    // rest) has no scale to measure against.
+    const double tiny = 1e-9 * est.length;
     double other_scale = 0;
     bool other_sensors = false;
     for (std::size_t i = 0; i < track.size(); ++i)
-      if (scene.sensors[track_of[i]].body != cd.mech && scale[i] > 0) {
+      if (scene.sensors[track_of[i]].body != cd.mech && scale[i] > tiny) {
         other_scale = other_sensors ? std::min(other_scale, scale[i]) : scale[i];
         other_sensors = true;
       }
@@ -324,7 +371,7 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
         continue;
       }
       est.sensor_deflection.emplace_back(s.name, m.deflection);
-      if (m.scale > 0) measures.push_back(m);
+      if (m.scale > tiny) measures.push_back(m);
     }
     // Each interface's elastic displacement relative to the rigid motion of interface 0 (which
     // turns elastically in a chord frame): T_I + [c_I - c_0]x Theta_0, what the joints pass on.
@@ -358,6 +405,30 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
       MPI_Allreduce(MPI_IN_PLACE, &tmax, 1, MPI_DOUBLE, MPI_MAX, comm);
       est.rotation = tmax;
       FX_PETSC(VecDestroy(&u));
+    }
+    // The joints' stress stiffening (section 12.2): the quasi-static deformation under the
+    // joint forces alone, a = K_r^-1 Q_J (in the span of the static modes: the static response to
+    // interface loads), and the largest relative stiffness change its stress causes over the
+    // run, max_t max |eig(W G(a(t)) W)|, W = K_r^-1/2 (an axial load P on a pinned rod gives
+    // P / P_Euler). G is linear in the displacement: G(a) = sum_k b_k G_k over the static modes
+    // V_k = Psi C e_k, b = C^-1 a.
+    if (red.static_modes > 0) {
+      const Eigen::VectorXd w2 = red.eigenvalues.head(cd.n);
+      const Eigen::MatrixXd &C = red.craig_bampton;
+      const std::vector<Eigen::MatrixXd> G =
+          geometric_stiffness_of(mesh, c.material(c.bodies[cd.body].material), red.basis,
+                                 C.leftCols(red.static_modes));
+      const Eigen::MatrixXd B =
+          C.partialPivLu().solve((cd.QJ * w2.cwiseInverse().asDiagonal()).transpose());
+      const Eigen::VectorXd s = w2.cwiseSqrt().cwiseInverse();
+      for (Eigen::Index t = 0; t < B.cols(); ++t) {
+        Eigen::MatrixXd Gt = Eigen::MatrixXd::Zero(cd.n, cd.n);
+        for (int k = 0; k < red.static_modes; ++k) Gt += B(k, t) * G[static_cast<std::size_t>(k)];
+        const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(
+            s.asDiagonal() * Gt * s.asDiagonal(), Eigen::EigenvaluesOnly);
+        est.joint_stiffening =
+            std::max(est.joint_stiffening, eig.eigenvalues().cwiseAbs().maxCoeff());
+      }
     }
     const bool nodes_only = measures.empty();
 
@@ -413,6 +484,13 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
                                "in a floating frame leaves out terms of order rotation^2 = %.2g "
                                "> %g",
                                est.rotation, est.rotation * est.rotation, eps));
+    } else if (est.joint_stiffening > eps) {
+      bp.recommended = "acf";
+      bp.reasons.push_back(fmt("acf: the joint forces' stress changes the body's stiffness by "
+                               "%.2g (> %g; an axial load over the buckling load), which FFRF's "
+                               "linear elasticity leaves out (its geometric stiffening is the "
+                               "centrifugal one)",
+                               est.joint_stiffening, eps));
     } else {
       bp.recommended = "ffrf";
       if (elastic_sensor)
@@ -422,8 +500,10 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
       else
         bp.reasons.push_back(fmt("flexible: a rigid model misses %.2g of %s's scale (> %g)",
                                  est.rigid_error, est.rigid_error_at.c_str(), eps));
-      bp.reasons.push_back(fmt("ffrf: elastic rotation %.3g rad (rotation^2 = %.2g <= %g)",
-                               est.rotation, est.rotation * est.rotation, eps));
+      bp.reasons.push_back(fmt("ffrf: elastic rotation %.3g rad (rotation^2 = %.2g <= %g), the "
+                               "joint forces' stress stiffening %.2g (<= %g)",
+                               est.rotation, est.rotation * est.rotation, eps,
+                               est.joint_stiffening, eps));
       std::string errs;
       for (std::size_t j = 0;
            j < est.mode_errors.size() && j <= static_cast<std::size_t>(chosen) + 2; ++j)
@@ -439,8 +519,10 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
             fmt("no geometric stiffening: (spin/w1)^2 = %.2g <= %g", spin_ratio * spin_ratio, eps));
     }
     bp.reasons.push_back(fmt("estimates: first frequency %.4g Hz, excitation below %.3g Hz, spin "
-                             "%.3g rad/s, KED deflection %.3g m, rotation %.3g rad",
-                             est.f1, est.f_excitation, est.spin, est.deflection, est.rotation));
+                             "%.3g rad/s, KED deflection %.3g m, rotation %.3g rad, joint "
+                             "stress stiffening %.3g",
+                             est.f1, est.f_excitation, est.spin, est.deflection, est.rotation,
+                             est.joint_stiffening));
 
     // What runs, and where a given model disagrees.
     if (bp.given == "auto") {
@@ -458,9 +540,14 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
                                   "%.2g > %g; reduction: {geometric_stiffening: true} takes it in",
                                   spin_ratio * spin_ratio, eps));
       if (bp.given == "ffrf" && bp.recommended == "acf")
-        bp.warnings.push_back(fmt("FFRF's small-deformation assumption: the elastic rotation "
-                                  "reaches %.3g rad (rotation^2 = %.2g > %g); model: acf",
-                                  est.rotation, est.rotation * est.rotation, eps));
+        bp.warnings.push_back(
+            est.rotation * est.rotation > eps
+                ? fmt("FFRF's small-deformation assumption: the elastic rotation reaches %.3g "
+                      "rad (rotation^2 = %.2g > %g); model: acf",
+                      est.rotation, est.rotation * est.rotation, eps)
+                : fmt("FFRF's linear elasticity: the joint forces' stress changes the stiffness "
+                      "by %.2g (> %g); model: acf",
+                      est.joint_stiffening, eps));
       if (bp.given == "ffrf" && bp.recommended == "ffrf" && r.modes < chosen)
         bp.warnings.push_back(
             fmt("%d modes leave %.2g of the sensors' scale (the estimates "
@@ -531,6 +618,7 @@ io::Json plan_json(const Plan &plan) {
       e["excitation_hz"] = bp.est.f_excitation;
       e["deflection_m"] = bp.est.deflection;
       e["rotation_rad"] = bp.est.rotation;
+      e["joint_stiffening"] = bp.est.joint_stiffening;
       e["rigid_error"] = bp.est.rigid_error;
       e["rigid_error_at"] = bp.est.rigid_error_at;
       e["mode_errors"] = io::Json(bp.est.mode_errors);

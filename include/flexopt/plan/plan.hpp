@@ -22,6 +22,9 @@ struct Estimates {
   double f_excitation = 0;    ///< frequency below which 1 - eps^2 of the forcing's energy lies [Hz]
   double deflection = 0;      ///< max elastic displacement over time and nodes (KED) [m]
   double rotation = 0;        ///< max elastic rotation over time and elements (KED) [rad]
+  /// max |relative stiffness change| from the stress of the joint forces' quasi-static
+  /// deformation (at its largest energy): P / P_buckling for an axially loaded link
+  double joint_stiffening = 0;
   double rigid_error = 0;     ///< relative sensor error of the rigid model (section 12.2)
   std::string rigid_error_at; ///< the sensor, interface or "nodes" that sets it
   std::vector<double> mode_errors; ///< relative sensor error of FFRF with j fixed-interface modes

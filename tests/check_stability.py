@@ -1,0 +1,115 @@
+#!/usr/bin/python3
+"""Where a method fails, and that `flexopt plan` says so (issue 22's stability map; the figures
+are drawn by scripts/study_stability.py, docs/benchmarks.md "Where each method fails").
+
+  large_rotation  FFRF at large elastic rotation against ACF. cases/flexible_pendulum with the
+                  bar 100 times softer (E = 1e8 Pa: first frequency 0.62 Hz, the tip swings
+                  0.2 m off the pin frame's axis, elastic rotations of 0.26 rad), 1 s at 1 ms.
+                  plan --auto picks ACF (rotation^2 > accuracy); the plan of the scene as given
+                  with FFRF (stiffened, 8 modes) warns of FFRF's small-deformation assumption;
+                  and the two runs differ: FFRF's deepest tip deflection is more than 50 % off
+                  ACF's (measured -0.86 m against -0.20 m: the linear strain of the floating frame
+                  stretches the bar as it bends, and the bar's own weight then bends it further).
+  linear_spin     Linear FFRF above the first bending frequency: cases/kane_beam (6 rad/s against
+                  3.8 rad/s) with the beam as linear FFRF, 4 modes, over 10 s. The plan warns
+                  "linear FFRF will diverge"; the run does: its tip deflection exceeds ten times
+                  the stiffened run's largest (measured 69.5 m against 0.57 m).
+
+usage: check_stability.py --flexopt BIN --out DIR --part large_rotation|linear_spin
+"""
+import argparse
+import json
+import os
+import subprocess
+import sys
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "scripts"))
+from case_variants import case_dict, finish, write_case  # noqa: E402
+from study_run import ENV  # noqa: E402
+
+CASES = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "cases")
+failures = []
+
+
+def check(ok, what):
+    print(("ok   " if ok else "FAIL ") + what, flush=True)
+    if not ok:
+        failures.append(what)
+
+
+def flexopt(a, command, d, *extra):
+    out = os.path.join(d, "out_" + command)
+    cmd = ["mpirun", "-n", "2", a.flexopt, command, d, "--out", out] + list(extra)
+    print("$ " + " ".join(cmd), flush=True)
+    r = subprocess.run(cmd, env=ENV, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    print(r.stdout[-3000:])
+    if r.returncode != 0:
+        sys.exit(f"FAIL: {' '.join(cmd)} exits {r.returncode}")
+    return json.load(open(os.path.join(out, "summary.json")))
+
+
+def body_plan(summary, body):
+    return next(p for p in summary["plan"] if p["body"] == body)
+
+
+def tip_y(summary):
+    return [v[1] for v in summary["sensors"]["tip_elastic"]["value"]]
+
+
+def large_rotation(a):
+    c = case_dict(os.path.join(CASES, "flexible_pendulum"))
+    c["materials"]["soft"]["E"] = 1.0e8
+    c["time"] = {"end": 1.0, "step": 1.0e-3, "rho_inf": 0.9}
+    bar = c["bodies"][0]
+    bar["mesh"] = {"size": 0.05, "order": 2}
+    given = write_case(c, os.path.join(a.out, "soft_pendulum_ffrf"))
+    p = body_plan(flexopt(a, "plan", given, "--auto"), "bar")
+    rot = p["estimates"]["rotation_rad"]
+    check(p["recommended"] == "acf",
+          f"soft pendulum: plan --auto picks {p['recommended']} (acf expected; elastic rotation "
+          f"{rot:.3g} rad, rotation^2 {rot * rot:.3g} > 0.01)")
+    p = body_plan(flexopt(a, "plan", given), "bar")
+    check(any("small-deformation" in w for w in p["warnings"]),
+          f"soft pendulum given as FFRF: the plan warns of the small-deformation assumption "
+          f"({p['warnings']})")
+    ffrf = min(tip_y(flexopt(a, "simulate", given)))
+    bar["model"] = "acf"
+    bar.pop("reduction", None)
+    acf = min(tip_y(flexopt(a, "simulate", write_case(c, os.path.join(a.out, "soft_pendulum_acf")))))
+    check(abs(ffrf - acf) > 0.5 * abs(acf),
+          f"soft pendulum: FFRF's deepest tip deflection {ffrf:.4g} m is more than 50 % off "
+          f"ACF's {acf:.4g} m ({100 * (ffrf / acf - 1):+.0f} %)")
+
+
+def linear_spin(a):
+    c = case_dict(os.path.join(CASES, "kane_beam"))
+    c["time"]["end"] = 10.0
+    beam = c["bodies"][0]
+    beam["model"] = "ffrf"
+    beam["reduction"] = {"modes": 4, "geometric_stiffening": False}
+    linear = write_case(c, os.path.join(a.out, "kane_linear"))
+    p = body_plan(flexopt(a, "plan", linear), "beam")
+    check(any("will diverge" in w for w in p["warnings"]),
+          f"kane_beam as linear FFRF: the plan warns that it diverges ({p['warnings']})")
+    y_linear = max(abs(v) for v in tip_y(flexopt(a, "simulate", linear)))
+    beam["reduction"]["geometric_stiffening"] = True
+    stiff = write_case(c, os.path.join(a.out, "kane_stiffened"))
+    y_stiff = max(abs(v) for v in tip_y(flexopt(a, "simulate", stiff)))
+    check(y_linear > 10 * y_stiff,
+          f"kane_beam: linear FFRF's largest tip deflection {y_linear:.3g} m is more than ten "
+          f"times the stiffened run's {y_stiff:.3g} m (it diverges)")
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--flexopt", required=True)
+    ap.add_argument("--out", required=True)
+    ap.add_argument("--part", required=True, choices=["large_rotation", "linear_spin"])
+    a = ap.parse_args()
+    os.makedirs(a.out, exist_ok=True)
+    {"large_rotation": large_rotation, "linear_spin": linear_spin}[a.part](a)
+    finish(failures)
+
+
+if __name__ == "__main__":
+    main()
