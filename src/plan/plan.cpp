@@ -138,6 +138,29 @@ std::vector<Eigen::MatrixXd> geometric_stiffness_of(const mesh::DistributedMesh 
   return G;
 }
 
+/// An upper bound of the mesh's highest angular frequency [rad/s]: the largest over the
+/// elements of the largest eigenvalue of K_e x = w^2 M_e x (the assembled spectrum lies below
+/// the elements' largest, Irons & Treharne 1971). Collective.
+double highest_frequency(const mesh::DistributedMesh &mesh, const io::MaterialSpec &mat) {
+  const fem::IsotropicMaterial material{mat.E, mat.nu, mat.density};
+  double w2 = 0;
+  for (PetscInt e = 0; e < mesh.local_elements(); ++e) {
+    const fem::ElementCoords X = mesh.element_coordinates(e);
+    try {
+      const Eigen::GeneralizedSelfAdjointEigenSolver<Eigen::MatrixXd> eig(
+          fem::element_stiffness(mesh.type, X, material), fem::element_mass(mesh.type, X, mat.density),
+          Eigen::EigenvaluesOnly);
+      w2 = std::max(w2, eig.eigenvalues().maxCoeff());
+    } catch (const std::exception &err) {
+      abort_local(std::string("plan: highest frequency: element ") +
+                  std::to_string(mesh.element_tags[static_cast<std::size_t>(e)]) + ": " +
+                  err.what());
+    }
+  }
+  MPI_Allreduce(MPI_IN_PLACE, &w2, 1, MPI_DOUBLE, MPI_MAX, mesh.comm);
+  return std::sqrt(w2);
+}
+
 /// The largest nodal |U z| over all ranks (U: the basis at the owned nodes, node-major).
 double max_nodal_norm(const Eigen::MatrixXd &U, const Eigen::VectorXd &z, MPI_Comm comm) {
   double m = U.rows() ? (U * z).reshaped(3, U.rows() / 3).colwise().norm().maxCoeff() : 0;
@@ -561,6 +584,19 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
         bp.warnings.push_back("the estimates find " + bp.recommended +
                               " enough for the accuracy, at a fraction of ACF's cost");
     }
+    // ACF at rho_inf = 1: nothing damps the mesh's highest frequencies, which the step does
+    // not resolve (h w_max >> 1); on the co-rotated elements they can stall Newton
+    // (docs/benchmarks.md "Where each method fails").
+    if (bp.model == "acf") {
+      const double w_max = highest_frequency(mesh, c.material(c.bodies[cd.body].material));
+      est.highest_frequency = w_max / (2 * kPi);
+      if (c.time.rho_inf > 0.99 && c.time.step * w_max > 2)
+        bp.warnings.push_back(fmt(
+            "ACF at rho_inf = %g: the mesh's highest frequency, %.3g Hz, is not resolved by the "
+            "step (h w_max = %.3g > 2) and not damped; Newton may stall on it: rho_inf <= 0.9 "
+            "damps it",
+            c.time.rho_inf, est.highest_frequency, c.time.step * w_max));
+    }
     // Predicted cost of the body in the run.
     if (bp.model == "ffrf")
       bp.predicted_cost_s = est.reduction_s + plan.prerun_s * static_cast<double>(case_steps) /
@@ -619,6 +655,7 @@ io::Json plan_json(const Plan &plan) {
       e["deflection_m"] = bp.est.deflection;
       e["rotation_rad"] = bp.est.rotation;
       e["joint_stiffening"] = bp.est.joint_stiffening;
+      if (bp.est.highest_frequency > 0) e["highest_frequency_hz"] = bp.est.highest_frequency;
       e["rigid_error"] = bp.est.rigid_error;
       e["rigid_error_at"] = bp.est.rigid_error_at;
       e["mode_errors"] = io::Json(bp.est.mode_errors);

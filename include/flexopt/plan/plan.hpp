@@ -25,6 +25,7 @@ struct Estimates {
   /// max |relative stiffness change| from the stress of the joint forces' quasi-static
   /// deformation (at its largest energy): P / P_buckling for an axially loaded link
   double joint_stiffening = 0;
+  double highest_frequency = 0; ///< acf: bound of the mesh's highest frequency [Hz] (else 0)
   double rigid_error = 0;     ///< relative sensor error of the rigid model (section 12.2)
   std::string rigid_error_at; ///< the sensor, interface or "nodes" that sets it
   std::vector<double> mode_errors; ///< relative sensor error of FFRF with j fixed-interface modes
