@@ -493,6 +493,30 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
 
     // The rules (section 12.3).
     const bool flexible_design = c.design && c.design->body == bp.body;
+    // Why ACF (the first reason that holds), and what keeps a body from it: a response of the
+    // case (objective, constraint) on an elastic_displacement sensor of the body.
+    auto acf_reason = [&]() {
+      if (est.rotation * est.rotation > eps)
+        return fmt("acf: the elastic rotation reaches %.3g rad; FFRF's linear strain in a "
+                   "floating frame leaves out terms of order rotation^2 = %.2g > %g",
+                   est.rotation, est.rotation * est.rotation, eps);
+      return fmt("acf: the joint forces' stress changes the body's stiffness by %.2g (> %g; an "
+                 "axial load over the buckling load), which FFRF's linear elasticity leaves out "
+                 "(its geometric stiffening is the centrifugal one)",
+                 est.joint_stiffening, eps);
+    };
+    std::string acf_blocker;
+    {
+      std::vector<const io::ResponseSpec *> responses;
+      if (c.objective) responses.push_back(&*c.objective);
+      for (const io::ResponseSpec &r : c.constraints) responses.push_back(&r);
+      for (const io::ResponseSpec *r : responses)
+        for (const io::SensorSpec &sensor : c.sensors)
+          if (!r->sensor.empty() && sensor.name == r->sensor && sensor.body == bp.body &&
+              sensor.quantity == "elastic_displacement" && acf_blocker.empty())
+            acf_blocker = "the " + r->type + " response uses sensor '" + sensor.name +
+                          "', this body's elastic displacement";
+    }
     const double spin_ratio = w1 > 0 ? est.spin / w1 : 0;
     bp.modes = chosen;
     bp.geometric_stiffening = spin_ratio * spin_ratio > eps;
@@ -501,20 +525,15 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
       bp.reasons.push_back(fmt("rigid: the elastic deflection changes %s by %.2g of its scale, "
                                "within the accuracy %g",
                                est.rigid_error_at.c_str(), est.rigid_error, eps));
-    } else if (est.rotation * est.rotation > eps) {
+    } else if ((est.rotation * est.rotation > eps || est.joint_stiffening > eps) &&
+               acf_blocker.empty()) {
       bp.recommended = "acf";
-      bp.reasons.push_back(fmt("acf: the elastic rotation reaches %.3g rad; FFRF's linear strain "
-                               "in a floating frame leaves out terms of order rotation^2 = %.2g "
-                               "> %g",
-                               est.rotation, est.rotation * est.rotation, eps));
-    } else if (est.joint_stiffening > eps) {
-      bp.recommended = "acf";
-      bp.reasons.push_back(fmt("acf: the joint forces' stress changes the body's stiffness by "
-                               "%.2g (> %g; an axial load over the buckling load), which FFRF's "
-                               "linear elasticity leaves out (its geometric stiffening is the "
-                               "centrifugal one)",
-                               est.joint_stiffening, eps));
+      bp.reasons.push_back(acf_reason());
     } else {
+      if (!acf_blocker.empty() && (est.rotation * est.rotation > eps || est.joint_stiffening > eps))
+        bp.warnings.push_back(acf_reason() + "; but " + acf_blocker +
+                              ", which a response of an ACF body cannot use yet: FFRF, with "
+                              "that error");
       bp.recommended = "ffrf";
       if (elastic_sensor)
         bp.reasons.push_back("flexible: a sensor measures this body's elastic displacement");
@@ -523,10 +542,11 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
       else
         bp.reasons.push_back(fmt("flexible: a rigid model misses %.2g of %s's scale (> %g)",
                                  est.rigid_error, est.rigid_error_at.c_str(), eps));
-      bp.reasons.push_back(fmt("ffrf: elastic rotation %.3g rad (rotation^2 = %.2g <= %g), the "
-                               "joint forces' stress stiffening %.2g (<= %g)",
-                               est.rotation, est.rotation * est.rotation, eps,
-                               est.joint_stiffening, eps));
+      bp.reasons.push_back(fmt("ffrf: elastic rotation %.3g rad (rotation^2 = %.2g %s %g), the "
+                               "joint forces' stress stiffening %.2g (%s %g)",
+                               est.rotation, est.rotation * est.rotation,
+                               est.rotation * est.rotation > eps ? ">" : "<=", eps,
+                               est.joint_stiffening, est.joint_stiffening > eps ? ">" : "<=", eps));
       std::string errs;
       for (std::size_t j = 0;
            j < est.mode_errors.size() && j <= static_cast<std::size_t>(chosen) + 2; ++j)
