@@ -43,10 +43,10 @@ OUT/results.json and OUT/results.csv gather them. --quick: a smoke run of the sc
 (end times cut to a tenth, one step, one ρ∞, FFRF 2 and 8 modes, the coarsest ACF mesh).
 """
 import argparse
-import copy
 import csv
 import json
 import os
+import re
 import resource
 import subprocess
 import sys
@@ -60,7 +60,10 @@ from study_run import ENV  # noqa: E402
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 LOADED = 0.5  # other load [cores] from which a run counts as timed on a busy machine
-TIMEOUT = 900  # [s]: a run still going then is stopped and recorded as failed (Newton stalled)
+# A run still going after STALL_AFTER seconds whose progress line shows more than STALL_ITERATIONS
+# Newton iterations per step on average is stopped and recorded as failed (Newton stalls: ~90
+# per step on the ACF slider-crank at rho_inf = 1, against 5-7 for a run that is only slow).
+STALL_AFTER, STALL_ITERATIONS, HARD_LIMIT = 240, 30, 3600
 MODES = [2, 4, 8, 16, 40]
 
 # body: the body whose model varies; ffrf_mesh: the mesh FFRF reduces from ({size, order});
@@ -156,18 +159,28 @@ def run(args, scene, name, c, command="simulate"):
         cmd.append("--auto")
     print(f"[{time.strftime('%H:%M:%S')}] {scene}/{name}: " + " ".join(cmd[3:5]), flush=True)
     b0, c0, t0 = busy_seconds(), children_seconds(), time.monotonic()
-    with open(os.path.join(d, "log.txt"), "w") as f:
-        # timeout(1) sends mpirun SIGTERM, which it forwards to the ranks; 124: timed out.
-        rc = subprocess.run(["timeout", str(TIMEOUT)] + cmd, stdout=f, stderr=subprocess.STDOUT,
-                            env=ENV).returncode
-        rc = None if rc == 124 else rc
+    log = os.path.join(d, "log.txt")
+    stalled = None
+    with open(log, "w") as f:
+        proc = subprocess.Popen(cmd, stdout=f, stderr=subprocess.STDOUT, env=ENV)
+        while proc.poll() is None:
+            time.sleep(5)
+            waited = time.monotonic() - t0
+            if waited < STALL_AFTER:
+                continue
+            lines = [l for l in open(log) if "Newton" in l and "/step" in l]
+            per_step = float(re.search(r"Newton ([0-9.]+)/step", lines[-1]).group(1)) if lines else 0
+            if per_step > STALL_ITERATIONS or waited > HARD_LIMIT:
+                stalled = lines[-1].strip() if lines else "no progress line"
+                proc.terminate()  # mpirun forwards SIGTERM to the ranks
+                proc.wait()
+        rc = None if stalled else proc.returncode
     wall = time.monotonic() - t0
     other = max(0.0, busy_seconds() - b0 - (children_seconds() - c0)) / wall
     row = {"scene": scene, "name": name, "measured_wall_s": wall, "other_load_cores": other,
            "time": c["time"]}
     if rc is None:
-        steps = [l.strip() for l in open(os.path.join(d, "log.txt")) if l.strip().startswith("t = ")]
-        row.update(failed=True, error=f"stopped after {TIMEOUT} s" + (f" at {steps[-1]}" if steps else ""))
+        row.update(failed=True, error=f"stopped after {wall:.0f} s: {stalled}")
         print(f"    {row['error']}", flush=True)
     elif rc != 0:
         errs = [l.strip() for l in open(os.path.join(d, "log.txt")) if "error" in l.lower()]
@@ -175,7 +188,8 @@ def run(args, scene, name, c, command="simulate"):
         print(f"    failed: {row['error']}", flush=True)
     else:
         s = json.load(open(os.path.join(out, "summary.json")))
-        row.update(failed=False, flexopt_wall_s=s.get("wall_s"), integration_s=s.get("integration_s"))
+        row.update(failed=False, flexopt_wall_s=s.get("wall_s"), integration_s=s.get("integration_s"),
+                   newton_iterations=s.get("newton_iterations_total"))
         if command == "plan":
             row["plan"] = s["plan"]
             row["plan_s"] = s.get("plan_s")
@@ -319,6 +333,44 @@ def table(result):
     return "\n".join(lines)
 
 
+# The plan's ACF cost model (docs/theory.md section 12.4, src/plan/plan.cpp).
+ACF_ITERATIONS_PER_STEP, ACF_SECONDS_PER_DOF_ITERATION = 4.2, 1.9e-6
+
+
+def cost_table(results, out):
+    """The plan's predicted costs against the measured ones: every ACF run (steps x 4.2 Newton
+    iterations x DOFs x 1.9 us / 2 ranks against integration_s, and the measured iterations per
+    step and seconds per DOF and iteration) and auto's pick (predicted_cost_s against the run's
+    integration_s)."""
+    lines = ["| scene | run | DOFs | steps | Newton it./step | predicted [s] | integration [s] | "
+             "measured / predicted | µs per DOF and iteration (rank-seconds) | other load |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
+    for res in results:
+        for r in res["rows"]:
+            if r["failed"] or r.get("integration_s") is None:
+                continue
+            it = r.get("newton_iterations")
+            if it is None:  # rows kept from before the field was recorded
+                try:
+                    it = json.load(open(os.path.join(out, res["scene"], r["name"], "out", "summary.json")))[
+                        "newton_iterations_total"]
+                except (OSError, KeyError):
+                    it = None
+            steps = round(r["time"]["end"] / r["time"]["step"])
+            if r["model"] == "acf":
+                pred = steps * ACF_ITERATIONS_PER_STEP * r["dofs"] * ACF_SECONDS_PER_DOF_ITERATION / 2
+            elif r["model"] == "auto" and r.get("pick"):
+                pred = r["pick"]["predicted_cost_s"]
+            else:
+                continue
+            per = 2 * r["integration_s"] / (it * r["dofs"]) * 1e6 if it and r.get("dofs") else None
+            lines.append(f"| {res['scene']} | {label(r)}, dt {r['step']:g}, ρ∞ {r['rho_inf']:g} | "
+                         f"{fmt(r.get('dofs'), ',')} | {steps:,} | {fmt(it / steps if it else None, '.2f')} | "
+                         f"{pred:.3g} | {r['integration_s']:.3g} | {r['integration_s'] / pred:.2f} | "
+                         f"{fmt(per, '.2f')} | {r['other_load_cores']:.2f} |")
+    return "\n".join(lines)
+
+
 def figure(results, path):
     import matplotlib
     matplotlib.use("Agg")
@@ -427,6 +479,7 @@ def main():
                                 r["failed"], r["measured_wall_s"], r.get("integration_s"), r["other_load_cores"]])
     for res in results:
         print(table(res) + "\n")
+    print(cost_table(results, a.out) + "\n")
     figure(results, a.figure)
 
 

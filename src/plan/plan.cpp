@@ -8,6 +8,7 @@
 #include "flexopt/fem/assembly.hpp"
 #include "flexopt/plan/ked.hpp"
 #include "flexopt/reduce/flexible_reduction.hpp"
+#include "flexopt/reduce/geometric_stiffness.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -100,42 +101,6 @@ double energy_frequency(const Eigen::MatrixXd &Y, double h, double tail) {
 /// max over the samples (rows of Z) of |S z|.
 double max_norm(const Eigen::Matrix3Xd &S, const Eigen::MatrixXd &Z) {
   return (Z * S.transpose()).rowwise().norm().maxCoeff();
-}
-
-/// The reduced geometric stiffness G_k = Psi^T K_sigma(Psi d_k) Psi of each displacement Psi d_k
-/// (d_k: the columns of D, in the basis Psi), replicated and symmetrized. Collective.
-std::vector<Eigen::MatrixXd> geometric_stiffness_of(const mesh::DistributedMesh &mesh,
-                                                    const io::MaterialSpec &mat,
-                                                    const std::vector<Vec> &basis,
-                                                    const Eigen::MatrixXd &D) {
-  const fem::IsotropicMaterial material{mat.E, mat.nu, mat.density};
-  const auto n = static_cast<Eigen::Index>(basis.size());
-  std::vector<Eigen::MatrixXd> G(static_cast<std::size_t>(D.cols()), Eigen::MatrixXd::Zero(n, n));
-  {
-    const fem::ElementGather vg(mesh, basis);
-    Eigen::MatrixXd Ve;
-    for (PetscInt e = 0; e < mesh.local_elements(); ++e) {
-      vg.element(e, Ve);
-      const fem::ElementCoords X = mesh.element_coordinates(e);
-      for (Eigen::Index k = 0; k < D.cols(); ++k) {
-        fem::ElementMatrix Ks;
-        try {
-          Ks = fem::element_geometric_stiffness(mesh.type, X, material, Ve * D.col(k));
-        } catch (const std::exception &err) {
-          abort_local(std::string("plan: stress stiffening: element ") +
-                      std::to_string(mesh.element_tags[static_cast<std::size_t>(e)]) + ": " +
-                      err.what());
-        }
-        G[static_cast<std::size_t>(k)].noalias() += Ve.transpose() * (Ks * Ve);
-      }
-    }
-  }
-  for (Eigen::MatrixXd &g : G) {
-    MPI_Allreduce(MPI_IN_PLACE, g.data(), static_cast<int>(g.size()), MPI_DOUBLE, MPI_SUM,
-                  mesh.comm);
-    g = 0.5 * (g + g.transpose()).eval();
-  }
-  return G;
 }
 
 /// An upper bound of the mesh's highest angular frequency [rad/s]: the largest over the
@@ -311,9 +276,8 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
     for (Candidate &cd : cand) {
       for (int k = 0; k < cd.n; ++k)
         cd.Q(n, k) = state.lambda(cd.lambda[static_cast<std::size_t>(k)]);
-      const int off = mech.offset(cd.mech) + 7;
+      const int rigid = mech.offset(cd.mech), off = rigid + 7;
       cd.QJ.row(n) = cd.Q.row(n) - (J.middleCols(off, cd.n).transpose() * state.lambda).transpose();
-      const int rigid = mech.offset(cd.mech);
       const bodies::Vec4 p = state.q.segment<4>(rigid + 3), pd = state.v.segment<4>(rigid + 3);
       cd.spin = std::max(cd.spin, (2.0 * bodies::gbar_matrix(p) * pd).norm());
     }
@@ -438,9 +402,19 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
     if (red.static_modes > 0) {
       const Eigen::VectorXd w2 = red.eigenvalues.head(cd.n);
       const Eigen::MatrixXd &C = red.craig_bampton;
-      const std::vector<Eigen::MatrixXd> G =
-          geometric_stiffness_of(mesh, c.material(c.bodies[cd.body].material), red.basis,
-                                 C.leftCols(red.static_modes));
+      const io::MaterialSpec &mat = c.material(c.bodies[cd.body].material);
+      std::vector<Vec> V(static_cast<std::size_t>(red.static_modes));
+      for (int k = 0; k < red.static_modes; ++k) {
+        Vec &v = V[static_cast<std::size_t>(k)];
+        FX_PETSC(VecDuplicate(red.basis[0], &v));
+        FX_PETSC(VecZeroEntries(v));
+        std::vector<Vec> basis = red.basis;
+        FX_PETSC(VecMAXPY(v, cd.n, C.col(k).data(), basis.data()));
+      }
+      const std::vector<Eigen::MatrixXd> G = reduce::reduced_geometric_stiffness(
+          mesh, fem::IsotropicMaterial{mat.E, mat.nu, mat.density}, red.basis, V, {},
+          "plan: the joints' stress stiffening");
+      for (Vec &v : V) FX_PETSC(VecDestroy(&v));
       const Eigen::MatrixXd B =
           C.partialPivLu().solve((cd.QJ * w2.cwiseInverse().asDiagonal()).transpose());
       const Eigen::VectorXd s = w2.cwiseSqrt().cwiseInverse();

@@ -50,6 +50,47 @@ CentrifugalLoadStates::~CentrifugalLoadStates() {
   for (Vec &v : u) VecDestroy(&v);
 }
 
+std::vector<Eigen::MatrixXd> reduced_geometric_stiffness(const mesh::DistributedMesh &mesh,
+                                                         const fem::IsotropicMaterial &material,
+                                                         const std::vector<Vec> &basis,
+                                                         const std::vector<Vec> &u,
+                                                         const std::vector<double> &modulus_factor,
+                                                         const std::string &what) {
+  const auto n = static_cast<Eigen::Index>(basis.size());
+  std::vector<Eigen::MatrixXd> G(u.size(), Eigen::MatrixXd::Zero(n, n));
+  if (u.empty()) return G;
+  // Summed element by element (as fem::project_stiffness: the assembled K_sigma V would cancel
+  // element forces row by row).
+  {
+    const fem::ElementGather vg(mesh, basis), ug(mesh, u);
+    Eigen::MatrixXd Ve, Ue;
+    for (PetscInt e = 0; e < mesh.local_elements(); ++e) {
+      const fem::ElementCoords X = mesh.element_coordinates(e);
+      const double f = modulus_factor.empty() ? 1.0 : modulus_factor[static_cast<std::size_t>(e)];
+      vg.element(e, Ve);
+      ug.element(e, Ue);
+      for (std::size_t c = 0; c < u.size(); ++c) {
+        fem::ElementMatrix Ks;
+        try {
+          Ks = fem::element_geometric_stiffness(mesh.type, X, material,
+                                                Ue.col(static_cast<Eigen::Index>(c)));
+        } catch (const std::exception &err) {
+          abort_local(what + ": element " +
+                      std::to_string(mesh.element_tags[static_cast<std::size_t>(e)]) + ": " +
+                      err.what());
+        }
+        G[c].noalias() += f * (Ve.transpose() * (Ks * Ve));
+      }
+    }
+  }
+  for (auto &g : G) {
+    MPI_Allreduce(MPI_IN_PLACE, g.data(), static_cast<int>(g.size()), MPI_DOUBLE, MPI_SUM,
+                  mesh.comm);
+    g = 0.5 * (g + g.transpose()).eval();
+  }
+  return G;
+}
+
 std::array<Eigen::MatrixXd, 6> centrifugal_geometric_stiffness(
     const mesh::DistributedMesh &mesh, const fem::IsotropicMaterial &material, Mat K, Mat M,
     const std::string &frame_interface, const Eigen::Vector3d &origin,
@@ -120,33 +161,14 @@ std::array<Eigen::MatrixXd, 6> centrifugal_geometric_stiffness(
     throw;
   }
 
-  // G_c = V^T K_sigma(u_c) V, summed element by element (as fem::project_stiffness: the
-  // assembled K_sigma V would cancel element forces row by row).
-  {
-    const fem::ElementGather vg(mesh, basis), ug(mesh, u);
-    Eigen::MatrixXd Ve, Ue;
-    for (PetscInt e = 0; e < mesh.local_elements(); ++e) {
-      const fem::ElementCoords X = mesh.element_coordinates(e);
-      const double f = modulus_factor.empty() ? 1.0 : modulus_factor[static_cast<std::size_t>(e)];
-      vg.element(e, Ve);
-      ug.element(e, Ue);
-      for (int c = 0; c < 6; ++c) {
-        fem::ElementMatrix Ks;
-        try {
-          Ks = fem::element_geometric_stiffness(mesh.type, X, material, Ue.col(c));
-        } catch (const std::exception &err) {
-          abort_local(std::string("centrifugal geometric stiffness: element ") +
-                      std::to_string(mesh.element_tags[static_cast<std::size_t>(e)]) + ": " +
-                      err.what());
-        }
-        G[static_cast<std::size_t>(c)].noalias() += f * (Ve.transpose() * (Ks * Ve));
-      }
-    }
-  }
-  for (auto &g : G) {
-    MPI_Allreduce(MPI_IN_PLACE, g.data(), static_cast<int>(g.size()), MPI_DOUBLE, MPI_SUM,
-                  mesh.comm);
-    g = 0.5 * (g + g.transpose()).eval();
+  // G_c = V^T K_sigma(u_c) V.
+  try {
+    const std::vector<Eigen::MatrixXd> Gc = reduced_geometric_stiffness(
+        mesh, material, basis, u, modulus_factor, "centrifugal geometric stiffness");
+    for (std::size_t c = 0; c < 6; ++c) G[c] = Gc[c];
+  } catch (const Error &) {
+    destroy();
+    throw;
   }
   if (keep) {
     for (Vec &v : keep->u) FX_PETSC(VecDestroy(&v));

@@ -42,6 +42,18 @@ centrifugal_coefficients(const Eigen::Vector3d &omega,
 /// sum_c s_c(omega) B_c = |omega|^2 I - omega omega^T. Throws flexopt::Error for c outside 0..5.
 Eigen::Matrix3d centrifugal_load_matrix(int c);
 
+/// G_k = V^T K_sigma(u_k) V for each full-size displacement u_k (ghosts need not be up to date)
+/// and the basis V (full-size vectors in the layout of K), summed element by element, replicated
+/// on every rank and symmetrized; K_sigma from element_geometric_stiffness with `material`, each
+/// element's stress scaled by modulus_factor[e] (empty: 1). Collective; an element whose
+/// geometric stiffness fails aborts with `what` and its Gmsh tag.
+std::vector<Eigen::MatrixXd> reduced_geometric_stiffness(const mesh::DistributedMesh &mesh,
+                                                         const fem::IsotropicMaterial &material,
+                                                         const std::vector<Vec> &basis,
+                                                         const std::vector<Vec> &u,
+                                                         const std::vector<double> &modulus_factor,
+                                                         const std::string &what);
+
 /// The 6 reduced geometric stiffness matrices G_c = V^T K_sigma(u_c) V [N/m per rad^2/s^2]
 /// (replicated on every rank, symmetrized), c = xx, yy, zz, yz, xz, xy, for the basis V =
 /// `basis` (full-size vectors in the layout of K, e.g. CraigBamptonBasis::vectors).
