@@ -8,7 +8,7 @@ Usage: scripts/study_stability.py [--flexopt build/flexopt] [--unit-tests build/
 
 Panels (2 ranks; about 5 minutes):
   1. linear FFRF above the first bending frequency: cases/kane_beam's tip deflection, FFRF with 4
-     modes, linear and stiffened, over 10 s (the spin passes w1 = 3.8 rad/s at t = 7.4 s);
+     modes, linear and stiffened, over 10 s (the spin passes w1 = 3.8 rad/s at t = 8.5 s);
   2. FFRF at large elastic rotation: cases/flexible_pendulum with E = 1e8 Pa (the plan's elastic
      rotation 0.26 rad), the tip deflection of stiffened FFRF (8 modes) and of ACF (0.05 m mesh),
      1 s at 1 ms;
@@ -105,8 +105,8 @@ def figure(data, path):
     for k, color in (("linear", "C1"), ("stiffened", "C0")):
         t, y = data["linear_spin"][k]
         p.plot(t, y, color=color, label=f"FFRF {k}, 4 modes")
-    p.axvline(7.4, color="grey", linestyle=":", linewidth=1)
-    p.annotate("spin passes w1", (7.4, 0), fontsize=8, color="grey", xytext=(4, 10), textcoords="offset points")
+    p.axvline(8.5, color="grey", linestyle=":", linewidth=1)
+    p.annotate("spin passes w1", (8.5, 0), fontsize=8, color="grey", xytext=(4, 10), textcoords="offset points")
     p.set_ylim(-3, 1)
     p.set_xlabel("t [s]")
     p.set_ylabel("tip deflection y in the hub frame [m]")

@@ -22,8 +22,9 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 /// ACF cost model (docs/theory.md section 12.4): rank-seconds per DOF and Newton iteration, and
-/// Newton iterations per step, from the ACF runs of docs/benchmarks.md ("FFRF against ACF").
-constexpr double kAcfSecondsPerDofIteration = 1.9e-6;
+/// Newton iterations per step: the median of the quiet ACF runs of the speed-accuracy map
+/// (docs/benchmarks.md "Speed against accuracy": 0.63-1.3 us, 3.2-4.5 iterations per step).
+constexpr double kAcfSecondsPerDofIteration = 0.8e-6;
 constexpr double kAcfIterationsPerStep = 4.2;
 /// The most steps of the rigid pre-run (section 12.1).
 constexpr long long kPrerunSteps = 2000;
@@ -469,15 +470,20 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
     const bool flexible_design = c.design && c.design->body == bp.body;
     // Why ACF (the first reason that holds), and what keeps a body from it: a response of the
     // case (objective, constraint) on an elastic_displacement sensor of the body.
+    // The joints' stress stiffening changes the elastic part of what the body's measures see by
+    // about mu_J: relative to their scales, mu_J times the rigid model's error (1 for an
+    // elastic_displacement sensor, whose scale is the deflection itself).
+    const double joint_error = est.joint_stiffening * std::min(1.0, est.rigid_error);
     auto acf_reason = [&]() {
       if (est.rotation * est.rotation > eps)
         return fmt("acf: the elastic rotation reaches %.3g rad; FFRF's linear strain in a "
                    "floating frame leaves out terms of order rotation^2 = %.2g > %g",
                    est.rotation, est.rotation * est.rotation, eps);
-      return fmt("acf: the joint forces' stress changes the body's stiffness by %.2g (> %g; an "
-                 "axial load over the buckling load), which FFRF's linear elasticity leaves out "
-                 "(its geometric stiffening is the centrifugal one)",
-                 est.joint_stiffening, eps);
+      return fmt("acf: the joint forces' stress changes the body's stiffness by %.2g (an axial "
+                 "load over the buckling load), and what %s sees by about %.2g (> %g), which "
+                 "FFRF's linear elasticity leaves out (its geometric stiffening is the "
+                 "centrifugal one)",
+                 est.joint_stiffening, est.rigid_error_at.c_str(), joint_error, eps);
     };
     std::string acf_blocker;
     {
@@ -499,12 +505,11 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
       bp.reasons.push_back(fmt("rigid: the elastic deflection changes %s by %.2g of its scale, "
                                "within the accuracy %g",
                                est.rigid_error_at.c_str(), est.rigid_error, eps));
-    } else if ((est.rotation * est.rotation > eps || est.joint_stiffening > eps) &&
-               acf_blocker.empty()) {
+    } else if ((est.rotation * est.rotation > eps || joint_error > eps) && acf_blocker.empty()) {
       bp.recommended = "acf";
       bp.reasons.push_back(acf_reason());
     } else {
-      if (!acf_blocker.empty() && (est.rotation * est.rotation > eps || est.joint_stiffening > eps))
+      if (!acf_blocker.empty() && (est.rotation * est.rotation > eps || joint_error > eps))
         bp.warnings.push_back(acf_reason() + "; but " + acf_blocker +
                               ", which a response of an ACF body cannot use yet: FFRF, with "
                               "that error");
@@ -517,10 +522,12 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
         bp.reasons.push_back(fmt("flexible: a rigid model misses %.2g of %s's scale (> %g)",
                                  est.rigid_error, est.rigid_error_at.c_str(), eps));
       bp.reasons.push_back(fmt("ffrf: elastic rotation %.3g rad (rotation^2 = %.2g %s %g), the "
-                               "joint forces' stress stiffening %.2g (%s %g)",
+                               "joint forces' stress stiffening %.2g, %.2g of the measures "
+                               "(%s %g)",
                                est.rotation, est.rotation * est.rotation,
                                est.rotation * est.rotation > eps ? ">" : "<=", eps,
-                               est.joint_stiffening, est.joint_stiffening > eps ? ">" : "<=", eps));
+                               est.joint_stiffening, joint_error, joint_error > eps ? ">" : "<=",
+                               eps));
       std::string errs;
       for (std::size_t j = 0;
            j < est.mode_errors.size() && j <= static_cast<std::size_t>(chosen) + 2; ++j)
@@ -563,8 +570,8 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
                       "rad (rotation^2 = %.2g > %g); model: acf",
                       est.rotation, est.rotation * est.rotation, eps)
                 : fmt("FFRF's linear elasticity: the joint forces' stress changes the stiffness "
-                      "by %.2g (> %g); model: acf",
-                      est.joint_stiffening, eps));
+                      "by %.2g and the measures by %.2g (> %g); model: acf",
+                      est.joint_stiffening, joint_error, eps));
       if (bp.given == "ffrf" && bp.recommended == "ffrf" && r.modes < chosen)
         bp.warnings.push_back(
             fmt("%d modes leave %.2g of the sensors' scale (the estimates "
