@@ -114,8 +114,8 @@ double highest_frequency(const mesh::DistributedMesh &mesh, const io::MaterialSp
     const fem::ElementCoords X = mesh.element_coordinates(e);
     try {
       const Eigen::GeneralizedSelfAdjointEigenSolver<Eigen::MatrixXd> eig(
-          fem::element_stiffness(mesh.type, X, material), fem::element_mass(mesh.type, X, mat.density),
-          Eigen::EigenvaluesOnly);
+          fem::element_stiffness(mesh.type, X, material),
+          fem::element_mass(mesh.type, X, mat.density), Eigen::EigenvaluesOnly);
       w2 = std::max(w2, eig.eigenvalues().maxCoeff());
     } catch (const std::exception &err) {
       abort_local(std::string("plan: highest frequency: element ") +
@@ -526,8 +526,8 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
                                "(%s %g)",
                                est.rotation, est.rotation * est.rotation,
                                est.rotation * est.rotation > eps ? ">" : "<=", eps,
-                               est.joint_stiffening, joint_error, joint_error > eps ? ">" : "<=",
-                               eps));
+                               est.joint_stiffening, joint_error,
+                               joint_error > eps ? ">" : "<=", eps));
       std::string errs;
       for (std::size_t j = 0;
            j < est.mode_errors.size() && j <= static_cast<std::size_t>(chosen) + 2; ++j)

@@ -484,8 +484,8 @@ TEST(GeneralizedAlpha, ScaledNewtonMatrixStaysConditionedAsTheStepShrinks) {
   auto condition = [&](double h, bool scaled) {
     const auto k = par.newton_scaling(h);
     Matrix A = Matrix::Zero(n + c, n + c);
-    A.topLeftCorner(n, n) = scaled ? Matrix(M + (k.gp / k.bp) * C + K / k.bp)
-                                   : Matrix(k.bp * M + k.gp * C + K);
+    A.topLeftCorner(n, n) =
+        scaled ? Matrix(M + (k.gp / k.bp) * C + K / k.bp) : Matrix(k.bp * M + k.gp * C + K);
     A.topRightCorner(n, c) = J.transpose();
     A.bottomLeftCorner(c, n) = J;
     const Eigen::JacobiSVD<Matrix> svd(A);

@@ -15,19 +15,19 @@ namespace flexopt::plan {
 
 /// The estimates behind one body's choice (docs/theory.md section 12.2).
 struct Estimates {
-  int dofs = 0;               ///< FE DOFs of the body's mesh
-  double length = 0;          ///< largest extent of the body [m]
-  double f1 = 0;              ///< lowest frequency of the reduction (body on its frame) [Hz]
-  double spin = 0;            ///< max |omega| of the pre-run [rad/s]
-  double f_excitation = 0;    ///< frequency below which 1 - eps^2 of the forcing's energy lies [Hz]
-  double deflection = 0;      ///< max elastic displacement over time and nodes (KED) [m]
-  double rotation = 0;        ///< max elastic rotation over time and elements (KED) [rad]
+  int dofs = 0;            ///< FE DOFs of the body's mesh
+  double length = 0;       ///< largest extent of the body [m]
+  double f1 = 0;           ///< lowest frequency of the reduction (body on its frame) [Hz]
+  double spin = 0;         ///< max |omega| of the pre-run [rad/s]
+  double f_excitation = 0; ///< frequency below which 1 - eps^2 of the forcing's energy lies [Hz]
+  double deflection = 0;   ///< max elastic displacement over time and nodes (KED) [m]
+  double rotation = 0;     ///< max elastic rotation over time and elements (KED) [rad]
   /// max |relative stiffness change| from the stress of the joint forces' quasi-static
   /// deformation (at its largest energy): P / P_buckling for an axially loaded link
   double joint_stiffening = 0;
-  double highest_frequency = 0; ///< acf: bound of the mesh's highest frequency [Hz] (else 0)
-  double rigid_error = 0;     ///< relative sensor error of the rigid model (section 12.2)
-  std::string rigid_error_at; ///< the sensor, interface or "nodes" that sets it
+  double highest_frequency = 0;    ///< acf: bound of the mesh's highest frequency [Hz] (else 0)
+  double rigid_error = 0;          ///< relative sensor error of the rigid model (section 12.2)
+  std::string rigid_error_at;      ///< the sensor, interface or "nodes" that sets it
   std::vector<double> mode_errors; ///< relative sensor error of FFRF with j fixed-interface modes
   double reduction_s = 0;          ///< the plan's reduction of the body [s]
   /// The KED estimate of each of the body's sensors: max over time of |elastic displacement| [m].
