@@ -25,11 +25,11 @@ import subprocess
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from case_variants import case_dict, write_case  # noqa: E402
+from case_variants import write_case  # noqa: E402
+from stability_scenes import acf_slider_crank, as_acf, kane_ffrf, soft_pendulum  # noqa: E402
 from study_run import run_flexopt  # noqa: E402
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-CASES = os.path.join(ROOT, "cases")
 
 
 def simulate(a, c, name):
@@ -44,42 +44,25 @@ def tip(s):
 
 
 def linear_spin(a):
-    c = case_dict(os.path.join(CASES, "kane_beam"))
-    c["time"]["end"] = 10.0
-    beam = c["bodies"][0]
-    beam["model"] = "ffrf"
-    out = {}
-    for stiff in (False, True):
-        beam["reduction"] = {"modes": 4, "geometric_stiffening": stiff}
-        out["stiffened" if stiff else "linear"] = tip(simulate(a, c, f"kane_{'stiff' if stiff else 'linear'}"))
-    return out
+    return {("stiffened" if stiff else "linear"):
+            tip(simulate(a, kane_ffrf(4, stiff), f"kane_{'stiff' if stiff else 'linear'}"))
+            for stiff in (False, True)}
 
 
 def large_rotation(a):
-    c = case_dict(os.path.join(CASES, "flexible_pendulum"))
-    c["materials"]["soft"]["E"] = 1.0e8
-    c["time"] = {"end": 1.0, "step": 1.0e-3, "rho_inf": 0.9}
-    bar = c["bodies"][0]
-    bar["mesh"] = {"size": 0.05, "order": 2}
+    c = soft_pendulum()
     out = {"ffrf": tip(simulate(a, c, "soft_pendulum_ffrf"))}
-    bar["model"] = "acf"
-    bar.pop("reduction", None)
+    as_acf(c["bodies"][0])
     out["acf"] = tip(simulate(a, c, "soft_pendulum_acf"))
     return out
 
 
 def acf_rho1(a):
-    c = case_dict(os.path.join(CASES, "slider_crank_flexible"))
-    rod = c["bodies"][1]
-    rod["model"] = "acf"
-    rod.pop("reduction", None)
-    rod["mesh"] = {"size": 0.008, "order": 2}
     out = {}
     for rho in (0.8, 1.0):
         rows = []
         for h in (1.25e-5, 2.5e-5, 5e-5, 1e-4):
-            c["time"] = {"end": 10 * h, "step": h, "rho_inf": rho}
-            s = simulate(a, c, f"slider_crank_acf_h{h:g}_rho{rho:g}")
+            s = simulate(a, acf_slider_crank(h, rho), f"slider_crank_acf_h{h:g}_rho{rho:g}")
             rows.append((h, s["newton_iterations_total"] / 10, s["integration_s"]))
         out[str(rho)] = rows
     return out

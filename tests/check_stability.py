@@ -32,10 +32,10 @@ import subprocess
 import sys
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "scripts"))
-from case_variants import case_dict, finish, write_case  # noqa: E402
+from case_variants import finish, write_case  # noqa: E402
+from stability_scenes import acf_slider_crank, as_acf, kane_ffrf, soft_pendulum  # noqa: E402
 from study_run import ENV  # noqa: E402
 
-CASES = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "cases")
 failures = []
 
 
@@ -65,11 +65,8 @@ def tip_y(summary):
 
 
 def large_rotation(a):
-    c = case_dict(os.path.join(CASES, "flexible_pendulum"))
-    c["materials"]["soft"]["E"] = 1.0e8
-    c["time"] = {"end": 1.0, "step": 1.0e-3, "rho_inf": 0.9}
+    c = soft_pendulum()
     bar = c["bodies"][0]
-    bar["mesh"] = {"size": 0.05, "order": 2}
     given = write_case(c, os.path.join(a.out, "soft_pendulum_ffrf"))
     p = body_plan(flexopt(a, "plan", given, "--auto"), "bar")
     rot = p["estimates"]["rotation_rad"]
@@ -81,8 +78,7 @@ def large_rotation(a):
           f"soft pendulum given as FFRF: the plan warns of the small-deformation assumption "
           f"({p['warnings']})")
     ffrf = min(tip_y(flexopt(a, "simulate", given)))
-    bar["model"] = "acf"
-    bar.pop("reduction", None)
+    as_acf(bar)
     acf = min(tip_y(flexopt(a, "simulate", write_case(c, os.path.join(a.out, "soft_pendulum_acf")))))
     check(abs(ffrf - acf) > 0.5 * abs(acf),
           f"soft pendulum: FFRF's deepest tip deflection {ffrf:.4g} m is more than 50 % off "
@@ -90,11 +86,8 @@ def large_rotation(a):
 
 
 def linear_spin(a):
-    c = case_dict(os.path.join(CASES, "kane_beam"))
-    c["time"]["end"] = 10.0
+    c = kane_ffrf(4, False)
     beam = c["bodies"][0]
-    beam["model"] = "ffrf"
-    beam["reduction"] = {"modes": 4, "geometric_stiffening": False}
     linear = write_case(c, os.path.join(a.out, "kane_linear"))
     p = body_plan(flexopt(a, "plan", linear), "beam")
     check(any("will diverge" in w for w in p["warnings"]),
@@ -109,14 +102,9 @@ def linear_spin(a):
 
 
 def acf_rho1(a):
-    c = case_dict(os.path.join(CASES, "slider_crank_flexible"))
-    rod = c["bodies"][1]
-    rod["model"] = "acf"
-    rod.pop("reduction", None)
-    rod["mesh"] = {"size": 0.008, "order": 2}
     per_step = {}
     for rho in (1.0, 0.8):
-        c["time"] = {"end": 1.0e-3, "step": 1.0e-4, "rho_inf": rho}
+        c = acf_slider_crank(1.0e-4, rho)
         d = write_case(c, os.path.join(a.out, f"slider_crank_acf_rho{rho:g}"))
         p = body_plan(flexopt(a, "plan", d), "rod")
         warned = any("not damped" in w for w in p["warnings"])
