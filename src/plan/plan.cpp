@@ -56,7 +56,8 @@ struct Candidate {
   int n = 0;               ///< elastic coordinates of the plan's reduction
   std::vector<int> lambda; ///< the hold rows' entries in lambda
   Eigen::MatrixXd Q;       ///< (steps + 1) x n: the hold rows' multipliers
-  Eigen::MatrixXd QJ;      ///< (steps + 1) x n: the joints' part of Q, -Phi_zeta^T lambda
+  Eigen::MatrixXd QJ;      ///< (steps + 1) x n: the joints' part of Q, -Phi_zeta^T lambda (empty
+                           ///< for a body without static modes)
   double spin = 0;
 };
 
@@ -258,7 +259,14 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
   const long long steps = std::min(case_steps, kPrerunSteps);
   const double h = c.time.end / static_cast<double>(steps);
   plan.steps = steps;
-  for (Candidate &cd : cand) cd.Q.resize(steps + 1, cd.n), cd.QJ.resize(steps + 1, cd.n);
+  bool joint_forces = false;
+  for (Candidate &cd : cand) {
+    cd.Q.resize(steps + 1, cd.n);
+    if (scene.bodies[cd.body].reduction->static_modes > 0) {
+      cd.QJ.resize(steps + 1, cd.n);
+      joint_forces = true;
+    }
+  }
   // rho_inf at most 0.5: the multipliers' start-up oscillation of the index-3 scheme decays as
   // rho_inf^n (section 6.4), and the forcing is the multipliers; the rigid motion is second-order
   // accurate for any rho_inf.
@@ -273,12 +281,16 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
   auto record = [&](long long n) {
     // The joints' (and drivers') generalized forces on the elastic coordinates: Q less the
     // holds' own rows, -Phi_zeta^T lambda over the rows that are not holds.
-    mech.constraint(state.q, state.t, phi, &J);
+    // Only bodies with static modes (two interfaces or more) need it: at a body's only interface
+    // (its frame) the joint does not strain it.
+    if (joint_forces) mech.constraint(state.q, state.t, phi, &J);
     for (Candidate &cd : cand) {
       for (int k = 0; k < cd.n; ++k)
         cd.Q(n, k) = state.lambda(cd.lambda[static_cast<std::size_t>(k)]);
       const int rigid = mech.offset(cd.mech), off = rigid + 7;
-      cd.QJ.row(n) = cd.Q.row(n) - (J.middleCols(off, cd.n).transpose() * state.lambda).transpose();
+      if (cd.QJ.size())
+        cd.QJ.row(n) =
+            cd.Q.row(n) - (J.middleCols(off, cd.n).transpose() * state.lambda).transpose();
       const bodies::Vec4 p = state.q.segment<4>(rigid + 3), pd = state.v.segment<4>(rigid + 3);
       cd.spin = std::max(cd.spin, (2.0 * bodies::gbar_matrix(p) * pd).norm());
     }
@@ -405,11 +417,11 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
       const Eigen::MatrixXd &C = red.craig_bampton;
       const io::MaterialSpec &mat = c.material(c.bodies[cd.body].material);
       std::vector<Vec> V(static_cast<std::size_t>(red.static_modes));
+      std::vector<Vec> basis = red.basis; // VecMAXPY takes non-const handles
       for (int k = 0; k < red.static_modes; ++k) {
         Vec &v = V[static_cast<std::size_t>(k)];
         FX_PETSC(VecDuplicate(red.basis[0], &v));
         FX_PETSC(VecZeroEntries(v));
-        std::vector<Vec> basis = red.basis;
         FX_PETSC(VecMAXPY(v, cd.n, C.col(k).data(), basis.data()));
       }
       const std::vector<Eigen::MatrixXd> G = reduce::reduced_geometric_stiffness(
