@@ -5,7 +5,7 @@ Every body of the scene is estimated as if its model were auto, at the case's ac
 
   slider_crank_rigid     every link rigid (steel links at 5 rev/s deflect by micrometres)
   slider_crank_flexible  the rod flexible: its elastic_displacement sensor needs it; ACF at 1e-2
-                         (its axial force changes its bending stiffness by ~5 %), FFRF at 0.1,
+                         (its axial force changes its bending stiffness by ~5-10 %), FFRF at 0.2,
                          and FFRF with a warning where a response uses that sensor
   spin_up_beam           the beam FFRF with geometric stiffening (spun to 4 rad/s, above its
                          first bending frequency of 3.8 rad/s), never linear FFRF
@@ -70,25 +70,35 @@ for body, b in bodies.items():
 
 # 2. The flexible slider-crank: the crank and slider rigid; the rod flexible, and ACF at the
 #    case's accuracy (1e-2): the rod's axial force (up to ~390 N in the rigid motion against its
-#    Euler load of 7.49 kN) changes its bending stiffness by ~5 %, which linear FFRF leaves out
-#    (tests/check_slider_crank_acf.py: FFRF and ACF differ by ~10 % of the deflection). At
-#    accuracy 0.1 the same estimates accept FFRF. The case as it is (its design section's
+#    Euler load of 7.49 kN) changes its bending stiffness by ~5-10 %, which linear FFRF leaves out
+#    (tests/check_slider_crank_acf.py: FFRF and ACF differ by ~10 % of the deflection; the plan
+#    estimates 8.4 %, the speed-accuracy map measures 9.3-9.5 %). At accuracy 0.2 the same
+#    estimates accept FFRF (within half the budget). The case as it is (its design section's
 #    objective on the rod's elastic_displacement sensor, which a response of an ACF body cannot
 #    use yet) gets FFRF, with the warning that ACF is what the estimates call for.
 c = case_dict(case("slider_crank_flexible"))  # without design, objective, constraints
 bodies = plan(write_case(c, os.path.join(a.out, "slider_crank_flexible_simulate")), "slider_crank_flexible_simulate")
 if bodies:
     e = bodies["rod"]["estimates"]
-    check(bodies["rod"]["recommended"] == "acf" and 0.01 < e["joint_stiffening"] < 0.1,
-          f"slider_crank_flexible: rod -> {bodies['rod']['recommended']} (joint stress stiffening "
-          f"{e['joint_stiffening']:.3g}, acf for 0.01 < it)")
+    check(bodies["rod"]["recommended"] == "acf" and 0.01 < e["stress_stiffening"] < 0.15
+          and e["stress_error"] > 0.005,
+          f"slider_crank_flexible: rod -> {bodies['rod']['recommended']} (the loads' stress "
+          f"stiffening {e['stress_stiffening']:.3g} in (0.01, 0.15), {e['stress_error']:.3g} of "
+          f"the sensor > 0.005)")
+    # ACF's mesh (docs/theory.md section 12.3): coarser than the case's 4 mm where the coarse
+    # mesh's frequencies change the KED deflection by at most accuracy / 4 (the speed-accuracy map:
+    # ACF at 16 mm is 0.12 % off the 4 mm run, at 24 mm 0.74 %).
+    size = bodies["rod"].get("mesh_size", 0)
+    check(0.004 < size <= 0.016 and e.get("acf_dofs", 0) < e["dofs"] / 2,
+          f"slider_crank_flexible: the rod's ACF mesh {size} m (the case's 0.004 m; in (0.004, 0.016]), "
+          f"{e.get('acf_dofs')} DOFs against {e['dofs']}")
     for body in ("crank", "slider"):
         check(bodies[body]["recommended"] == "rigid", f"slider_crank_flexible: {body} -> {bodies[body]['recommended']}")
-c["accuracy"] = 0.1
-bodies = plan(write_case(c, os.path.join(a.out, "slider_crank_flexible_0.1")), "slider_crank_flexible_0.1")
+c["accuracy"] = 0.2
+bodies = plan(write_case(c, os.path.join(a.out, "slider_crank_flexible_0.2")), "slider_crank_flexible_0.2")
 if bodies:
     check(bodies["rod"]["recommended"] == "ffrf" and bodies["rod"]["modes"] >= 1,
-          f"slider_crank_flexible at accuracy 0.1: rod -> {bodies['rod']['recommended']}, "
+          f"slider_crank_flexible at accuracy 0.2: rod -> {bodies['rod']['recommended']}, "
           f"{bodies['rod']['modes']} modes")
 bodies = plan(case("slider_crank_flexible"), "slider_crank_flexible")
 if bodies:
@@ -97,8 +107,9 @@ if bodies:
           f"slider_crank_flexible with its design responses: rod -> {b['recommended']}, warned "
           f"that ACF is called for ({b['warnings']})")
 
+stiffened = {}
 # 3. The spin-up beam: FFRF with geometric stiffening.
-bodies = plan(case("spin_up_beam"), "spin_up_beam")
+bodies = stiffened["spin_up_beam"] = plan(case("spin_up_beam"), "spin_up_beam")
 if bodies:
     b = bodies["beam"]
     e = b["estimates"]
@@ -109,11 +120,33 @@ if bodies:
           f"spin_up_beam: beam -> {b['recommended']}, stiffening {b['geometric_stiffening']}")
 
 # 4. The Kane beam: ACF or stiffened FFRF, never linear FFRF.
-bodies = plan(case("kane_beam"), "kane_beam")
+bodies = stiffened["kane_beam"] = plan(case("kane_beam"), "kane_beam")
 if bodies:
     b = bodies["beam"]
     check(b["recommended"] == "acf" or (b["recommended"] == "ffrf" and b["geometric_stiffening"]),
           f"kane_beam: beam -> {b['recommended']}, stiffening {b['geometric_stiffening']}")
+
+# 4b. The flexible pendulum (the scene, without its design responses): ACF. Gravity's and the
+#    tangential inertia's axial stress (about 1 % of the bar's bending stiffness; the centrifugal
+#    part is what stiffened FFRF takes in) drifts the phase of the bar's vibration, rung by its
+#    release undeformed under gravity, by several per cent of the tip deflection over the second
+#    (every FFRF of the speed-accuracy map misses 1 %, docs/benchmarks.md). On the spin-up and
+#    Kane beams, whose stress is the centrifugal one, the same estimate leaves stiffened FFRF
+#    (checked above) with far less than half the budget.
+c = case_dict(case("flexible_pendulum"))
+bodies = plan(write_case(c, os.path.join(a.out, "flexible_pendulum_simulate")), "flexible_pendulum_simulate")
+if bodies:
+    b = bodies["bar"]
+    e = b["estimates"]
+    check(b["recommended"] == "acf" and 0.003 < e["stress_stiffening"] < 0.03 and e["stress_error"] > 0.005,
+          f"flexible_pendulum: bar -> {b['recommended']} (the loads' stress stiffening "
+          f"{e['stress_stiffening']:.3g} in (0.003, 0.03), {e['stress_error']:.3g} of the sensor > 0.005)")
+for name, bodies in stiffened.items():
+    if bodies:
+        e = bodies["beam"]["estimates"]
+        check(e["stress_error"] < 0.005 * 0.1,
+              f"{name}: stiffened FFRF leaves {e['stress_error']:.2g} of the sensor to the loads' "
+              f"other stress (< a tenth of half the budget)")
 
 # 5. A user's linear FFRF on the spin-up beam is kept, with the divergence warning.
 lin = os.path.join(a.out, "spin_up_beam_linear")
@@ -178,9 +211,9 @@ for F in (500.0, -500.0):
     name = f"slider_crank_axial_{F:+.0f}"
     bodies = plan(write_case(c, os.path.join(a.out, name)), name)
     if bodies:
-        mu, euler = bodies["rod"]["estimates"]["joint_stiffening"], abs(F) / 7486.6
+        mu, euler = bodies["rod"]["estimates"]["stress_stiffening"], abs(F) / 7486.6
         check(abs(mu / euler - 1) < 0.02,
-              f"{name}: joint stress stiffening {mu:.5f} against P / P_E = {euler:.5f} "
+              f"{name}: the loads' stress stiffening {mu:.5f} against P / P_E = {euler:.5f} "
               f"({100 * (mu / euler - 1):+.2f} %, within 2 %)")
         check(bodies["crank"]["recommended"] == "rigid" and bodies["slider"]["recommended"] == "rigid",
               f"{name}: crank -> {bodies['crank']['recommended']}, slider -> {bodies['slider']['recommended']}")

@@ -6,6 +6,7 @@
 #include "flexopt/dynamics/generalized_alpha.hpp"
 #include "flexopt/dynamics/scene.hpp"
 #include "flexopt/fem/assembly.hpp"
+#include "flexopt/mesh/load.hpp"
 #include "flexopt/plan/ked.hpp"
 #include "flexopt/reduce/flexible_reduction.hpp"
 #include "flexopt/reduce/geometric_stiffness.hpp"
@@ -14,6 +15,8 @@
 #include <cmath>
 #include <cstdarg>
 #include <cstdio>
+#include <limits>
+#include <optional>
 #include <unsupported/Eigen/FFT>
 
 namespace flexopt::plan {
@@ -56,8 +59,7 @@ struct Candidate {
   int n = 0;               ///< elastic coordinates of the plan's reduction
   std::vector<int> lambda; ///< the hold rows' entries in lambda
   Eigen::MatrixXd Q;       ///< (steps + 1) x n: the hold rows' multipliers
-  Eigen::MatrixXd QJ;      ///< (steps + 1) x n: the joints' part of Q, -Phi_zeta^T lambda (empty
-                           ///< for a body without static modes)
+  Eigen::MatrixXd omega;   ///< (steps + 1) x 3: the body-frame angular velocity
   double spin = 0;
 };
 
@@ -259,13 +261,9 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
   const long long steps = std::min(case_steps, kPrerunSteps);
   const double h = c.time.end / static_cast<double>(steps);
   plan.steps = steps;
-  bool joint_forces = false;
   for (Candidate &cd : cand) {
     cd.Q.resize(steps + 1, cd.n);
-    if (scene.bodies[cd.body].reduction->static_modes > 0) {
-      cd.QJ.resize(steps + 1, cd.n);
-      joint_forces = true;
-    }
+    cd.omega.resize(steps + 1, 3);
   }
   // rho_inf at most 0.5: the multipliers' start-up oscillation of the index-3 scheme decays as
   // rho_inf^n (section 6.4), and the forcing is the multipliers; the rigid motion is second-order
@@ -276,23 +274,14 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
   const dynamics::GeneralizedAlpha ga(mech, par, newton);
   const double t0 = wall_time();
   dynamics::State state = ga.initial_state(scene.q0, scene.v0, 0.0), next;
-  dynamics::Vector phi;
-  dynamics::Matrix J;
   auto record = [&](long long n) {
-    // The joints' (and drivers') generalized forces on the elastic coordinates: Q less the
-    // holds' own rows, -Phi_zeta^T lambda over the rows that are not holds.
-    // Only bodies with static modes (two interfaces or more) need it: at a body's only interface
-    // (its frame) the joint does not strain it.
-    if (joint_forces) mech.constraint(state.q, state.t, phi, &J);
     for (Candidate &cd : cand) {
       for (int k = 0; k < cd.n; ++k)
         cd.Q(n, k) = state.lambda(cd.lambda[static_cast<std::size_t>(k)]);
-      const int rigid = mech.offset(cd.mech), off = rigid + 7;
-      if (cd.QJ.size())
-        cd.QJ.row(n) =
-            cd.Q.row(n) - (J.middleCols(off, cd.n).transpose() * state.lambda).transpose();
+      const int rigid = mech.offset(cd.mech);
       const bodies::Vec4 p = state.q.segment<4>(rigid + 3), pd = state.v.segment<4>(rigid + 3);
-      cd.spin = std::max(cd.spin, (2.0 * bodies::gbar_matrix(p) * pd).norm());
+      cd.omega.row(n) = (2.0 * bodies::gbar_matrix(p) * pd).transpose();
+      cd.spin = std::max(cd.spin, cd.omega.row(n).norm());
     }
     for (std::size_t i = 0; i < track.size(); ++i) {
       const bodies::Vec3 x = dynamics::sensor_value(scene, track[i], state.q);
@@ -406,40 +395,6 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
       est.rotation = tmax;
       FX_PETSC(VecDestroy(&u));
     }
-    // The joints' stress stiffening (section 12.2): the quasi-static deformation under the
-    // joint forces alone, a = K_r^-1 Q_J (in the span of the static modes: the static response to
-    // interface loads), and the largest relative stiffness change its stress causes over the
-    // run, max_t max |eig(W G(a(t)) W)|, W = K_r^-1/2 (an axial load P on a pinned rod gives
-    // P / P_Euler). G is linear in the displacement: G(a) = sum_k b_k G_k over the static modes
-    // V_k = Psi C e_k, b = C^-1 a.
-    if (red.static_modes > 0) {
-      const Eigen::VectorXd w2 = red.eigenvalues.head(cd.n);
-      const Eigen::MatrixXd &C = red.craig_bampton;
-      const io::MaterialSpec &mat = c.material(c.bodies[cd.body].material);
-      std::vector<Vec> V(static_cast<std::size_t>(red.static_modes));
-      std::vector<Vec> basis = red.basis; // VecMAXPY takes non-const handles
-      for (int k = 0; k < red.static_modes; ++k) {
-        Vec &v = V[static_cast<std::size_t>(k)];
-        FX_PETSC(VecDuplicate(red.basis[0], &v));
-        FX_PETSC(VecZeroEntries(v));
-        FX_PETSC(VecMAXPY(v, cd.n, C.col(k).data(), basis.data()));
-      }
-      const std::vector<Eigen::MatrixXd> G = reduce::reduced_geometric_stiffness(
-          mesh, fem::IsotropicMaterial{mat.E, mat.nu, mat.density}, red.basis, V, {},
-          "plan: the joints' stress stiffening");
-      for (Vec &v : V) FX_PETSC(VecDestroy(&v));
-      const Eigen::MatrixXd B =
-          C.partialPivLu().solve((cd.QJ * w2.cwiseInverse().asDiagonal()).transpose());
-      const Eigen::VectorXd s = w2.cwiseSqrt().cwiseInverse();
-      for (Eigen::Index t = 0; t < B.cols(); ++t) {
-        Eigen::MatrixXd Gt = Eigen::MatrixXd::Zero(cd.n, cd.n);
-        for (int k = 0; k < red.static_modes; ++k) Gt += B(k, t) * G[static_cast<std::size_t>(k)];
-        const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(
-            s.asDiagonal() * Gt * s.asDiagonal(), Eigen::EigenvaluesOnly);
-        est.joint_stiffening =
-            std::max(est.joint_stiffening, eig.eigenvalues().cwiseAbs().maxCoeff());
-      }
-    }
     const bool nodes_only = measures.empty();
 
     // Rigid: the whole KED deflection is the rigid model's error.
@@ -456,6 +411,35 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
       est.rigid_error_at = "largest nodal deflection / body size";
     }
 
+    // The estimates of what a model changes in the motion (the loads' stress, ACF's mesh) start
+    // as the case does: at rest and undeformed unless the case gives the body an initial elastic
+    // state (then in its quasi-static state, as the modes' test): the ringing of a body released
+    // undeformed under load is physical, and its phase is what a stiffness change shifts.
+    const Start start = [&]() {
+      const io::InitialSpec &init = c.bodies[cd.body].initial;
+      auto none = [](const std::array<std::string, 3> &f) {
+        return f[0].empty() && f[1].empty() && f[2].empty();
+      };
+      return none(init.elastic_displacement) && none(init.elastic_velocity) ? Start::Rest
+                                                                            : Start::QuasiStatic;
+    }();
+    // The relative error of the measures that a change D of the KED response (rows: samples)
+    // makes: the largest over the measures, or the nodes at the worst instant.
+    auto measures_error = [&](const Eigen::MatrixXd &D, std::string *at) {
+      if (measures.empty())
+        return max_nodal_norm(scene.owned_modes[cd.body], D.row(worst).transpose(), comm) /
+               est.length;
+      double e = 0;
+      for (const Measure &m : measures) {
+        const double em = max_norm(m.S, D) / m.scale;
+        if (em > e) {
+          e = em;
+          if (at) *at = m.name;
+        }
+      }
+      return e;
+    };
+
     // FFRF with j fixed-interface modes against the plan's model.
     const int s0 = red.static_modes, fixed = red.fixed_modes;
     int chosen = -1;
@@ -467,35 +451,112 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
       double e = 0;
       if (j < fixed) {
         const ModalModel sub = modal_model(red.K, red.M, red.craig_bampton, s0 + j);
-        const Eigen::MatrixXd D = ked_response(sub, cd.Q, h) - Z;
-        for (const Measure &m : measures) e = std::max(e, max_norm(m.S, D) / m.scale);
-        if (nodes_only)
-          e = max_nodal_norm(scene.owned_modes[cd.body], D.row(worst).transpose(), comm) /
-              est.length;
+        e = measures_error(ked_response(sub, cd.Q, h) - Z, nullptr);
       }
       est.mode_errors.push_back(e);
       if (chosen < 0 && e <= 0.5 * eps) chosen = j;
     }
     if (chosen < 0) chosen = fixed;
 
+    // Geometric stiffening (rule 4) decides which part of the loads' stress FFRF takes in.
+    const double spin_ratio = w1 > 0 ? est.spin / w1 : 0;
+    bp.geometric_stiffening = spin_ratio * spin_ratio > eps;
+
+    // The loads' stress stiffening (section 12.2): the stress of the quasi-static deformation
+    // zeta_sigma = K_r^-1 (Q - F_c) that FFRF leaves out (F_c: the centrifugal load about the frame
+    // origin, taken in by stiffened FFRF), compressed to its leading directions d_i, its reduced
+    // geometric stiffness G_sigma(t) = sum_i c_i(t) G(d_i), the largest relative stiffness change
+    // mu_sigma, and what it changes in the measures: the KED response with K_r + G_sigma(t)
+    // against K_r's.
+    {
+      const Eigen::VectorXd w2 = red.eigenvalues.head(cd.n), root = w2.cwiseSqrt();
+      Eigen::MatrixXd F = cd.Q;
+      if (bp.geometric_stiffening)
+        for (Eigen::Index t = 0; t < F.rows(); ++t) {
+          const Eigen::Vector3d w = cd.omega.row(t).transpose();
+          const Eigen::Matrix3d A =
+              w.squaredNorm() * Eigen::Matrix3d::Identity() - w * w.transpose();
+          for (int k = 0; k < cd.n; ++k)
+            F(t, k) -= A.cwiseProduct(red.invariants.S1[static_cast<std::size_t>(k)]).sum();
+        }
+      // zeta_sigma K_r^1/2 = F K_r^-1/2 (rows: samples), in the energy norm.
+      const Eigen::BDCSVD<Eigen::MatrixXd> svd(F * root.cwiseInverse().asDiagonal(),
+                                               Eigen::ComputeThinU | Eigen::ComputeThinV);
+      const Eigen::VectorXd &sv = svd.singularValues();
+      int r = 0;
+      while (r < std::min<Eigen::Index>(6, sv.size()) && sv(r) > 0 && sv(r) >= 1e-3 * sv(0)) ++r;
+      Eigen::MatrixXd coef(F.rows(), r);
+      std::vector<Vec> dirs(static_cast<std::size_t>(r));
+      std::vector<Vec> basis = red.basis; // VecMAXPY takes non-const handles
+      for (int i = 0; i < r; ++i) {
+        coef.col(i) = sv(i) * svd.matrixU().col(i);
+        const Eigen::VectorXd d = svd.matrixV().col(i).cwiseQuotient(root);
+        Vec &v = dirs[static_cast<std::size_t>(i)];
+        FX_PETSC(VecDuplicate(red.basis[0], &v));
+        FX_PETSC(VecZeroEntries(v));
+        FX_PETSC(VecMAXPY(v, cd.n, d.data(), basis.data()));
+      }
+      const io::MaterialSpec &mat = c.material(c.bodies[cd.body].material);
+      const std::vector<Eigen::MatrixXd> G =
+          r ? reduce::reduced_geometric_stiffness(
+                  mesh, fem::IsotropicMaterial{mat.E, mat.nu, mat.density}, red.basis, dirs, {},
+                  "plan: the loads' stress stiffening")
+            : std::vector<Eigen::MatrixXd>{};
+      for (Vec &v : dirs) FX_PETSC(VecDestroy(&v));
+      // mu_sigma (reported): at most ~250 samples, evenly spaced, and the one of the largest
+      // coefficients.
+      const Eigen::VectorXd W = root.cwiseInverse();
+      const Eigen::Index samples = coef.rows(), stride = std::max<Eigen::Index>(1, samples / 250);
+      Eigen::Index peak = 0;
+      if (r > 0) coef.rowwise().norm().maxCoeff(&peak);
+      for (Eigen::Index t = 0; t < samples && r > 0; ++t) {
+        if (t % stride != 0 && t != peak) continue;
+        Eigen::MatrixXd Gt = Eigen::MatrixXd::Zero(cd.n, cd.n);
+        for (int i = 0; i < r; ++i) Gt += coef(t, i) * G[static_cast<std::size_t>(i)];
+        const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(
+            W.asDiagonal() * Gt * W.asDiagonal(), Eigen::EigenvaluesOnly);
+        est.stress_stiffening =
+            std::max(est.stress_stiffening, eig.eigenvalues().cwiseAbs().maxCoeff());
+      }
+      // e_sigma on the FFRF model rule 4 picks (the static modes and the chosen fixed-interface
+      // modes, at least one coordinate): its stiffness with and without G_sigma.
+      const ModalModel sub =
+          modal_model(red.K, red.M, red.craig_bampton, std::min(cd.n, std::max(1, s0 + chosen)));
+      std::vector<Eigen::MatrixXd> Gs;
+      for (const Eigen::MatrixXd &Gi : G) Gs.push_back(sub.E.transpose() * Gi * sub.E);
+      const Eigen::MatrixXd Qs = cd.Q * sub.E;
+      double lowest = 0;
+      const Eigen::MatrixXd D = (ked_response_varying(Eigen::MatrixXd(sub.w2.asDiagonal()), Gs,
+                                                      coef, Qs, h, start, &lowest) -
+                                 modal_response(sub.w2, Qs, h, start)) *
+                                sub.E.transpose();
+      est.stress_error_at = est.rigid_error_at;
+      est.stress_error = lowest > 0 ? measures_error(D, &est.stress_error_at)
+                                    : std::numeric_limits<double>::infinity();
+    }
+
     // The rules (section 12.3).
     const bool flexible_design = c.design && c.design->body == bp.body;
     // Why ACF (the first reason that holds), and what keeps a body from it: a response of the
     // case (objective, constraint) on an elastic_displacement sensor of the body.
-    // The joints' stress stiffening changes the elastic part of what the body's measures see by
-    // about mu_J: relative to their scales, mu_J times the rigid model's error (1 for an
-    // elastic_displacement sensor, whose scale is the deflection itself).
-    const double joint_error = est.joint_stiffening * std::min(1.0, est.rigid_error);
+    // The loads' stress, which FFRF leaves out, changes what the measures see by e_sigma; half
+    // the budget (the other half: the modes' truncation).
+    const bool stressed = est.stress_error > 0.5 * eps;
     auto acf_reason = [&]() {
       if (est.rotation * est.rotation > eps)
         return fmt("acf: the elastic rotation reaches %.3g rad; FFRF's linear strain in a "
                    "floating frame leaves out terms of order rotation^2 = %.2g > %g",
                    est.rotation, est.rotation * est.rotation, eps);
-      return fmt("acf: the joint forces' stress changes the body's stiffness by %.2g (an axial "
-                 "load over the buckling load), and what %s sees by about %.2g (> %g), which "
-                 "FFRF's linear elasticity leaves out (its geometric stiffening is the "
-                 "centrifugal one)",
-                 est.joint_stiffening, est.rigid_error_at.c_str(), joint_error, eps);
+      if (!std::isfinite(est.stress_error))
+        return std::string("acf: the loads' stress takes the body's stiffness to zero (it "
+                           "buckles under the rigid motion's loads), which FFRF's linear "
+                           "elasticity leaves out");
+      return fmt("acf: the loads' stress (inertia, gravity, joints%s) changes the body's "
+                 "stiffness by up to %.2g and %s by %.2g of its scale (> %g / 2), which FFRF's "
+                 "linear elasticity leaves out",
+                 bp.geometric_stiffening ? "; less the centrifugal part stiffened FFRF takes in"
+                                         : "",
+                 est.stress_stiffening, est.stress_error_at.c_str(), est.stress_error, eps);
     };
     std::string acf_blocker;
     {
@@ -509,19 +570,17 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
             acf_blocker = "the " + r->type + " response uses sensor '" + sensor.name +
                           "', this body's elastic displacement";
     }
-    const double spin_ratio = w1 > 0 ? est.spin / w1 : 0;
     bp.modes = chosen;
-    bp.geometric_stiffening = spin_ratio * spin_ratio > eps;
     if (!elastic_sensor && !flexible_design && est.rigid_error <= eps) {
       bp.recommended = "rigid";
       bp.reasons.push_back(fmt("rigid: the elastic deflection changes %s by %.2g of its scale, "
                                "within the accuracy %g",
                                est.rigid_error_at.c_str(), est.rigid_error, eps));
-    } else if ((est.rotation * est.rotation > eps || joint_error > eps) && acf_blocker.empty()) {
+    } else if ((est.rotation * est.rotation > eps || stressed) && acf_blocker.empty()) {
       bp.recommended = "acf";
       bp.reasons.push_back(acf_reason());
     } else {
-      if (!acf_blocker.empty() && (est.rotation * est.rotation > eps || joint_error > eps))
+      if (!acf_blocker.empty() && (est.rotation * est.rotation > eps || stressed))
         bp.warnings.push_back(acf_reason() + "; but " + acf_blocker +
                               ", which a response of an ACF body cannot use yet: FFRF, with "
                               "that error");
@@ -534,12 +593,11 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
         bp.reasons.push_back(fmt("flexible: a rigid model misses %.2g of %s's scale (> %g)",
                                  est.rigid_error, est.rigid_error_at.c_str(), eps));
       bp.reasons.push_back(fmt("ffrf: elastic rotation %.3g rad (rotation^2 = %.2g %s %g), the "
-                               "joint forces' stress stiffening %.2g, %.2g of the measures "
-                               "(%s %g)",
+                               "loads' stress stiffening %.2g, %.2g of the measures (%s %g / 2)",
                                est.rotation, est.rotation * est.rotation,
                                est.rotation * est.rotation > eps ? ">" : "<=", eps,
-                               est.joint_stiffening, joint_error,
-                               joint_error > eps ? ">" : "<=", eps));
+                               est.stress_stiffening, est.stress_error,
+                               stressed ? ">" : "<=", eps));
       std::string errs;
       for (std::size_t j = 0;
            j < est.mode_errors.size() && j <= static_cast<std::size_t>(chosen) + 2; ++j)
@@ -555,10 +613,64 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
             fmt("no geometric stiffening: (spin/w1)^2 = %.2g <= %g", spin_ratio * spin_ratio, eps));
     }
     bp.reasons.push_back(fmt("estimates: first frequency %.4g Hz, excitation below %.3g Hz, spin "
-                             "%.3g rad/s, KED deflection %.3g m, rotation %.3g rad, joint "
-                             "stress stiffening %.3g",
+                             "%.3g rad/s, KED deflection %.3g m, rotation %.3g rad, the loads' "
+                             "stress stiffening %.3g (%.2g of the measures)",
                              est.f1, est.f_excitation, est.spin, est.deflection, est.rotation,
-                             est.joint_stiffening));
+                             est.stress_stiffening, est.stress_error));
+
+    // ACF's mesh (section 12.3): for an auto body that the rules make ACF, meshed from a .geo at a
+    // given size and not a design body, the coarsest of 4, 3, 2 and 1.5 times the case's size
+    // whose frequencies, put into the KED response in place of the case mesh's, change the
+    // measures by at most eps / 4.
+    std::optional<mesh::DistributedMesh> acf_mesh;
+    const io::BodySpec &spec = pre.bodies[cd.body];
+    if (bp.recommended == "acf" && bp.given == "auto" && !flexible_design && spec.mesh.size > 0 &&
+        spec.geometry.size() > 4 && spec.geometry.substr(spec.geometry.size() - 4) == ".geo") {
+      const io::MaterialSpec &mat = c.material(spec.material);
+      const Eigen::MatrixXd F = cd.Q * full.E;
+      const Eigen::MatrixXd Zf = modal_response(full.w2, F, h, start) * full.E.transpose();
+      std::string trials;
+      for (double factor : {4.0, 3.0, 2.0, 1.5}) {
+        io::BodySpec trial = spec;
+        trial.mesh.size = factor * spec.mesh.size;
+        std::optional<mesh::DistributedMesh> tm;
+        reduce::FlexibleReduction tr;
+        try {
+          tm.emplace(mesh::load_body_mesh(comm, trial));
+          reduce::reduce_flexible_body(*tm, fem::IsotropicMaterial{mat.E, mat.nu, mat.density},
+                                       trial.interfaces, red.fixed_modes, false, tr,
+                                       trial.reduction.frame == "chord"
+                                           ? reduce::FrameCondition::Chord
+                                           : reduce::FrameCondition::Clamped);
+        } catch (const Error &err) { // collective: every rank skips the size
+          trials +=
+              fmt("%s%g m: failed (%s)", trials.empty() ? "" : ", ", trial.mesh.size, err.what());
+          continue;
+        }
+        // The case mesh's modes with the trial mesh's frequencies, mode by mode.
+        Eigen::VectorXd w2 = full.w2;
+        const Eigen::Index m = std::min(w2.size(), tr.eigenvalues.size());
+        for (Eigen::Index k = 0; k < m; ++k) w2(k) *= tr.eigenvalues(k) / red.eigenvalues(k);
+        const double e =
+            measures_error(modal_response(w2, F, h, start) * full.E.transpose() - Zf, nullptr);
+        trials += fmt("%s%g m: %.2g (%lld DOFs)", trials.empty() ? "" : ", ", trial.mesh.size, e,
+                      3LL * static_cast<long long>(tm->global_nodes));
+        if (e <= 0.25 * eps) {
+          bp.mesh_size = trial.mesh.size;
+          est.acf_dofs = static_cast<int>(3 * tm->global_nodes);
+          acf_mesh.emplace(std::move(*tm));
+          break;
+        }
+      }
+      if (bp.mesh_size > 0)
+        bp.reasons.push_back(fmt("acf mesh: size %g m (the case's %g m): its frequencies change "
+                                 "the measures by at most %g / 4 (%s)",
+                                 bp.mesh_size, spec.mesh.size, eps, trials.c_str()));
+      else
+        bp.reasons.push_back(fmt("acf mesh: the case's (%g m): a coarser one changes the measures "
+                                 "by more than %g / 4 (%s)",
+                                 spec.mesh.size, eps, trials.c_str()));
+    }
 
     // What runs, and where a given model disagrees.
     if (bp.given == "auto") {
@@ -581,9 +693,9 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
                 ? fmt("FFRF's small-deformation assumption: the elastic rotation reaches %.3g "
                       "rad (rotation^2 = %.2g > %g); model: acf",
                       est.rotation, est.rotation * est.rotation, eps)
-                : fmt("FFRF's linear elasticity: the joint forces' stress changes the stiffness "
-                      "by %.2g and the measures by %.2g (> %g); model: acf",
-                      est.joint_stiffening, joint_error, eps));
+                : fmt("FFRF's linear elasticity: the loads' stress changes the stiffness by "
+                      "%.2g and the measures by %.2g (> %g / 2); model: acf",
+                      est.stress_stiffening, est.stress_error, eps));
       if (bp.given == "ffrf" && bp.recommended == "ffrf" && r.modes < chosen)
         bp.warnings.push_back(
             fmt("%d modes leave %.2g of the sensors' scale (the estimates "
@@ -601,7 +713,8 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
     // not resolve (h w_max >> 1); on the co-rotated elements they can stall Newton
     // (docs/benchmarks.md "Where each method fails").
     if (bp.model == "acf") {
-      const double w_max = highest_frequency(mesh, c.material(c.bodies[cd.body].material));
+      const double w_max =
+          highest_frequency(acf_mesh ? *acf_mesh : mesh, c.material(c.bodies[cd.body].material));
       est.highest_frequency = w_max / (2 * kPi);
       if (c.time.rho_inf > 0.99 && c.time.step * w_max > 2)
         bp.warnings.push_back(fmt(
@@ -615,8 +728,9 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
       bp.predicted_cost_s = est.reduction_s + plan.prerun_s * static_cast<double>(case_steps) /
                                                   static_cast<double>(steps);
     else if (bp.model == "acf")
-      bp.predicted_cost_s = static_cast<double>(case_steps) * kAcfIterationsPerStep * est.dofs *
-                            kAcfSecondsPerDofIteration / size;
+      bp.predicted_cost_s = static_cast<double>(case_steps) * kAcfIterationsPerStep *
+                            (est.acf_dofs ? est.acf_dofs : est.dofs) * kAcfSecondsPerDofIteration /
+                            size;
     else
       bp.predicted_cost_s = 0;
   }
@@ -631,6 +745,7 @@ void print_plan(MPI_Comm comm, const Plan &plan) {
     if (bp.model == "ffrf")
       what +=
           fmt(", %d modes%s", bp.modes, bp.geometric_stiffening ? ", geometric stiffening" : "");
+    if (bp.model == "acf" && bp.mesh_size > 0) what += fmt(", mesh size %g m", bp.mesh_size);
     if (bp.given != "auto") what += " (given)";
     print0(comm, "plan: body %s (%s): %s; predicted cost %.3g s\n", bp.body.c_str(),
            bp.given.c_str(), what.c_str(), bp.predicted_cost_s);
@@ -651,6 +766,7 @@ io::Json plan_json(const Plan &plan) {
     j["recommended"] = bp.recommended;
     j["modes"] = bp.modes;
     j["geometric_stiffening"] = bp.geometric_stiffening;
+    if (bp.mesh_size > 0) j["mesh_size"] = bp.mesh_size;
     io::Json r = io::Json::array();
     for (const auto &s : bp.reasons) r.push_back(s);
     j["reasons"] = r;
@@ -661,13 +777,17 @@ io::Json plan_json(const Plan &plan) {
     if (bp.estimated) {
       io::Json e = io::Json::object();
       e["dofs"] = bp.est.dofs;
+      if (bp.est.acf_dofs) e["acf_dofs"] = bp.est.acf_dofs;
       e["length_m"] = bp.est.length;
       e["first_frequency_hz"] = bp.est.f1;
       e["spin_rad_s"] = bp.est.spin;
       e["excitation_hz"] = bp.est.f_excitation;
       e["deflection_m"] = bp.est.deflection;
       e["rotation_rad"] = bp.est.rotation;
-      e["joint_stiffening"] = bp.est.joint_stiffening;
+      e["stress_stiffening"] = bp.est.stress_stiffening;
+      e["stress_error"] =
+          std::isfinite(bp.est.stress_error) ? io::Json(bp.est.stress_error) : io::Json("infinite");
+      e["stress_error_at"] = bp.est.stress_error_at;
       if (bp.est.highest_frequency > 0) e["highest_frequency_hz"] = bp.est.highest_frequency;
       e["rigid_error"] = bp.est.rigid_error;
       e["rigid_error_at"] = bp.est.rigid_error_at;
@@ -690,6 +810,7 @@ io::Case apply_plan(const io::Case &c, const Plan &plan) {
     if (body.model != "auto") continue;
     const BodyPlan &bp = plan.bodies.at(b);
     body.model = bp.model;
+    if (bp.model == "acf" && bp.mesh_size > 0) body.mesh.size = bp.mesh_size;
     if (bp.model == "ffrf") {
       body.reduction.modes = bp.modes;
       body.reduction.geometric_stiffening = bp.geometric_stiffening;

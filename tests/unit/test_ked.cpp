@@ -7,6 +7,7 @@
 
 #include <cmath>
 #include <gtest/gtest.h>
+#include <vector>
 
 using namespace flexopt::plan;
 
@@ -96,4 +97,71 @@ TEST(Ked, SubModelIsTheRayleighQuotientAndFullModelTheEigenpairs) {
   for (int i = 0; i <= steps; ++i)
     err = std::max(err, (Z.row(i).transpose() - K.ldlt().solve(a * (i * h) + b)).norm());
   EXPECT_LT(err, 1e-13);
+}
+
+TEST(Ked, VaryingStiffnessHeldConstantIsTheModalResponse) {
+  // K + c G with c constant: the same system as the modal model of K + c G, to round-off.
+  Eigen::MatrixXd K(2, 2), G(2, 2);
+  K << 9, 0, 0, 40;
+  G << 1.5, -0.7, -0.7, 2.0;
+  const double c = -1.3, h = 0.011;
+  const int steps = 500;
+  Eigen::MatrixXd Q(steps + 1, 2), coef = Eigen::MatrixXd::Constant(steps + 1, 1, c);
+  for (int i = 0; i <= steps; ++i) Q(i, 0) = std::sin(3.0 * i * h), Q(i, 1) = 0.4 + 0.2 * i * h;
+  double lowest = 0;
+  const Eigen::MatrixXd Z = ked_response_varying(K, {G}, coef, Q, h, Start::QuasiStatic, &lowest);
+  // From rest: the modal response of K + c G from rest.
+  const Eigen::MatrixXd Zr = ked_response_varying(K, {G}, coef, Q, h, Start::Rest);
+  const Eigen::MatrixXd Kc = K + c * G;
+  const Eigen::MatrixXd R = ked_response(
+      modal_model(Kc, Eigen::MatrixXd::Identity(2, 2), Eigen::MatrixXd::Identity(2, 2), 2), Q, h);
+  EXPECT_LT((Z - R).cwiseAbs().maxCoeff(), 1e-12 * R.cwiseAbs().maxCoeff());
+  const ModalModel m =
+      modal_model(Kc, Eigen::MatrixXd::Identity(2, 2), Eigen::MatrixXd::Identity(2, 2), 2);
+  const Eigen::MatrixXd Rr = modal_response(m.w2, Q * m.E, h, Start::Rest) * m.E.transpose();
+  EXPECT_LT((Zr - Rr).cwiseAbs().maxCoeff(), 1e-12 * Rr.cwiseAbs().maxCoeff());
+  EXPECT_NEAR(lowest, Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(Kc).eigenvalues()(0), 1e-12);
+}
+
+TEST(Ked, VaryingStiffnessIsSecondOrder) {
+  // x'' + (w0^2 + a t) x = f, x from the quasi-static start: the frozen-midpoint steps converge
+  // at order 2 against a fine classical Runge-Kutta solution (h / 64, its error ~1e-12 here).
+  const double w0 = 6.0, a = 20.0, f = 1.0, T = 2.0;
+  auto reference = [&](int steps) {
+    const double h = T / steps;
+    std::vector<double> x(static_cast<std::size_t>(steps) + 1);
+    // The integrator's start: K(0) x(0) = f, K(0) x'(0) = (Q(h) - Q(0)) / h = 0.
+    double y = f / (w0 * w0), v = 0;
+    x[0] = y;
+    auto acc = [&](double t, double xx) { return f - (w0 * w0 + a * t) * xx; };
+    for (int i = 0; i < steps; ++i) {
+      const double t = i * h;
+      const double k1x = v, k1v = acc(t, y);
+      const double k2x = v + 0.5 * h * k1v, k2v = acc(t + 0.5 * h, y + 0.5 * h * k1x);
+      const double k3x = v + 0.5 * h * k2v, k3v = acc(t + 0.5 * h, y + 0.5 * h * k2x);
+      const double k4x = v + h * k3v, k4v = acc(t + h, y + h * k3x);
+      y += h / 6 * (k1x + 2 * k2x + 2 * k3x + k4x);
+      v += h / 6 * (k1v + 2 * k2v + 2 * k3v + k4v);
+      x[static_cast<std::size_t>(i) + 1] = y;
+    }
+    return x;
+  };
+  const int base = 100, fine = 64;
+  const std::vector<double> ref = reference(base * 4 * fine);
+  double errors[2];
+  for (int k = 0; k < 2; ++k) {
+    const int steps = base << k;
+    const double h = T / steps;
+    Eigen::MatrixXd K(1, 1), G(1, 1), Q = Eigen::MatrixXd::Constant(steps + 1, 1, f),
+                                      coef(steps + 1, 1);
+    K << w0 * w0;
+    G << a;
+    for (int i = 0; i <= steps; ++i) coef(i, 0) = i * h;
+    const Eigen::MatrixXd Z = ked_response_varying(K, {G}, coef, Q, h);
+    double e = 0;
+    for (int i = 0; i <= steps; ++i)
+      e = std::max(e, std::abs(Z(i, 0) - ref[static_cast<std::size_t>(i * (4 * fine >> k))]));
+    errors[k] = e;
+  }
+  EXPECT_NEAR(std::log2(errors[0] / errors[1]), 2.0, 0.1) << errors[0] << " " << errors[1];
 }

@@ -3,6 +3,7 @@
 /// the forcing of its rigid motion, one-way coupled (docs/theory.md section 12.1). Small dense
 /// algebra (Eigen), the same on every rank.
 #include <Eigen/Dense>
+#include <vector>
 
 namespace flexopt::plan {
 
@@ -34,5 +35,18 @@ ModalModel modal_model(const Eigen::MatrixXd &K, const Eigen::MatrixXd &M, const
 /// basis' generalized forces), started quasi-statically (docs/theory.md section 12.1): the
 /// full-basis coordinates zeta(t_n) = E x(t_n), one row per sample.
 Eigen::MatrixXd ked_response(const ModalModel &model, const Eigen::MatrixXd &Q, double h);
+
+/// The response zeta of zeta'' + K(t) zeta = Q(t) (unit mass) with the stiffness
+/// K(t) = K + sum_r c_r(t) G[r] (row n of `coefficients`: c(t_n)), from rest or quasi-statically
+/// in K(0) (K(0) zeta(0) = Q(0), K(0) zeta'(0) = (Q(h) - Q(0)) / h); each step is integrated
+/// exactly in the eigenbasis of the stiffness frozen at the step's midpoint (the mean of its
+/// two samples), second order in h (docs/theory.md section 12.2). Rows: the samples of Q.
+/// `lowest` (if given) receives the smallest eigenvalue of the stiffness met; where it is not
+/// positive the integration stops and the remaining rows are zero.
+Eigen::MatrixXd ked_response_varying(const Eigen::MatrixXd &K,
+                                     const std::vector<Eigen::MatrixXd> &G,
+                                     const Eigen::MatrixXd &coefficients, const Eigen::MatrixXd &Q,
+                                     double h, Start start = Start::QuasiStatic,
+                                     double *lowest = nullptr);
 
 } // namespace flexopt::plan

@@ -16,15 +16,20 @@ namespace flexopt::plan {
 /// The estimates behind one body's choice (docs/theory.md section 12.2).
 struct Estimates {
   int dofs = 0;            ///< FE DOFs of the body's mesh
+  int acf_dofs = 0;        ///< acf: FE DOFs of the mesh the plan chose (0: the case's)
   double length = 0;       ///< largest extent of the body [m]
   double f1 = 0;           ///< lowest frequency of the reduction (body on its frame) [Hz]
   double spin = 0;         ///< max |omega| of the pre-run [rad/s]
   double f_excitation = 0; ///< frequency below which 1 - eps^2 of the forcing's energy lies [Hz]
   double deflection = 0;   ///< max elastic displacement over time and nodes (KED) [m]
   double rotation = 0;     ///< max elastic rotation over time and elements (KED) [rad]
-  /// max |relative stiffness change| from the stress of the joint forces' quasi-static
-  /// deformation (at its largest energy): P / P_buckling for an axially loaded link
-  double joint_stiffening = 0;
+  /// max over time of |relative stiffness change| from the stress of the loads' quasi-static
+  /// deformation that FFRF leaves out (section 12.2): P / P_buckling for an axially loaded link
+  double stress_stiffening = 0;
+  /// what that stiffness change does to the measures (KED with and without it), relative to
+  /// their scales; infinite where the body buckles under the loads
+  double stress_error = 0;
+  std::string stress_error_at;     ///< the measure that sets it
   double highest_frequency = 0;    ///< acf: bound of the mesh's highest frequency [Hz] (else 0)
   double rigid_error = 0;          ///< relative sensor error of the rigid model (section 12.2)
   std::string rigid_error_at;      ///< the sensor, interface or "nodes" that sets it
@@ -40,7 +45,8 @@ struct BodyPlan {
   std::string recommended; ///< what the estimates choose: rigid | ffrf | acf
   int modes = 0;           ///< ffrf: fixed-interface modes
   bool geometric_stiffening = false;
-  std::string model;                 ///< what runs: the given model, or the recommendation for auto
+  double mesh_size = 0; ///< acf: the element size the plan chose [m] (0: the case's mesh)
+  std::string model;    ///< what runs: the given model, or the recommendation for auto
   std::vector<std::string> reasons;  ///< why (with numbers)
   std::vector<std::string> warnings; ///< where a given model disagrees with the estimates
   double predicted_cost_s = 0;       ///< predicted wall time of the body in the run
