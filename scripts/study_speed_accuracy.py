@@ -461,6 +461,9 @@ def main():
     ap.add_argument("--flexopt", default=os.path.join(ROOT, "build", "flexopt"))
     ap.add_argument("--out", default=os.path.join(ROOT, "build", "study_speed_accuracy"))
     ap.add_argument("--figure", default=os.path.join(ROOT, "docs", "figures", "speed_accuracy.png"))
+    ap.add_argument("--results", default=os.path.join(ROOT, "docs", "data", "speed_accuracy.json"),
+                    help="a copy of the results kept with the figure (committed: --replot falls back to "
+                         "it when OUT holds none)")
     ap.add_argument("--scenes", default=",".join(SCENES))
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--replot", action="store_true")
@@ -474,14 +477,21 @@ def main():
         if s not in SCENES:
             sys.exit(f"unknown scene '{s}' (one of {', '.join(SCENES)})")
     if a.replot:
+        if not os.path.exists(results_path) and os.path.exists(a.results):
+            results_path = a.results
         results = json.load(open(results_path))["scenes"]
     else:
         os.makedirs(a.out, exist_ok=True)
         start = time.monotonic()
         results = [study_scene(a, s) for s in scenes]
+        doc = {"scenes": results, "quick": a.quick, "flexopt": a.flexopt,
+               "study_wall_s": time.monotonic() - start}
         with open(results_path, "w") as f:
-            json.dump({"scenes": results, "quick": a.quick, "flexopt": a.flexopt,
-                       "study_wall_s": time.monotonic() - start}, f)
+            json.dump(doc, f)
+        if not a.quick and len(scenes) == len(SCENES):
+            os.makedirs(os.path.dirname(a.results), exist_ok=True)
+            with open(a.results, "w") as f:
+                json.dump(doc, f, indent=0)
         with open(os.path.join(a.out, "results.csv"), "w", newline="") as f:
             w = csv.writer(f)
             w.writerow(["scene", "run", "model", "mesh", "modes", "stiffening", "step", "rho_inf", "dofs",
