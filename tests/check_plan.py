@@ -19,7 +19,7 @@ and, without --auto, the user's own choice is kept and questioned:
 Then `simulate` of the rigid slider-crank with every `model:` removed (auto) runs the plan
 first, records it in summary.json, and moves exactly as the case with `model: rigid`. Last,
 the joints' stress stiffening estimate against Euler's load on the slider-crank held at rest with
-an axial force on the slider, and `optimize` with an auto design body.
+an axial force on the slider, and `optimize` with an auto design body (and its --restart).
 
 usage: check_plan.py FLEXOPT CASES OUT [--ranks N]
 """
@@ -237,6 +237,24 @@ if r.returncode == 0:
     check(p.get("given") == "auto" and p.get("model") == "ffrf" and "plan: body link (auto): ffrf" in r.stdout,
           f"optimize (auto): the plan printed first and recorded ({p.get('model')}, {p.get('modes')} modes)")
     check(os.path.exists(os.path.join(d, "out", "design.xdmf")), "optimize (auto): design.xdmf written")
+    # --restart plans again (the plan depends on the case, not on the design: a design body is
+    # planned with its solid material) and continues on the same model.
+    cmd = ["mpirun", "-n", str(a.ranks), a.flexopt, "optimize", d, "--out", os.path.join(d, "out"),
+           "--max-iterations", "3", "--restart"]
+    print("$ " + " ".join(cmd), flush=True)
+    r2 = subprocess.run(cmd, capture_output=True, text=True)
+    check(r2.returncode == 0, "optimize --restart with an auto design body exits 0")
+    if r2.returncode == 0:
+        s2 = json.load(open(os.path.join(d, "out", "summary.json")))
+        p2 = s2.get("plan", [{}])[0]
+        same = all(p2.get(k) == p.get(k) for k in ("model", "modes", "geometric_stiffening", "mesh_size"))
+        check(same and "plan: body link (auto)" in r2.stdout and len(s2.get("objective", [])) > len(s.get("objective", []))
+              and s2["objective"][:len(s["objective"])] == s["objective"],
+              f"optimize --restart (auto): planned again, the same pick ({p2.get('model')}, {p2.get('modes')} "
+              f"modes), the history continued bit for bit ({len(s.get('objective', []))} -> "
+              f"{len(s2.get('objective', []))} values)")
+    else:
+        print(r2.stdout[-3000:] + r2.stderr[-2000:])
 else:
     print(r.stdout[-3000:] + r.stderr[-2000:])
 
