@@ -227,36 +227,35 @@ for b in c["bodies"]:
     b["geometry"] = os.path.abspath(os.path.join(case("spin_link_topopt"), b["geometry"]))
 c["optimizer"]["max_iterations"] = 2
 d = write_case(c, os.path.join(a.out, "optimize_auto"))
-cmd = ["mpirun", "-n", str(a.ranks), a.flexopt, "optimize", d, "--out", os.path.join(d, "out")]
-print("$ " + " ".join(cmd), flush=True)
-r = subprocess.run(cmd, capture_output=True, text=True)
-check(r.returncode == 0, "optimize with an auto design body exits 0")
-if r.returncode == 0:
-    s = json.load(open(os.path.join(d, "out", "summary.json")))
+
+def optimize(*extra):
+    """`flexopt optimize` of d: the completed process and its summary.json (None if it failed)."""
+    cmd = ["mpirun", "-n", str(a.ranks), a.flexopt, "optimize", d, "--out", os.path.join(d, "out"), *extra]
+    print("$ " + " ".join(cmd), flush=True)
+    r = subprocess.run(cmd, capture_output=True, text=True)
+    if r.returncode != 0:
+        print(r.stdout[-3000:] + r.stderr[-2000:])
+        return r, None
+    return r, json.load(open(os.path.join(d, "out", "summary.json")))
+
+r, s = optimize()
+check(s is not None, "optimize with an auto design body exits 0")
+if s is not None:
     p = s.get("plan", [{}])[0]
     check(p.get("given") == "auto" and p.get("model") == "ffrf" and "plan: body link (auto): ffrf" in r.stdout,
           f"optimize (auto): the plan printed first and recorded ({p.get('model')}, {p.get('modes')} modes)")
     check(os.path.exists(os.path.join(d, "out", "design.xdmf")), "optimize (auto): design.xdmf written")
     # --restart plans again (the plan depends on the case, not on the design: a design body is
     # planned with its solid material) and continues on the same model.
-    cmd = ["mpirun", "-n", str(a.ranks), a.flexopt, "optimize", d, "--out", os.path.join(d, "out"),
-           "--max-iterations", "3", "--restart"]
-    print("$ " + " ".join(cmd), flush=True)
-    r2 = subprocess.run(cmd, capture_output=True, text=True)
-    check(r2.returncode == 0, "optimize --restart with an auto design body exits 0")
-    if r2.returncode == 0:
-        s2 = json.load(open(os.path.join(d, "out", "summary.json")))
+    r2, s2 = optimize("--max-iterations", "3", "--restart")
+    check(s2 is not None, "optimize --restart with an auto design body exits 0")
+    if s2 is not None:
         p2 = s2.get("plan", [{}])[0]
         same = all(p2.get(k) == p.get(k) for k in ("model", "modes", "geometric_stiffening", "mesh_size"))
-        check(same and "plan: body link (auto)" in r2.stdout and len(s2.get("objective", [])) > len(s.get("objective", []))
-              and s2["objective"][:len(s["objective"])] == s["objective"],
+        n, n2 = len(s.get("objective", [])), len(s2.get("objective", []))
+        check(same and "plan: body link (auto)" in r2.stdout and n2 > n and s2["objective"][:n] == s["objective"],
               f"optimize --restart (auto): planned again, the same pick ({p2.get('model')}, {p2.get('modes')} "
-              f"modes), the history continued bit for bit ({len(s.get('objective', []))} -> "
-              f"{len(s2.get('objective', []))} values)")
-    else:
-        print(r2.stdout[-3000:] + r2.stderr[-2000:])
-else:
-    print(r.stdout[-3000:] + r.stderr[-2000:])
+              f"modes), the history continued bit for bit ({n} -> {n2} values)")
 
 print("plan picks: " + ("PASSED" if ok else "FAILED"))
 sys.exit(0 if ok else 1)
