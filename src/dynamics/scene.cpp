@@ -217,22 +217,6 @@ void add_acf_body(MPI_Comm comm, const io::BodySpec &spec, const io::MaterialSpe
          names.empty() ? "none" : names.c_str());
 }
 
-/// The reduction of an FFRF body's mesh (with a design body's element factors, if given).
-std::shared_ptr<reduce::FlexibleReduction> reduce_ffrf_body(const mesh::DistributedMesh &m,
-                                                            const io::BodySpec &spec,
-                                                            const io::MaterialSpec &mat,
-                                                            const reduce::ElementFactors *design) {
-  auto red = std::make_shared<reduce::FlexibleReduction>();
-  reduce::reduce_flexible_body(m, fem::IsotropicMaterial{mat.E, mat.nu, mat.density},
-                               spec.interfaces, spec.reduction.modes,
-                               spec.reduction.geometric_stiffening, *red,
-                               spec.reduction.frame == "chord" ? reduce::FrameCondition::Chord
-                                                               : reduce::FrameCondition::Clamped,
-                               design);
-  if (design) reduce::check_modal_cut(*red, spec.name, m.comm);
-  return red;
-}
-
 /// What the FFRF body takes from its reduction.
 bodies::FfrfModel ffrf_model(const reduce::FlexibleReduction &red, const io::BodySpec &spec) {
   bodies::FfrfModel model;
@@ -379,6 +363,21 @@ void place(MPI_Comm comm, const io::Case &c, Scene &scene) {
 }
 
 } // namespace
+
+std::shared_ptr<reduce::FlexibleReduction> reduce_ffrf_body(const mesh::DistributedMesh &m,
+                                                            const io::BodySpec &spec,
+                                                            const io::MaterialSpec &mat,
+                                                            const reduce::ElementFactors *design) {
+  auto red = std::make_shared<reduce::FlexibleReduction>();
+  reduce::reduce_flexible_body(m, fem::IsotropicMaterial{mat.E, mat.nu, mat.density},
+                               spec.interfaces, spec.reduction.modes,
+                               spec.reduction.geometric_stiffening, *red,
+                               spec.reduction.frame == "chord" ? reduce::FrameCondition::Chord
+                                                               : reduce::FrameCondition::Clamped,
+                               design);
+  if (design) reduce::check_modal_cut(*red, spec.name, m.comm);
+  return red;
+}
 
 Scene load_bodies(MPI_Comm comm, const io::Case &c, const InitialDesign *design) {
   Scene scene;

@@ -47,13 +47,16 @@ void check_limit(const io::BodySpec &body, const MeshEstimate &est) {
 
 } // namespace
 
+bool meshed_from_geo(const io::BodySpec &body) {
+  return body.geometry.size() >= 4 && body.geometry.rfind(".geo") == body.geometry.size() - 4;
+}
+
 DistributedMesh load_body_mesh(MPI_Comm comm, const io::BodySpec &body,
                                const std::function<void(const MeshData &)> &on_root,
                                MeshEstimate *estimate_out) {
   MeshData data;
   const double t0 = wall_time();
-  const bool geo =
-      body.geometry.size() >= 4 && body.geometry.rfind(".geo") == body.geometry.size() - 4;
+  const bool geo = meshed_from_geo(body);
   if (!geo)
     print0(comm, "mesh: body %s: reading %s with Gmsh on rank 0 ...\n", body.name.c_str(),
            body.geometry_key.c_str());

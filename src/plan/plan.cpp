@@ -486,15 +486,11 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
       int r = 0;
       while (r < std::min<Eigen::Index>(6, sv.size()) && sv(r) > 0 && sv(r) >= 1e-3 * sv(0)) ++r;
       Eigen::MatrixXd coef(F.rows(), r);
-      std::vector<Vec> dirs(static_cast<std::size_t>(r));
-      std::vector<Vec> basis = red.basis; // VecMAXPY takes non-const handles
+      std::vector<Vec> dirs;
       for (int i = 0; i < r; ++i) {
         coef.col(i) = sv(i) * svd.matrixU().col(i);
-        const Eigen::VectorXd d = svd.matrixV().col(i).cwiseQuotient(root);
-        Vec &v = dirs[static_cast<std::size_t>(i)];
-        FX_PETSC(VecDuplicate(red.basis[0], &v));
-        FX_PETSC(VecZeroEntries(v));
-        FX_PETSC(VecMAXPY(v, cd.n, d.data(), basis.data()));
+        dirs.push_back(
+            reduce::basis_combination(red.basis, svd.matrixV().col(i).cwiseQuotient(root)));
       }
       const io::MaterialSpec &mat = c.material(c.bodies[cd.body].material);
       const std::vector<Eigen::MatrixXd> G =
@@ -625,7 +621,7 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
     std::optional<mesh::DistributedMesh> acf_mesh;
     const io::BodySpec &spec = pre.bodies[cd.body];
     if (bp.recommended == "acf" && bp.given == "auto" && !flexible_design && spec.mesh.size > 0 &&
-        spec.geometry.size() > 4 && spec.geometry.substr(spec.geometry.size() - 4) == ".geo") {
+        mesh::meshed_from_geo(spec)) {
       const io::MaterialSpec &mat = c.material(spec.material);
       const Eigen::MatrixXd F = cd.Q * full.E;
       const Eigen::MatrixXd Zf = modal_response(full.w2, F, h, start) * full.E.transpose();
@@ -634,14 +630,10 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
         io::BodySpec trial = spec;
         trial.mesh.size = factor * spec.mesh.size;
         std::optional<mesh::DistributedMesh> tm;
-        reduce::FlexibleReduction tr;
+        std::shared_ptr<reduce::FlexibleReduction> tr;
         try {
           tm.emplace(mesh::load_body_mesh(comm, trial));
-          reduce::reduce_flexible_body(*tm, fem::IsotropicMaterial{mat.E, mat.nu, mat.density},
-                                       trial.interfaces, red.fixed_modes, false, tr,
-                                       trial.reduction.frame == "chord"
-                                           ? reduce::FrameCondition::Chord
-                                           : reduce::FrameCondition::Clamped);
+          tr = dynamics::reduce_ffrf_body(*tm, trial, mat, nullptr);
         } catch (const Error &err) { // collective: every rank skips the size
           trials +=
               fmt("%s%g m: failed (%s)", trials.empty() ? "" : ", ", trial.mesh.size, err.what());
@@ -649,8 +641,8 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
         }
         // The case mesh's modes with the trial mesh's frequencies, mode by mode.
         Eigen::VectorXd w2 = full.w2;
-        const Eigen::Index m = std::min(w2.size(), tr.eigenvalues.size());
-        for (Eigen::Index k = 0; k < m; ++k) w2(k) *= tr.eigenvalues(k) / red.eigenvalues(k);
+        const Eigen::Index m = std::min(w2.size(), tr->eigenvalues.size());
+        for (Eigen::Index k = 0; k < m; ++k) w2(k) *= tr->eigenvalues(k) / red.eigenvalues(k);
         const double e =
             measures_error(modal_response(w2, F, h, start) * full.E.transpose() - Zf, nullptr);
         trials += fmt("%s%g m: %.2g (%lld DOFs)", trials.empty() ? "" : ", ", trial.mesh.size, e,

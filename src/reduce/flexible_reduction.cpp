@@ -53,6 +53,15 @@ FlexibleReduction::~FlexibleReduction() {
   for (Vec &v : basis) VecDestroy(&v);
 }
 
+Vec basis_combination(const std::vector<Vec> &basis, const Eigen::VectorXd &c) {
+  Vec v;
+  FX_PETSC(VecDuplicate(basis.front(), &v));
+  FX_PETSC(VecZeroEntries(v));
+  FX_PETSC(
+      VecMAXPY(v, static_cast<PetscInt>(basis.size()), c.data(), const_cast<Vec *>(basis.data())));
+  return v;
+}
+
 void reduce_flexible_body(const mesh::DistributedMesh &mesh, const fem::IsotropicMaterial &material,
                           const std::vector<std::string> &interfaces, int fixed_modes,
                           bool geometric_stiffening, FlexibleReduction &out, FrameCondition frame,
@@ -132,13 +141,7 @@ void reduce_flexible_body(const mesh::DistributedMesh &mesh, const fem::Isotropi
   }
   for (Vec &v : out.basis) FX_PETSC(VecDestroy(&v));
   out.basis.clear();
-  for (int k = 0; k < n; ++k) {
-    Vec v;
-    FX_PETSC(VecDuplicate(cb.vectors.front(), &v));
-    FX_PETSC(VecZeroEntries(v));
-    FX_PETSC(VecMAXPY(v, n, Y.col(k).data(), cb.vectors.data()));
-    out.basis.push_back(v);
-  }
+  for (int k = 0; k < n; ++k) out.basis.push_back(basis_combination(cb.vectors, Y.col(k)));
   // Psi = V Y: M_r follows from the Craig-Bampton matrix. K_r is projected again by element
   // energies (fem::project_stiffness): V^T (K V) through the assembled K carries an error of
   // eps ||K|| ||V||^2 (eps cond(K) relative: 1e-9 on a slender bar), a noise that reaches the

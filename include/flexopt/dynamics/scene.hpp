@@ -161,6 +161,14 @@ set_ffrf_design(MPI_Comm comm, const io::Case &c, Scene &scene, std::size_t b,
 /// function of the mesh coordinates; empty if the case gives none.
 reduce::Field initial_elastic_field(const io::BodySpec &spec, bool rate);
 
+/// The reduction of the FFRF body `spec` meshed as `m` (its interfaces, modes, stiffening and
+/// frame; with a design body's element factors, if given, and then its modal-cut check).
+/// Collective.
+std::shared_ptr<reduce::FlexibleReduction> reduce_ffrf_body(const mesh::DistributedMesh &m,
+                                                            const io::BodySpec &spec,
+                                                            const io::MaterialSpec &mat,
+                                                            const reduce::ElementFactors *design);
+
 /// The scene's ACF bodies, in order (DistributedAlpha's list).
 std::vector<const bodies::AcfBody *> acf_body_list(const Scene &scene);
 /// The consistent state at t = 0 of a scene with ACF bodies on `da` (built on the scene's ACF

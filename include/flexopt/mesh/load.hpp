@@ -7,6 +7,9 @@
 
 namespace flexopt::mesh {
 
+/// True if the body's geometry is a .geo that Gmsh meshes (at `mesh.size`), false for a .msh.
+bool meshed_from_geo(const io::BodySpec &body);
+
 /// Reads or meshes the body's geometry on rank 0 (Gmsh) and distributes it. Collective; any
 /// failure is raised on every rank with the body's case.yaml location.
 /// `on_root`, if given, is called on rank 0 with the whole mesh before it is distributed

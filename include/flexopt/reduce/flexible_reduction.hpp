@@ -64,6 +64,10 @@ struct FlexibleReduction {
   ~FlexibleReduction();
 };
 
+/// A new vector sum_k c(k) basis[k] (the layout of basis[0]; the caller destroys it): a field of
+/// the reduced model's coordinates c (c.size() == basis.size()). Collective.
+Vec basis_combination(const std::vector<Vec> &basis, const Eigen::VectorXd &c);
+
 /// Reduces the body meshed as `mesh` with material `material` (interfaces: physical surfaces;
 /// the frame sits on the first, `frame`; the chord frame needs two interfaces and no geometric
 /// stiffening). With `design` (a design body), K and M carry its element factors, the
