@@ -29,6 +29,9 @@ constexpr double kPi = 3.14159265358979323846;
 /// (docs/benchmarks.md "Speed against accuracy": 0.63-1.3 us, 3.2-4.5 iterations per step).
 constexpr double kAcfSecondsPerDofIteration = 0.8e-6;
 constexpr double kAcfIterationsPerStep = 4.2;
+/// The largest Tet4 mesh (nodes) that the plan meshes again at order 2 to check for locking
+/// (section 12.5): about 8 times the nodes at order 2.
+constexpr PetscInt kLockingCheckNodes = 5000;
 /// The most steps of the rigid pre-run (section 12.1).
 constexpr long long kPrerunSteps = 2000;
 
@@ -662,6 +665,30 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
         bp.reasons.push_back(fmt("acf mesh: the case's (%g m): a coarser one changes the measures "
                                  "by more than %g / 4 (%s)",
                                  spec.mesh.size, eps, trials.c_str()));
+    }
+
+    // Linear tetrahedra lock in bending (section 12.5): a flexible body meshed from a .geo with
+    // Tet4 (up to kLockingCheckNodes nodes) is reduced again on the same mesh at order 2, and a
+    // first frequency more than eps above that one is reported.
+    if (bp.recommended != "rigid" && mesh.type == fem::ElementType::Tet4 &&
+        mesh::meshed_from_geo(spec) && mesh.global_nodes <= kLockingCheckNodes) {
+      io::BodySpec quadratic = spec;
+      quadratic.mesh.order = 2;
+      try {
+        const mesh::DistributedMesh qm = mesh::load_body_mesh(comm, quadratic);
+        const auto qr =
+            dynamics::reduce_ffrf_body(qm, quadratic, c.material(spec.material), nullptr);
+        const double stiff = std::sqrt(red.eigenvalues(0) / qr->eigenvalues(0)) - 1;
+        if (stiff > eps)
+          bp.warnings.push_back(fmt(
+              "the mesh is too stiff: linear tetrahedra (Tet4) lock in bending; its first "
+              "frequency, %.4g Hz, is %.1f %% above the same mesh at order 2 (%.4g Hz), and the "
+              "estimates take the mesh as exact: give mesh: {order: 2} (or a finer size)",
+              est.f1, 100 * stiff, std::sqrt(qr->eigenvalues(0)) / (2 * kPi)));
+      } catch (const Error &err) { // collective
+        bp.warnings.push_back(std::string("the order-2 check of the Tet4 mesh failed: ") +
+                              err.what());
+      }
     }
 
     // What runs, and where a given model disagrees.
