@@ -5,7 +5,7 @@
     history and asymptotes, the objective scale and the continuation stage);
   - the same stopped run continued on the other rank count (1 for R = 2, 2 for R = 1): to 1e-8
     relative (parallel sums round differently; measured 7e-12 on the static beam);
-  - a run killed with SIGKILL (every process of mpirun) once restart.h5 holds iteration 3 or
+  - a run killed with SIGKILL (mpirun and every rank: the whole session) once restart.h5 holds iteration 3 or
     later, then continued with --restart: bit for bit (restart.h5 is replaced atomically after
     every iteration, so a kill at any moment leaves the last complete one);
   - --restart without a restart file fails with a clear message.
@@ -77,6 +77,32 @@ def iterations_done(path):
         return 0
 
 
+def kill_session(sid):
+    """SIGKILL to every process of session SID: mpirun and its ranks. Open MPI puts each rank in
+    its own process group (killpg on mpirun's group leaves the ranks running, and they would go
+    on writing restart.h5 while the restarted run reads it), but they stay in mpirun's session."""
+    while True:
+        members = []
+        for pid in os.listdir("/proc"):
+            if not pid.isdigit():
+                continue
+            try:
+                with open(f"/proc/{pid}/stat") as f:
+                    fields = f.read().rsplit(")", 1)[1].split()
+            except OSError:
+                continue
+            if int(fields[3]) == sid and fields[0] != "Z":  # field 6 of stat: the session
+                members.append(int(pid))
+        if not members:
+            return
+        for pid in members:
+            try:
+                os.kill(pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+        time.sleep(0.05)
+
+
 run(R, "straight", "--max-iterations", str(N))
 run(R, "split", "--max-iterations", "5")
 shutil.copytree(os.path.join(out, "split"), os.path.join(out, "split_other"))
@@ -95,9 +121,9 @@ p = subprocess.Popen(command(R, "killed", "--max-iterations", str(N)), env=env, 
 deadline = time.time() + 1200
 while iterations_done(os.path.join(killed, "restart.h5")) < 3 and p.poll() is None and time.time() < deadline:
     time.sleep(0.005)
-done = iterations_done(os.path.join(killed, "restart.h5"))
-os.killpg(p.pid, signal.SIGKILL)
+kill_session(p.pid)
 p.wait()
+done = iterations_done(os.path.join(killed, "restart.h5"))
 print(f"killed the run with SIGKILL after restart point {done}")
 if done >= N:
     failures.append("the run ended before it could be killed")
