@@ -16,13 +16,21 @@ Usage: check_gradient.py FLEXOPT CASE OUT RANKS [FD_TOL [MIN_ORDER[@H] [DESIGN]]
 largest step pre-asymptotic, and with the smaller remainder of a pair above the noise floor
 rather than 10 times it (the FFRF floor, 1e-8, is the noisiest case's, and a pair below 10 times
 it can still be clean: the orders are then 2.000 +- 0.001, measured); DESIGN: a run's
-restart.h5, checked at its design instead of the initial one)
+restart.h5, checked at its design instead of the initial one). `--fd-step H` anywhere: passed to
+check-gradient (one step pair h, h/2 instead of the problem's own search over halvings)
 """
 import json
 import os
 import subprocess
 import sys
 
+args = sys.argv[1:]
+fd_step = []
+if "--fd-step" in args:
+    k = args.index("--fd-step")
+    fd_step = args[k:k + 2]
+    del args[k:k + 2]
+sys.argv[1:] = args
 flexopt, case, out, ranks = sys.argv[1:5]
 FD_TOL = float(sys.argv[5]) if len(sys.argv) > 5 else 1e-6
 order_arg = sys.argv[6] if len(sys.argv) > 6 else "1.9"
@@ -31,7 +39,7 @@ FROM_STEP = float(order_arg.split("@")[1]) if "@" in order_arg else float("inf")
 design = ["--design", sys.argv[7]] if len(sys.argv) > 7 else []
 env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
            OMPI_MCA_rmaps_base_oversubscribe="1")
-p = subprocess.run(["mpirun", "-n", ranks, flexopt, "check-gradient", case, "--out", out] + design, env=env,
+p = subprocess.run(["mpirun", "-n", ranks, flexopt, "check-gradient", case, "--out", out] + design + fd_step, env=env,
                    stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, timeout=600)
 print(p.stdout)
 if p.returncode != 0:
