@@ -25,9 +25,10 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 /// ACF cost model (docs/theory.md section 12.4): rank-seconds per DOF and Newton iteration, and
-/// Newton iterations per step: the median of the quiet ACF runs of the speed-accuracy map
-/// (docs/benchmarks.md "Speed against accuracy": 0.63-1.3 us, 3.2-4.5 iterations per step).
-constexpr double kAcfSecondsPerDofIteration = 0.8e-6;
+/// Newton iterations per step: the median of the quiet ACF runs at rho_inf < 1 of the
+/// speed-accuracy map (docs/benchmarks.md "Speed against accuracy": 1.5-2.7 us, median 2.2, on
+/// 837-13,257 DOFs with no visible trend; 3.7-4.5 iterations per step).
+constexpr double kAcfSecondsPerDofIteration = 2.2e-6;
 constexpr double kAcfIterationsPerStep = 4.2;
 /// The largest Tet4 mesh (nodes) that the plan meshes again at order 2 to check for locking
 /// (section 12.5): about 8 times the nodes at order 2.
