@@ -59,22 +59,34 @@ def write_case(c, d):
     return d
 
 
-def run_variant(flexopt, case, out, name, replace, ranks=2, end=None, output=False):
-    """Runs `flexopt simulate` on CASE's case.yaml with each (old, new) of `replace` applied
-    (old must occur) and, if given, time.end set to `end`; returns the summary, or with
-    `output` the pair (summary, the run's printed output). A variant simulates the scene: the
-    case's optimization sections (design, objective, constraints) are left out, so that a
-    variant may change what they rely on (the design body's model, say)."""
-    text = without_optimization(open(os.path.join(case, "case.yaml")).read())
+def case_text(case, replace=(), end=None, optimization=False):
+    """CASE's case.yaml text with the geometry paths made absolute, each (old, new) of `replace`
+    applied (old must occur), then time.end set to `end` if given, and without the optimization
+    sections unless `optimization`."""
+    text = open(os.path.join(case, "case.yaml")).read()
+    if not optimization:
+        text = without_optimization(text)
     text = re.sub(r"geometry: ([./]*)meshes/",
                   lambda m: "geometry: " + os.path.abspath(os.path.join(case, m.group(1), "meshes")) + "/",
                   text)
-    if end is not None:
-        text = re.sub(r"time: \{end: [0-9.e+-]+", f"time: {{end: {end}", text)
     for a, b in replace:
         if a not in text:
             sys.exit(f"'{a}' not in {case}/case.yaml")
         text = text.replace(a, b)
+    if end is not None:
+        text, n = re.subn(r"time: \{end: [0-9.e+-]+", f"time: {{end: {end}", text)
+        if n != 1:
+            sys.exit(f"{case}/case.yaml: no 'time: {{end: ...' line to set the end time in")
+    return text
+
+
+def run_variant(flexopt, case, out, name, replace, ranks=2, end=None, output=False):
+    """Runs `flexopt simulate` on CASE's case.yaml with each (old, new) of `replace` applied
+    (old must occur) and then, if given, time.end set to `end`; returns the summary, or with
+    `output` the pair (summary, the run's printed output). A variant simulates the scene: the
+    case's optimization sections (design, objective, constraints) are left out, so that a
+    variant may change what they rely on (the design body's model, say)."""
+    text = case_text(case, replace, end)
     d = os.path.join(out, name)
     os.makedirs(d, exist_ok=True)
     with open(os.path.join(d, "case.yaml"), "w") as f:

@@ -30,6 +30,9 @@ import xml.etree.ElementTree as ET
 
 import h5py
 
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "scripts"))
+from case_variants import case_text  # noqa: E402
+
 FLEXOPT, SRC, OUT = sys.argv[1], sys.argv[2], sys.argv[3]
 H = 1.0e-3  # time.step of cases/pendulum
 H_LONG = 4.0e-4  # 10,000 steps over its 4 s
@@ -53,15 +56,7 @@ def expect(cond, what):
 def variant(name, replace, case="cases/pendulum"):
     """Writes case.yaml of `case` with each (old, new) replaced (old must occur) and absolute
     geometry paths into OUT/name; returns the directory."""
-    src = os.path.join(SRC, case)
-    text = open(os.path.join(src, "case.yaml")).read()
-    text = re.sub(r"geometry: ([./]*)meshes/",
-                  lambda m: "geometry: " + os.path.abspath(os.path.join(src, m.group(1), "meshes")) + "/",
-                  text)
-    for a, b in replace:
-        if a not in text:
-            sys.exit(f"'{a}' not in {case}/case.yaml")
-        text = text.replace(a, b)
+    text = case_text(os.path.join(SRC, case), replace, optimization=True)
     d = os.path.join(OUT, name)
     shutil.rmtree(d, ignore_errors=True)
     os.makedirs(d)

@@ -9,7 +9,10 @@
     later, then continued with --restart: bit for bit (restart.h5 is replaced atomically after
     every iteration, so a kill at any moment leaves the last complete one);
   - --restart without a restart file fails with a clear message.
-Usage: check_restart.py FLEXOPT CASE OUT [N (default 12) [R (default 2)]]
+Usage: check_restart.py FLEXOPT CASE OUT [N (default 12) [R (default 2)]] [--replace OLD NEW]...
+With --replace, the runs use a copy of CASE (in OUT/case) with each OLD text of case.yaml replaced
+by NEW (a coarser mesh: the restart does not depend on the resolution, and a coarse mesh makes
+each iteration cheaper).
 Bit for bit needs an evaluation that is itself repeatable on R ranks: MUMPS's parallel
 factorization is not (its dynamic scheduling; docs/solvers.md "Reproducibility"), so a case whose
 evaluation factorizes with MUMPS on 2 ranks (an FFRF design body's reduction) is checked with
@@ -25,13 +28,27 @@ import time
 
 import h5py
 
-flexopt, case, out = sys.argv[1:4]
-N = int(sys.argv[4]) if len(sys.argv) > 4 else 12
-R = int(sys.argv[5]) if len(sys.argv) > 5 else 2
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "scripts"))
+from case_variants import case_text  # noqa: E402
+
+args, replace = sys.argv[1:], []
+while "--replace" in args:
+    i = args.index("--replace")
+    replace.append((args[i + 1], args[i + 2]))
+    del args[i:i + 3]
+flexopt, case, out = args[:3]
+N = int(args[3]) if len(args) > 3 else 12
+R = int(args[4]) if len(args) > 4 else 2
 other = 1 if R == 2 else 2
 env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
            OMPI_MCA_rmaps_base_oversubscribe="1")
 shutil.rmtree(out, ignore_errors=True)
+if replace:
+    text = case_text(case, replace, optimization=True)
+    case = os.path.join(out, "case")
+    os.makedirs(case)
+    with open(os.path.join(case, "case.yaml"), "w") as f:
+        f.write(text)
 
 
 def command(ranks, d, *args):
