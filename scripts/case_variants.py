@@ -80,17 +80,21 @@ def case_text(case, replace=(), end=None, optimization=False):
     return text
 
 
+def write_variant(case, d, replace=(), end=None, optimization=False):
+    """Writes case_text(CASE, ...) as D/case.yaml (D created); returns D."""
+    os.makedirs(d, exist_ok=True)
+    with open(os.path.join(d, "case.yaml"), "w") as f:
+        f.write(case_text(case, replace, end, optimization))
+    return d
+
+
 def run_variant(flexopt, case, out, name, replace, ranks=2, end=None, output=False):
     """Runs `flexopt simulate` on CASE's case.yaml with each (old, new) of `replace` applied
     (old must occur) and then, if given, time.end set to `end`; returns the summary, or with
     `output` the pair (summary, the run's printed output). A variant simulates the scene: the
     case's optimization sections (design, objective, constraints) are left out, so that a
     variant may change what they rely on (the design body's model, say)."""
-    text = case_text(case, replace, end)
-    d = os.path.join(out, name)
-    os.makedirs(d, exist_ok=True)
-    with open(os.path.join(d, "case.yaml"), "w") as f:
-        f.write(text)
+    d = write_variant(case, os.path.join(out, name), replace, end)
     log = run_flexopt(["mpirun", "-n", str(ranks), flexopt, "simulate", d, "--out", os.path.join(d, "out")])
     summary = json.load(open(os.path.join(d, "out", "summary.json")))
     return (summary, log) if output else summary

@@ -493,9 +493,13 @@ def main():
         with open(results_path, "w") as f:
             json.dump(doc, f)
         if not a.quick and len(scenes) == len(SCENES):
+            # The kept copy without the runs' time series (t, y: in OUT's rows), which neither
+            # the tables nor the figure read.
+            kept = dict(doc, scenes=[dict(res, rows=[{k: v for k, v in r.items() if k not in ("t", "y")}
+                                                     for r in res["rows"]]) for res in results])
             os.makedirs(os.path.dirname(a.results), exist_ok=True)
             with open(a.results, "w") as f:
-                json.dump(doc, f, indent=0)
+                json.dump(kept, f, indent=0)
         with open(os.path.join(a.out, "results.csv"), "w", newline="") as f:
             w = csv.writer(f)
             w.writerow(["scene", "run", "model", "mesh", "modes", "stiffening", "step", "rho_inf", "dofs",

@@ -31,7 +31,7 @@ import xml.etree.ElementTree as ET
 import h5py
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "scripts"))
-from case_variants import case_text  # noqa: E402
+from case_variants import write_variant  # noqa: E402
 
 FLEXOPT, SRC, OUT = sys.argv[1], sys.argv[2], sys.argv[3]
 H = 1.0e-3  # time.step of cases/pendulum
@@ -56,13 +56,9 @@ def expect(cond, what):
 def variant(name, replace, case="cases/pendulum"):
     """Writes case.yaml of `case` with each (old, new) replaced (old must occur) and absolute
     geometry paths into OUT/name; returns the directory."""
-    text = case_text(os.path.join(SRC, case), replace, optimization=True)
     d = os.path.join(OUT, name)
     shutil.rmtree(d, ignore_errors=True)
-    os.makedirs(d)
-    with open(os.path.join(d, "case.yaml"), "w") as f:
-        f.write(text)
-    return d
+    return write_variant(os.path.join(SRC, case), d, replace, optimization=True)
 
 
 def simulate(d):

@@ -29,7 +29,7 @@ import time
 import h5py
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "scripts"))
-from case_variants import case_text  # noqa: E402
+from case_variants import write_variant  # noqa: E402
 
 args, replace = sys.argv[1:], []
 while "--replace" in args:
@@ -44,11 +44,7 @@ env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIR
            OMPI_MCA_rmaps_base_oversubscribe="1")
 shutil.rmtree(out, ignore_errors=True)
 if replace:
-    text = case_text(case, replace, optimization=True)
-    case = os.path.join(out, "case")
-    os.makedirs(case)
-    with open(os.path.join(case, "case.yaml"), "w") as f:
-        f.write(text)
+    case = write_variant(case, os.path.join(out, "case"), replace, optimization=True)
 
 
 def command(ranks, d, *args):
