@@ -3,6 +3,7 @@
 #include "flexopt/core/context.hpp"
 #include "flexopt/core/error.hpp"
 #include "flexopt/core/log.hpp"
+#include "flexopt/fem/lattice_multigrid.hpp"
 #include "flexopt/mesh/load.hpp"
 
 #include <algorithm>
@@ -21,7 +22,12 @@ std::vector<PetscInt> support_dofs(const mesh::DistributedMesh &mesh, const io::
   return dofs;
 }
 
-void configure_elasticity_solver(KSP ksp, Mat A, const mesh::DistributedMesh &mesh) {
+namespace {
+/// Largest coarsest level of a lattice hierarchy that gets geometric multigrid.
+constexpr PetscInt kLatticeMaxCoarseDofs = 50000;
+} // namespace
+
+std::string configure_elasticity_solver(KSP ksp, Mat A, const mesh::DistributedMesh &mesh) {
   Vec coords = create_coordinate_vector(mesh);
   MatNullSpace near_null;
   FX_PETSC(MatNullSpaceCreateRigidBody(coords, &near_null));
@@ -33,9 +39,44 @@ void configure_elasticity_solver(KSP ksp, Mat A, const mesh::DistributedMesh &me
   FX_PETSC(KSPSetType(ksp, KSPCG));
   PC pc;
   FX_PETSC(KSPGetPC(ksp, &pc));
-  FX_PETSC(PCSetType(pc, PCGAMG));
+  // A structured Hex8 box gets geometric multigrid (its hierarchy is free and does not change
+  // with the operator); any other mesh, or a -pc_type option, algebraic multigrid.
+  const char *prefix = nullptr;
+  FX_PETSC(KSPGetOptionsPrefix(ksp, &prefix));
+  PetscBool pc_given = PETSC_FALSE;
+  FX_PETSC(PetscOptionsHasName(nullptr, prefix, "-pc_type", &pc_given));
+  std::string how = "CG + algebraic multigrid (GAMG, rigid-body near-null space)";
+  std::optional<Lattice> lattice;
+  if (!pc_given) lattice = find_lattice(mesh);
+  bool geometric = false;
+  if (lattice) {
+    PetscInt levels = 0, coarse_dofs = 5000;
+    FX_PETSC(PetscOptionsGetInt(nullptr, prefix, "-lattice_mg_levels", &levels, nullptr));
+    FX_PETSC(PetscOptionsGetInt(nullptr, prefix, "-lattice_mg_coarse_dofs", &coarse_dofs, nullptr));
+    const auto cells = lattice_levels(*lattice, static_cast<int>(levels), coarse_dofs);
+    const auto &c = cells.back();
+    const PetscInt coarsest = 3 * (c[0] + 1) * (c[1] + 1) * (c[2] + 1);
+    // The coarsest level is factorized for every operator: a lattice with odd cell counts
+    // that leaves it large is better served by GAMG.
+    if (cells.size() >= 2 && coarsest <= kLatticeMaxCoarseDofs) {
+      // Its factorization: MUMPS Cholesky on every rank's copy (PCMG's redundant coarse solve;
+      // sequential MUMPS, so repeatable), about 10x faster than PETSc's own LU at 4k DOFs.
+      insert_default_petsc_options(
+          "-mg_coarse_pc_factor_mat_solver_type mumps -mg_coarse_redundant_pc_type cholesky "
+          "-mg_coarse_redundant_pc_factor_mat_solver_type mumps",
+          "lattice multigrid defaults");
+      how = "CG + " + set_lattice_multigrid(pc, mesh, *lattice, cells);
+      geometric = true;
+    } else {
+      how += " (the " + std::to_string(lattice->cells(0)) + " x " +
+             std::to_string(lattice->cells(1)) + " x " + std::to_string(lattice->cells(2)) +
+             " Hex8 lattice coarsens only to " + std::to_string(coarsest) + " DOFs)";
+    }
+  }
+  if (!geometric) FX_PETSC(PCSetType(pc, PCGAMG));
   FX_PETSC(KSPSetTolerances(ksp, 1e-8, 1e-50, PETSC_DEFAULT, 1000));
   FX_PETSC(KSPSetFromOptions(ksp));
+  return how;
 }
 
 void check_converged(KSP ksp, const std::string &what) {
@@ -76,6 +117,7 @@ std::unique_ptr<StaticProblem> StaticProblem::create(MPI_Comm comm, const io::Ca
   p->K_ = create_matrix(m);
   p->f_ = create_ghosted_vector(m);
   FX_PETSC(VecDuplicate(p->f_, &p->u_));
+  FX_PETSC(VecZeroEntries(p->u_));
   FX_PETSC(VecDuplicate(p->f_, &p->rhs_));
   FX_PETSC(VecDuplicate(p->f_, &p->f_surface_));
   FX_PETSC(VecZeroEntries(p->f_surface_));
@@ -120,7 +162,8 @@ std::unique_ptr<StaticProblem> StaticProblem::create(MPI_Comm comm, const io::Ca
   FX_PETSC(KSPSetOptionsPrefix(p->ksp_, ""));
   p->assemble_operator({});
   p->timings_.assemble = wall_time() - t;
-  configure_elasticity_solver(p->ksp_, p->K_, m);
+  p->solver_ = configure_elasticity_solver(p->ksp_, p->K_, m);
+  print0(comm, "static solver: %s\n", p->solver_.c_str());
   return p;
 }
 
@@ -169,6 +212,12 @@ void StaticProblem::assemble_operator(const std::vector<double> &modulus_factor)
   const PetscScalar scale = diag_sum / static_cast<PetscReal>(n);
   FX_PETSC(MatZeroRowsColumns(K_, static_cast<PetscInt>(fixed_.size()), fixed_.data(), scale,
                               nullptr, nullptr));
+}
+
+void StaticProblem::start_from_previous_solution() {
+  PetscBool preonly = PETSC_FALSE;
+  FX_PETSC(PetscObjectTypeCompare(reinterpret_cast<PetscObject>(ksp_), KSPPREONLY, &preonly));
+  if (!preonly) FX_PETSC(KSPSetInitialGuessNonzero(ksp_, PETSC_TRUE));
 }
 
 void StaticProblem::zero_supported(Vec rhs) const {

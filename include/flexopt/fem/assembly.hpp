@@ -25,6 +25,32 @@ Mat create_matrix(const mesh::DistributedMesh &mesh, int block_size = 3);
 /// Creates a ghosted vector (block size 3) over the mesh's local nodes. Collective.
 Vec create_ghosted_vector(const mesh::DistributedMesh &mesh);
 
+/// The unit-modulus stiffness matrices K_e^0 of a mesh's elements (K_e = factor K_e^0), computed
+/// once per element shape: elements that are translates of one another (node offsets from the
+/// first node equal to 1e-12 of the element's size; every cell of a structured Hex8 lattice) share
+/// one matrix. Keeps up to 8 shapes; on a mesh whose first 64 elements give no repeat it stops
+/// looking and computes every element (an unstructured mesh pays nothing).
+class UnitStiffness {
+public:
+  UnitStiffness(ElementType type, const IsotropicMaterial &material)
+      : type_(type), material_(material) {}
+  /// K_e^0 of the element with node coordinates X; the reference is valid until the next call.
+  /// Throws for a degenerate element (element_stiffness).
+  const ElementMatrix &operator()(const ElementCoords &X);
+  int computed() const { return computed_; } ///< element matrices computed so far
+
+private:
+  ElementType type_;
+  IsotropicMaterial material_;
+  struct Shape {
+    ElementCoords offsets; ///< X - X_0 per node
+    ElementMatrix K;
+  };
+  std::vector<Shape> shapes_;
+  ElementMatrix scratch_;
+  int computed_ = 0, hits_ = 0;
+};
+
 /// Adds K = sum_e factor_e K_e into A (zeroed first). `modulus_factor` holds one factor per
 /// local element (the SIMP interpolation later), or is empty for 1. Collective.
 void assemble_stiffness(const mesh::DistributedMesh &mesh, const IsotropicMaterial &material,

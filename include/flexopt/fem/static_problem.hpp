@@ -22,6 +22,11 @@ public:
   void assemble_operator(const std::vector<double> &modulus_factor);
   /// Solves K u = f. Throws (collectively) if the linear solver does not converge. Collective.
   void solve();
+  /// Starts every later Krylov solve (state and adjoint) from the vector it writes into (its
+  /// previous solution) instead of zero; the stopping test stays relative to the right-hand
+  /// side, so the accuracy is unchanged. Not with a direct solver (-ksp_type preonly).
+  /// Topology optimization: successive designs have nearby solutions.
+  void start_from_previous_solution();
   /// Solves the adjoint system K lambda = rhs with the forward operator and preconditioner
   /// (K is symmetric); the supported DOFs of rhs are zeroed first (rhs is modified).
   /// `lambda` must be a ghosted vector from this problem's layout; its ghosts are updated.
@@ -35,6 +40,9 @@ public:
   Vec load() const { return f_; }         ///< external load (unmodified by supports)
   Mat stiffness() const { return K_; }    ///< with supports applied (identity-scaled rows)
   KSP solver() const { return ksp_; }
+  /// The linear solver in words ("CG + geometric multigrid on the ... lattice, ..."; printed at
+  /// create()).
+  const std::string &solver_description() const { return solver_; }
   const std::vector<PetscInt> &fixed_dofs() const { return fixed_; }
   PetscInt global_dofs() const { return 3 * mesh_.global_nodes; }
   int iterations() const { return iterations_; }
@@ -72,6 +80,7 @@ private:
   Vec f_surface_ = nullptr;       ///< the tractions and line loads (no body forces)
   std::vector<double> body_load_; ///< f_e of every local element, flat (empty: no body force)
   KSP ksp_ = nullptr;
+  std::string solver_;
   int iterations_ = 0;
   Timings timings_;
 };
@@ -79,12 +88,15 @@ private:
 /// Global DOFs of all supports of the case's body (owned by this rank, sorted, unique).
 std::vector<PetscInt> support_dofs(const mesh::DistributedMesh &mesh, const io::Case &c);
 
-/// Sets the default solver for an SPD elasticity operator: CG + GAMG with the rigid-body
-/// near-null space (built from the node coordinates), relative tolerance 1e-8
-/// (the compliance error is quadratic in it: CG is a Galerkin method in the energy norm). Options
-/// from the case's `solver:` string and the command line are applied afterwards
-/// (KSPSetFromOptions).
-void configure_elasticity_solver(KSP ksp, Mat A, const mesh::DistributedMesh &mesh);
+/// Sets the default solver for an SPD elasticity operator: CG with geometric multigrid where the
+/// mesh is a structured Hex8 lattice (lattice_multigrid.hpp; -lattice_mg_levels N or
+/// -lattice_mg_coarse_dofs N (default 5000) set its depth), else algebraic multigrid (GAMG) with
+/// the rigid-body near-null space built from the node coordinates; a -pc_type option selects
+/// the preconditioner instead. Relative tolerance 1e-8 (the compliance error is quadratic in it:
+/// CG is a Galerkin method in the energy norm). Options from the case's `solver:` string and the
+/// command line are applied afterwards (KSPSetFromOptions). Returns the solver in words.
+/// Collective.
+std::string configure_elasticity_solver(KSP ksp, Mat A, const mesh::DistributedMesh &mesh);
 
 /// Throws a collective flexopt::Error naming `what` if the last KSPSolve diverged.
 void check_converged(KSP ksp, const std::string &what);

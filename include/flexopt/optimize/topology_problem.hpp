@@ -22,7 +22,8 @@ public:
   /// derivatives by the adjoint method (one extra solve per displacement response).
   /// Collective.
   void evaluate(Vec x, bool gradients, Evaluation &out) override;
-  /// dofs, elements, design_variables, state_solves.
+  /// dofs, elements, design_variables, state_solves, krylov_iterations (of every state solve,
+  /// in order: how the solver copes as the design gains contrast).
   void describe(io::Json &summary) const override;
   /// 1e-10: the state solve is accurate to about eps cond(K), measured ~1e-11 relative on the
   /// test cases.
@@ -64,6 +65,7 @@ private:
   std::vector<double> element_ku_;   ///< K_e^0 u_e, 3 * nodes_per_element per element
   bool element_ku_current_ = false;  ///< element_ku_ belongs to the current state
   int solves_ = 0;
+  std::vector<double> krylov_;         ///< Krylov iterations of every state solve
   double solve_s_ = 0, adjoint_s_ = 0; ///< of the last evaluation
 };
 

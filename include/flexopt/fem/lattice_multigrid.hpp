@@ -1,0 +1,46 @@
+#pragma once
+/// \file Geometric multigrid for Hex8 meshes that are a structured lattice (Gmsh's transfinite
+/// boxes): every node is a point (x_i, y_j, z_k) of a tensor grid and every element spans one
+/// cell of it. A coarse level keeps every second lattice line of the next finer one, its
+/// interpolation is trilinear in the lattice coordinates (exact for the Hex8 field of the coarse
+/// cells), and its operator is the Galerkin product P^T A P (PCMG). docs/theory.md section 5.4.
+#include "flexopt/mesh/distributed_mesh.hpp"
+
+#include <array>
+#include <optional>
+#include <petscksp.h>
+#include <string>
+#include <vector>
+
+namespace flexopt::fem {
+
+struct Lattice {
+  /// Coordinates of the lattice lines along x, y, z (ascending).
+  std::array<std::vector<double>, 3> axis;
+  /// Global node number of lattice point (i, j, k) at i + n_x (j + n_y k), n_a = axis[a].size().
+  std::vector<PetscInt> node;
+  PetscInt points(int a) const {
+    return static_cast<PetscInt>(axis[static_cast<std::size_t>(a)].size());
+  }
+  PetscInt cells(int a) const { return points(a) - 1; }
+};
+
+/// The lattice of a Hex8 mesh, or nothing: another element type, a node off the tensor grid of
+/// the node coordinates (to 1e-9 of the bounding box), or an element not spanning exactly one
+/// cell. Collective; the same answer on every rank.
+std::optional<Lattice> find_lattice(const mesh::DistributedMesh &mesh);
+
+/// The levels of a lattice hierarchy: cells per axis, finest first. Coarsens while every cell
+/// count is even and, with `levels` = 0, while the level has more than `coarse_dofs` DOFs
+/// (3 per node); with `levels` > 0, until there are that many (or no even split is left).
+std::vector<std::array<PetscInt, 3>> lattice_levels(const Lattice &lattice, int levels,
+                                                    PetscInt coarse_dofs);
+
+/// Makes `pc` a Galerkin geometric multigrid (PCMG, V-cycle) on the lattice with the given
+/// levels (lattice_levels; at least 2); the interpolations are 3-component (block size 3)
+/// trilinear maps. Smoothers and the coarse solver are left to PCMG's defaults and the options
+/// (-mg_levels_*, -mg_coarse_*). Returns a one-line description. Collective.
+std::string set_lattice_multigrid(PC pc, const mesh::DistributedMesh &mesh, const Lattice &lattice,
+                                  const std::vector<std::array<PetscInt, 3>> &levels);
+
+} // namespace flexopt::fem
