@@ -127,7 +127,8 @@ std::vector<std::array<PetscInt, 3>> lattice_levels(const Lattice &L, int levels
     const bool even = c[0] % 2 == 0 && c[1] % 2 == 0 && c[2] % 2 == 0;
     const PetscInt dofs = 3 * (c[0] + 1) * (c[1] + 1) * (c[2] + 1);
     if (!even) break;
-    if (levels > 0 ? static_cast<int>(out.size()) >= levels : dofs <= coarse_dofs) break;
+    const int halvings = static_cast<int>(out.size()) - 1;
+    if (levels > 0 ? halvings + 1 >= levels : halvings >= 2 && dofs <= coarse_dofs) break;
     out.push_back({c[0] / 2, c[1] / 2, c[2] / 2});
   }
   return out;

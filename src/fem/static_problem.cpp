@@ -50,7 +50,7 @@ std::string configure_elasticity_solver(KSP ksp, Mat A, const mesh::DistributedM
   if (!pc_given) lattice = find_lattice(mesh);
   bool geometric = false;
   if (lattice) {
-    PetscInt levels = 0, coarse_dofs = 5000;
+    PetscInt levels = 0, coarse_dofs = 20000;
     FX_PETSC(PetscOptionsGetInt(nullptr, prefix, "-lattice_mg_levels", &levels, nullptr));
     FX_PETSC(PetscOptionsGetInt(nullptr, prefix, "-lattice_mg_coarse_dofs", &coarse_dofs, nullptr));
     const auto cells = lattice_levels(*lattice, static_cast<int>(levels), coarse_dofs);

@@ -31,8 +31,10 @@ struct Lattice {
 std::optional<Lattice> find_lattice(const mesh::DistributedMesh &mesh);
 
 /// The levels of a lattice hierarchy: cells per axis, finest first. Coarsens while every cell
-/// count is even and, with `levels` = 0, while the level has more than `coarse_dofs` DOFs
-/// (3 per node); with `levels` > 0, until there are that many (or no even split is left).
+/// count is even and, with `levels` = 0, at least twice (a coarsest spacing of 4 cells: coarser
+/// ones lose the thin members of a SIMP design, docs/solvers.md) and then while the level has
+/// more than `coarse_dofs` DOFs (3 per node); with `levels` > 0, until there are that many (or
+/// no even split is left).
 std::vector<std::array<PetscInt, 3>> lattice_levels(const Lattice &lattice, int levels,
                                                     PetscInt coarse_dofs);
 

@@ -90,7 +90,7 @@ std::vector<PetscInt> support_dofs(const mesh::DistributedMesh &mesh, const io::
 
 /// Sets the default solver for an SPD elasticity operator: CG with geometric multigrid where the
 /// mesh is a structured Hex8 lattice (lattice_multigrid.hpp; -lattice_mg_levels N or
-/// -lattice_mg_coarse_dofs N (default 5000) set its depth), else algebraic multigrid (GAMG) with
+/// -lattice_mg_coarse_dofs N (default 20000) set its depth), else algebraic multigrid (GAMG) with
 /// the rigid-body near-null space built from the node coordinates; a -pc_type option selects
 /// the preconditioner instead. Relative tolerance 1e-8 (the compliance error is quadratic in it:
 /// CG is a Galerkin method in the energy norm). Options from the case's `solver:` string and the
