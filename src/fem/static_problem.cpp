@@ -70,7 +70,10 @@ std::string configure_elasticity_solver(KSP ksp, Mat A, const mesh::DistributedM
     } else {
       how += " (the " + std::to_string(lattice->cells(0)) + " x " +
              std::to_string(lattice->cells(1)) + " x " + std::to_string(lattice->cells(2)) +
-             " Hex8 lattice coarsens only to " + std::to_string(coarsest) + " DOFs)";
+             " Hex8 lattice " +
+             (cells.size() < 2 ? std::string("gets no coarser level")
+                               : "coarsens only to " + std::to_string(coarsest) + " DOFs") +
+             ")";
     }
   }
   if (!geometric) FX_PETSC(PCSetType(pc, PCGAMG));
