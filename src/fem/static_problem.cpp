@@ -61,10 +61,11 @@ std::string configure_elasticity_solver(KSP ksp, Mat A, const mesh::DistributedM
     if (cells.size() >= 2 && coarsest <= kLatticeMaxCoarseDofs) {
       // Its factorization: MUMPS Cholesky on every rank's copy (PCMG's redundant coarse solve;
       // sequential MUMPS, so repeatable), about 10x faster than PETSc's own LU at 4k DOFs.
-      insert_default_petsc_options(
-          "-mg_coarse_pc_factor_mat_solver_type mumps -mg_coarse_redundant_pc_type cholesky "
-          "-mg_coarse_redundant_pc_factor_mat_solver_type mumps",
-          "lattice multigrid defaults");
+      const std::string p = std::string("-") + (prefix ? prefix : "") + "mg_coarse_";
+      insert_default_petsc_options(p + "pc_factor_mat_solver_type mumps " + p +
+                                       "redundant_pc_type cholesky " + p +
+                                       "redundant_pc_factor_mat_solver_type mumps",
+                                   "lattice multigrid defaults");
       how = "CG + " + set_lattice_multigrid(pc, mesh, *lattice, cells);
       geometric = true;
     } else {
