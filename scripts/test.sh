@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Set up (Debian packages), build, and run the test suite with CTest.
-#   scripts/test.sh          # unit, 2-rank MPI, regression and bad-input tests
+#   scripts/test.sh          # unit, 2-rank MPI, regression and bad-input tests (two at a time:
+#                            # ctest -j 2, a test with 2 ranks alone; tests/CMakeLists.txt)
 #   scripts/test.sh --long   # also the long studies (CTest label "long")
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -16,7 +17,7 @@ done
 source "$root/scripts/env.sh"
 cd "${FLEXOPT_BUILD_DIR:-$root/build}"
 if [ "$long" = 1 ]; then
-  ctest --output-on-failure --timeout 3600
+  ctest --output-on-failure --timeout 3600 -j 2
 else
-  ctest --output-on-failure --timeout 900 -LE long
+  ctest --output-on-failure --timeout 900 -LE long -j 2
 fi

@@ -12,7 +12,8 @@
 #   scripts/bench/acf.sh            # results in build/bench/acf/results.md
 set -euo pipefail
 source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
-driver="${FLEXOPT_BENCH_ACF_BIN:-$root/build/bench_acf_free_body}"
+[ -n "${FLEXOPT_BENCH_ACF_BIN:-}" ] || bench_build bench_acf_free_body
+driver="${FLEXOPT_BENCH_ACF_BIN:-${FLEXOPT_BUILD_DIR:-$root/build}/bench_acf_free_body}"
 bench_init acf "$driver"
 bench_table "mesh size [m] | DOFs | ranks | steps | Newton iterations / step | factorizations / step | ms / step | ms / iteration | peak resident memory per rank [MiB]"
 for size in ${FLEXOPT_BENCH_ACF_SIZES:-0.05 0.025 0.015 0.0107}; do

@@ -11,7 +11,8 @@
 # PETSC_OPTIONS; results in build/bench/acf_speedup/results.md.
 set -euo pipefail
 source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
-driver="${FLEXOPT_BENCH_ACF_BIN:-$root/build/bench_acf_free_body}"
+[ -n "${FLEXOPT_BENCH_ACF_BIN:-}" ] || bench_build bench_acf_free_body
+driver="${FLEXOPT_BENCH_ACF_BIN:-${FLEXOPT_BUILD_DIR:-$root/build}/bench_acf_free_body}"
 bench_init acf_speedup "$driver"
 size="${1:-0.0107}"
 pairs="${2:-5}"

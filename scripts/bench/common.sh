@@ -1,4 +1,5 @@
 # Sourced by the benchmark scripts: the repository root, the MPI environment, and
+#   bench_build TARGET       configures build/ if needed and builds that target alone
 #   bench_init NAME BINARY   the binary must exist; work=build/bench/NAME (or $FLEXOPT_BENCH_WORK)
 #   bench_table "a | b | c"  starts $work/results.md with that header row and its separator
 #   cantilever_case DIR NX NY NZ ITERATIONS "SOLVER"
@@ -9,6 +10,13 @@
 #                            output, the PETSc options SOLVER
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
 source "$root/scripts/env.sh"
+
+bench_build() { # the log in build/TARGET_build.log
+  local build="${FLEXOPT_BUILD_DIR:-$root/build}"
+  [ -f "$build/CMakeCache.txt" ] || cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=Release > /dev/null
+  cmake --build "$build" --target "$1" -j "$(nproc)" > "$build/$1_build.log" 2>&1 ||
+    { tail -n 30 "$build/$1_build.log"; echo "build of $1 failed" >&2; exit 1; }
+}
 
 bench_init() {
   [ -x "$2" ] || { echo "$2 missing: build first (scripts/build.sh)" >&2; exit 1; }

@@ -24,10 +24,7 @@ set -euo pipefail
 source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
 export OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1
 build="${FLEXOPT_BUILD_DIR:-$root/build}"
-# The driver and the library only (not the tests).
-[ -f "$build/CMakeCache.txt" ] || cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=Release > /dev/null
-cmake --build "$build" --target bench_ffrf_reduction_adjoint -j "$(nproc)" > "$build/bench_ffrf_adjoint_build.log" 2>&1 ||
-  { tail -n 30 "$build/bench_ffrf_adjoint_build.log"; echo "build failed" >&2; exit 1; }
+bench_build bench_ffrf_reduction_adjoint
 driver="$build/bench_ffrf_reduction_adjoint"
 bench_init ffrf_adjoint "$driver"
 ranks="${FLEXOPT_BENCH_RANKS:-2}"

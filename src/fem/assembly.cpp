@@ -235,26 +235,9 @@ public:
       FX_PETSC(MatGetRowIJ(p.M, 0, PETSC_FALSE, PETSC_FALSE, &n, &p.ia, &p.ja, &done));
       if (!done) ok_ = false;
       FX_PETSC(MatSeqAIJGetArray(p.M, &p.a));
-      // Rows in triples with equal columns; columns in runs of 3 from a multiple of 3.
-      for (PetscInt r = 0; ok_ && r + 2 < n; r += 3) {
-        const PetscInt len = p.ia[r + 1] - p.ia[r];
-        if (len % 3 || p.ia[r + 2] - p.ia[r + 1] != len || p.ia[r + 3] - p.ia[r + 2] != len) {
-          ok_ = false;
-          break;
-        }
-        for (PetscInt k = 0; k < len && ok_; k += 3) {
-          const PetscInt c = p.ja[p.ia[r] + k];
-          const PetscInt g = &p == &parts_[0] ? c + cstart_ : garray_[static_cast<std::size_t>(c)];
-          for (int i = 0; i < 3 && ok_; ++i)
-            for (int j = 0; j < 3 && ok_; ++j) {
-              const PetscInt cj = p.ja[p.ia[r + i] + k + j];
-              const PetscInt gj =
-                  &p == &parts_[0] ? cj + cstart_ : garray_[static_cast<std::size_t>(cj)];
-              if (gj != g + j || g % 3) ok_ = false;
-            }
-        }
-      }
+      p.rows = n;
     }
+    if (ok_) ok_ = pattern_fits(A);
   }
   ~DirectAdder() {
     for (Part &p : parts_) {
@@ -318,7 +301,54 @@ private:
     Mat M = nullptr;
     const PetscInt *ia = nullptr, *ja = nullptr;
     double *a = nullptr;
+    PetscInt rows = 0;
   };
+
+  /// Whether the pattern has rows in triples with equal columns and columns in runs of 3 from a
+  /// multiple of 3. The check reads every column index (O(nnz), ~10 % of an assembly), so its
+  /// verdict is kept per matrix (PETSc object id) and nonzero state: it runs again only when the
+  /// pattern changes.
+  bool pattern_fits(Mat A) const {
+    struct Verdict {
+      PetscObjectId id;
+      PetscObjectState state;
+      bool fits;
+    };
+    static std::vector<Verdict> kept; // the latest 16 matrices assembled in place
+    PetscObjectId id = 0;
+    PetscObjectState state = 0;
+    FX_PETSC(PetscObjectGetId(reinterpret_cast<PetscObject>(A), &id));
+    FX_PETSC(MatGetNonzeroState(A, &state));
+    for (const Verdict &v : kept)
+      if (v.id == id && v.state == state) return v.fits;
+    bool fits = true;
+    for (const Part &p : parts_) {
+      if (!p.M) continue;
+      for (PetscInt r = 0; fits && r + 2 < p.rows; r += 3) {
+        const PetscInt len = p.ia[r + 1] - p.ia[r];
+        if (len % 3 || p.ia[r + 2] - p.ia[r + 1] != len || p.ia[r + 3] - p.ia[r + 2] != len) {
+          fits = false;
+          break;
+        }
+        for (PetscInt k = 0; k < len && fits; k += 3) {
+          const PetscInt c = p.ja[p.ia[r] + k];
+          const PetscInt g = &p == &parts_[0] ? c + cstart_ : garray_[static_cast<std::size_t>(c)];
+          for (int i = 0; i < 3 && fits; ++i)
+            for (int j = 0; j < 3 && fits; ++j) {
+              const PetscInt cj = p.ja[p.ia[r + i] + k + j];
+              const PetscInt gj =
+                  &p == &parts_[0] ? cj + cstart_ : garray_[static_cast<std::size_t>(cj)];
+              if (gj != g + j || g % 3) fits = false;
+            }
+        }
+      }
+    }
+    const auto same = [id](const Verdict &v) { return v.id == id; };
+    kept.erase(std::remove_if(kept.begin(), kept.end(), same), kept.end());
+    if (kept.size() >= 16) kept.erase(kept.begin()); // the oldest: matrices destroyed since
+    kept.push_back({id, state, fits});
+    return fits;
+  }
   const mesh::DistributedMesh &mesh_;
   Mat A_;
   Part parts_[2];
@@ -354,25 +384,27 @@ void assemble_matrix(const mesh::DistributedMesh &mesh, Mat A, Kernel &&kernel, 
 
 } // namespace
 
-const ElementMatrix &UnitStiffness::operator()(const ElementCoords &X) {
-  const bool looking = hits_ > 0 || computed_ < 64;
-  if (looking) {
-    ElementCoords d = X;
-    for (int a = 0; a < X.rows(); ++a) d.row(a) -= X.row(0);
-    const double tol = 1e-12 * d.cwiseAbs().maxCoeff();
-    for (const Shape &s : shapes_)
-      if ((s.offsets - d).cwiseAbs().maxCoeff() <= tol) {
-        ++hits_;
-        return s.K;
-      }
-    ++computed_;
-    if (shapes_.size() < 8) {
-      shapes_.push_back({d, element_stiffness(type_, X, material_, 1.0)});
-      return shapes_.back().K;
+int UnitStiffness::shape(const ElementCoords &X) {
+  ElementCoords d = X;
+  for (int a = 0; a < X.rows(); ++a) d.row(a) -= X.row(0);
+  const double tol = 1e-12 * d.cwiseAbs().maxCoeff();
+  for (std::size_t s = 0; s < shapes_.size(); ++s)
+    if ((shapes_[s].offsets - d).cwiseAbs().maxCoeff() <= tol) {
+      ++hits_;
+      return static_cast<int>(s);
     }
-  } else {
-    ++computed_;
+  if (shapes_.size() >= kMaxShapes) return -1;
+  ++computed_;
+  shapes_.push_back({d, element_stiffness(type_, X, material_, 1.0)});
+  return static_cast<int>(shapes_.size()) - 1;
+}
+
+const ElementMatrix &UnitStiffness::operator()(const ElementCoords &X) {
+  if (hits_ > 0 || computed_ < 64) { // still looking for repeats
+    const int s = shape(X);
+    if (s >= 0) return shapes_[static_cast<std::size_t>(s)].K;
   }
+  ++computed_;
   scratch_ = element_stiffness(type_, X, material_, 1.0);
   return scratch_;
 }

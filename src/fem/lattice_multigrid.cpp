@@ -2,6 +2,7 @@
 
 #include "flexopt/core/context.hpp"
 #include "flexopt/core/error.hpp"
+#include "flexopt/core/log.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -242,6 +243,36 @@ std::string set_lattice_multigrid(PC pc, const mesh::DistributedMesh &m, const L
     << cells.back()[1] << " x " << cells.back()[2] << " cells, "
     << 3 * (cells.back()[0] + 1) * (cells.back()[1] + 1) * (cells.back()[2] + 1) << " DOFs)";
   return d.str();
+}
+
+LatticeCoarseOperators::LatticeCoarseOperators(PC pc) : pc_(pc) {
+  FX_PETSC(PCMGSetGalerkin(pc, PC_MG_GALERKIN_EXTERNAL));
+  FX_PETSC(PCSetUseAmat(pc, PETSC_TRUE));
+}
+
+LatticeCoarseOperators::~LatticeCoarseOperators() {
+  for (Mat &A : coarse_) MatDestroy(&A);
+}
+
+void LatticeCoarseOperators::update(Mat fine) {
+  LogScope log("FxLatticeGalerkin");
+  PetscInt nl = 0;
+  FX_PETSC(PCMGGetLevels(pc_, &nl));
+  const bool first = coarse_.empty();
+  if (first) coarse_.assign(static_cast<std::size_t>(nl - 1), nullptr);
+  Mat A = fine;
+  for (PetscInt l = nl - 1; l > 0; --l) { // from the finest down: level l - 1 = P^T A_l P
+    Mat P = nullptr;
+    FX_PETSC(PCMGGetInterpolation(pc_, l, &P));
+    Mat &C = coarse_[static_cast<std::size_t>(l - 1)];
+    FX_PETSC(MatPtAP(A, P, first ? MAT_INITIAL_MATRIX : MAT_REUSE_MATRIX, PETSC_DEFAULT, &C));
+    if (first) {
+      KSP smoother = nullptr;
+      FX_PETSC(PCMGGetSmoother(pc_, l - 1, &smoother));
+      FX_PETSC(KSPSetOperators(smoother, C, C));
+    }
+    A = C;
+  }
 }
 
 } // namespace flexopt::fem

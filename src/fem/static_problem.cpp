@@ -4,6 +4,7 @@
 #include "flexopt/core/error.hpp"
 #include "flexopt/core/log.hpp"
 #include "flexopt/fem/lattice_multigrid.hpp"
+#include "flexopt/fem/matrix_free.hpp"
 #include "flexopt/mesh/load.hpp"
 
 #include <algorithm>
@@ -27,7 +28,8 @@ namespace {
 constexpr PetscInt kLatticeMaxCoarseDofs = 50000;
 } // namespace
 
-std::string configure_elasticity_solver(KSP ksp, Mat A, const mesh::DistributedMesh &mesh) {
+std::string configure_elasticity_solver(KSP ksp, Mat A, const mesh::DistributedMesh &mesh,
+                                        bool *lattice_multigrid) {
   Vec coords = create_coordinate_vector(mesh);
   MatNullSpace near_null;
   FX_PETSC(MatNullSpaceCreateRigidBody(coords, &near_null));
@@ -78,6 +80,7 @@ std::string configure_elasticity_solver(KSP ksp, Mat A, const mesh::DistributedM
     }
   }
   if (!geometric) FX_PETSC(PCSetType(pc, PCGAMG));
+  if (lattice_multigrid) *lattice_multigrid = geometric;
   FX_PETSC(KSPSetTolerances(ksp, 1e-8, 1e-50, PETSC_DEFAULT, 1000));
   FX_PETSC(KSPSetFromOptions(ksp));
   return how;
@@ -166,13 +169,29 @@ std::unique_ptr<StaticProblem> StaticProblem::create(MPI_Comm comm, const io::Ca
   FX_PETSC(KSPSetOptionsPrefix(p->ksp_, ""));
   p->assemble_operator({});
   p->timings_.assemble = wall_time() - t;
-  p->solver_ = configure_elasticity_solver(p->ksp_, p->K_, m);
+  bool lattice = false;
+  p->solver_ = configure_elasticity_solver(p->ksp_, p->K_, m, &lattice);
+  PetscBool matrix_free = PETSC_TRUE;
+  FX_PETSC(PetscOptionsGetBool(nullptr, nullptr, "-lattice_mg_matrix_free", &matrix_free, nullptr));
+  if (lattice && matrix_free) p->mf_ = MatrixFreeStiffness::create(m, p->material_);
+  if (p->mf_) {
+    // The finest level applies K element by element; the coarse levels and the smoothers'
+    // diagonals come from the assembled K.
+    PC pc;
+    FX_PETSC(KSPGetPC(p->ksp_, &pc));
+    p->coarse_ = std::make_unique<LatticeCoarseOperators>(pc);
+    p->update_matrix_free();
+    FX_PETSC(KSPSetOperators(p->ksp_, p->mf_->matrix(), p->K_));
+    p->solver_ += "; the finest level matrix-free";
+  }
   print0(comm, "static solver: %s\n", p->solver_.c_str());
   return p;
 }
 
 StaticProblem::~StaticProblem() {
   KSPDestroy(&ksp_);
+  coarse_.reset();
+  mf_.reset();
   MatDestroy(&K_);
   VecDestroy(&f_);
   VecDestroy(&f_surface_);
@@ -216,6 +235,13 @@ void StaticProblem::assemble_operator(const std::vector<double> &modulus_factor)
   const PetscScalar scale = diag_sum / static_cast<PetscReal>(n);
   FX_PETSC(MatZeroRowsColumns(K_, static_cast<PetscInt>(fixed_.size()), fixed_.data(), scale,
                               nullptr, nullptr));
+  support_diagonal_ = scale;
+  if (mf_) update_matrix_free();
+}
+
+void StaticProblem::update_matrix_free() {
+  mf_->set(factor_, fixed_, support_diagonal_);
+  coarse_->update(K_);
 }
 
 void StaticProblem::start_from_previous_solution() {

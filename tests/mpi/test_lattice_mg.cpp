@@ -7,6 +7,7 @@
 #include "flexopt/core/error.hpp"
 #include "flexopt/fem/assembly.hpp"
 #include "flexopt/fem/lattice_multigrid.hpp"
+#include "flexopt/fem/matrix_free.hpp"
 #include "flexopt/fem/static_problem.hpp"
 #include "test_meshes.hpp"
 
@@ -15,6 +16,8 @@
 #include <filesystem>
 #include <fstream>
 #include <gtest/gtest.h>
+#include <memory>
+#include <unistd.h>
 
 using namespace flexopt;
 
@@ -25,46 +28,37 @@ namespace {
 /// still form a tensor lattice, with unequal spacing). Collective.
 mesh::DistributedMesh box(int nx, int ny, int nz, bool graded) {
   const std::string dir = std::filesystem::temp_directory_path().string();
-  const std::string geo =
-      dir + "/flexopt_lattice_" + std::to_string(nx) + "_" + std::to_string(graded) + ".geo";
+  const std::string geo = dir + "/flexopt_lattice_" + std::to_string(nx) + "_" +
+                          std::to_string(graded) + "_" + std::to_string(::getpid()) + ".geo";
   run_on_root(PETSC_COMM_WORLD, 0, [&] {
     std::ofstream f(geo);
-    const std::string bump = graded ? " Using Bump 0.4" : "";
-    f << "SetFactory(\"OpenCASCADE\");\nBox(1) = {0, 0, 0, 2, 1, 1};\neps = 1e-6;\n"
-      << "Transfinite Curve{Curve In BoundingBox{-eps, -eps, -eps, 2 + eps, eps, eps}} = " << nx + 1
-      << bump << ";\n"
-      << "Transfinite Curve{Curve In BoundingBox{-eps, 1 - eps, -eps, 2 + eps, 1 + eps, eps}} = "
-      << nx + 1 << bump << ";\n"
-      << "Transfinite Curve{Curve In BoundingBox{-eps, -eps, 1 - eps, 2 + eps, eps, 1 + eps}} = "
-      << nx + 1 << bump << ";\n"
-      << "Transfinite Curve{Curve In BoundingBox{-eps, 1 - eps, 1 - eps, 2 + eps, 1 + eps, 1 + "
-         "eps}} = "
-      << nx + 1 << bump << ";\n"
-      << "Transfinite Curve{Curve In BoundingBox{-eps, -eps, -eps, eps, 1 + eps, eps}} = " << ny + 1
-      << bump << ";\n"
-      << "Transfinite Curve{Curve In BoundingBox{-eps, -eps, 1 - eps, eps, 1 + eps, 1 + eps}} = "
-      << ny + 1 << bump << ";\n"
-      << "Transfinite Curve{Curve In BoundingBox{2 - eps, -eps, -eps, 2 + eps, 1 + eps, eps}} = "
-      << ny + 1 << bump << ";\n"
-      << "Transfinite Curve{Curve In BoundingBox{2 - eps, -eps, 1 - eps, 2 + eps, 1 + eps, 1 + "
-         "eps}} = "
-      << ny + 1 << bump << ";\n"
-      << "Transfinite Curve{Curve In BoundingBox{-eps, -eps, -eps, eps, eps, 1 + eps}} = " << nz + 1
-      << ";\n"
-      << "Transfinite Curve{Curve In BoundingBox{-eps, 1 - eps, -eps, eps, 1 + eps, 1 + eps}} = "
-      << nz + 1 << ";\n"
-      << "Transfinite Curve{Curve In BoundingBox{2 - eps, -eps, -eps, 2 + eps, eps, 1 + eps}} = "
-      << nz + 1 << ";\n"
-      << "Transfinite Curve{Curve In BoundingBox{2 - eps, 1 - eps, -eps, 2 + eps, 1 + eps, 1 + "
-         "eps}} = "
-      << nz + 1 << ";\n"
-      << "Transfinite Surface{:};\nRecombine Surface{:};\nTransfinite Volume{1};\n"
+    f << "SetFactory(\"OpenCASCADE\");\nBox(1) = {0, 0, 0, 2, 1, 1};\neps = 1e-6;\n";
+    // The 4 edges along each axis (ends at 0 and length[axis]) at the corners of the other two:
+    // nx, ny, nz cells, the x and y edges graded.
+    const int length[3] = {2, 1, 1}, cells[3] = {nx, ny, nz};
+    for (int axis = 0; axis < 3; ++axis)
+      for (int corner = 0; corner < 4; ++corner) {
+        std::string lo[3], hi[3];
+        for (int k = 0; k < 3; ++k) {
+          const int at =
+              k == axis ? 0 : ((k == (axis + 1) % 3 ? corner & 1 : corner & 2) ? length[k] : 0);
+          lo[k] = std::to_string(at) + " - eps";
+          hi[k] = std::to_string(k == axis ? length[k] : at) + " + eps";
+        }
+        f << "Transfinite Curve{Curve In BoundingBox{" << lo[0] << ", " << lo[1] << ", " << lo[2]
+          << ", " << hi[0] << ", " << hi[1] << ", " << hi[2] << "}} = " << cells[axis] + 1
+          << (graded && axis < 2 ? " Using Bump 0.4" : "") << ";\n";
+      }
+    f << "Transfinite Surface{:};\nRecombine Surface{:};\nTransfinite Volume{1};\n"
       << "Physical Volume(\"design\") = {1};\n"
       << "Physical Surface(\"clamp\") = Surface In BoundingBox{-eps, -eps, -eps, eps, 1 + eps, 1 + "
          "eps};\n";
   });
   mesh::MeshData data;
-  run_on_root(PETSC_COMM_WORLD, 0, [&] { data = mesh::read_gmsh(geo, mesh::MeshOptions{0, 1}); });
+  run_on_root(PETSC_COMM_WORLD, 0, [&] {
+    data = mesh::read_gmsh(geo, mesh::MeshOptions{0, 1});
+    std::filesystem::remove(geo);
+  });
   return mesh::distribute_mesh(PETSC_COMM_WORLD,
                                comm_rank(PETSC_COMM_WORLD) == 0 ? &data : nullptr);
 }
@@ -170,7 +164,8 @@ TEST(LatticeMultigrid, SimpContrastSolveMatchesTheDirectSolver) {
   std::vector<PetscInt> fixed;
   for (PetscInt g : m.surface_nodes.at("clamp"))
     for (int d = 0; d < 3; ++d) fixed.push_back(3 * g + d);
-  auto solve = [&](bool direct, int *iterations) {
+  enum Mode { direct, assembled, matrix_free };
+  auto solve = [&](Mode mode, int *iterations) {
     Mat K = fem::create_matrix(m);
     fem::assemble_stiffness(m, mat, factor, K);
     FX_PETSC(MatZeroRowsColumns(K, static_cast<PetscInt>(fixed.size()), fixed.data(), 1.0, nullptr,
@@ -189,7 +184,19 @@ TEST(LatticeMultigrid, SimpContrastSolveMatchesTheDirectSolver) {
     // 16 x 8 x 8 has 4131 DOFs, below the default coarsest size: ask for 2 levels.
     FX_PETSC(PetscOptionsSetValue(nullptr, "-lattice_test_lattice_mg_levels", "2"));
     const std::string how = fem::configure_elasticity_solver(ksp, K, m);
-    if (direct) {
+    std::unique_ptr<fem::MatrixFreeStiffness> mf;
+    std::unique_ptr<fem::LatticeCoarseOperators> coarse;
+    if (mode == matrix_free) { // the finest level without its matrix, the coarse ones from K
+      mf = fem::MatrixFreeStiffness::create(m, mat);
+      EXPECT_TRUE(mf);
+      mf->set(factor, fixed, 1.0);
+      PC pc;
+      FX_PETSC(KSPGetPC(ksp, &pc));
+      coarse = std::make_unique<fem::LatticeCoarseOperators>(pc);
+      coarse->update(K);
+      FX_PETSC(KSPSetOperators(ksp, mf->matrix(), K));
+    }
+    if (mode == direct) {
       FX_PETSC(KSPSetType(ksp, KSPPREONLY));
       PC pc;
       FX_PETSC(KSPGetPC(ksp, &pc));
@@ -211,16 +218,66 @@ TEST(LatticeMultigrid, SimpContrastSolveMatchesTheDirectSolver) {
     KSPDestroy(&ksp), MatDestroy(&K), VecDestroy(&b);
     return x;
   };
-  int its_direct = 0, its_mg = 0;
-  Vec xd = solve(true, &its_direct), xm = solve(false, &its_mg);
-  PetscReal scale = 0, err = 0;
+  int its_direct = 0, its_mg = 0, its_mf = 0;
+  Vec xd = solve(direct, &its_direct), xm = solve(assembled, &its_mg),
+      xf = solve(matrix_free, &its_mf);
+  PetscReal scale = 0, err = 0, err_mf = 0;
   FX_PETSC(VecNorm(xd, NORM_INFINITY, &scale));
   FX_PETSC(VecAXPY(xm, -1.0, xd));
   FX_PETSC(VecNorm(xm, NORM_INFINITY, &err));
+  FX_PETSC(VecAXPY(xf, -1.0, xd));
+  FX_PETSC(VecNorm(xf, NORM_INFINITY, &err_mf));
   // rtol 1e-10 on the preconditioned residual; the void blocks' displacements are 1e9 times
   // larger than the solid's and as accurate relative to the largest.
   EXPECT_LT(err, 1e-6 * scale) << its_mg << " iterations";
-  VecDestroy(&xd), VecDestroy(&xm);
+  EXPECT_LT(err_mf, 1e-6 * scale) << its_mf << " iterations";
+  // The same operator and preconditioner to round-off: the same iterations (one more or less
+  // where the residual crosses the tolerance within round-off).
+  EXPECT_LE(std::abs(its_mf - its_mg), 1) << its_mf << " vs " << its_mg;
+  VecDestroy(&xd), VecDestroy(&xm), VecDestroy(&xf);
+}
+
+// The matrix-free product is the assembled K with supports (rows and columns of the supported
+// DOFs replaced by a scaled identity) to round-off, for SIMP factors of 1e9 contrast; a mesh
+// with more element shapes than kept (a graded lattice) or of another type gets none.
+TEST(MatrixFreeStiffness, ProductIsTheAssembledOperator) {
+  const auto m = box(8, 4, 4, false);
+  const fem::IsotropicMaterial mat{2.0, 0.3, 1.0};
+  std::vector<double> factor(static_cast<std::size_t>(m.local_elements()));
+  for (PetscInt e = 0; e < m.local_elements(); ++e)
+    factor[static_cast<std::size_t>(e)] = std::pow(
+        1e-3 +
+            std::fmod(0.37 * static_cast<double>(m.element_tags[static_cast<std::size_t>(e)]), 1.0),
+        3);
+  std::vector<PetscInt> fixed;
+  for (PetscInt g : m.surface_nodes.at("clamp"))
+    for (int d = 0; d < 3; ++d) fixed.push_back(3 * g + d);
+  Mat K = fem::create_matrix(m);
+  fem::assemble_stiffness(m, mat, factor, K);
+  FX_PETSC(MatZeroRowsColumns(K, static_cast<PetscInt>(fixed.size()), fixed.data(), 0.7, nullptr,
+                              nullptr));
+  const auto mf = fem::MatrixFreeStiffness::create(m, mat);
+  ASSERT_TRUE(mf);
+  mf->set(factor, fixed, 0.7);
+  Vec x, y, z;
+  FX_PETSC(MatCreateVecs(K, &x, &y));
+  FX_PETSC(VecDuplicate(y, &z));
+  PetscRandom rng;
+  FX_PETSC(PetscRandomCreate(PETSC_COMM_WORLD, &rng));
+  FX_PETSC(VecSetRandom(x, rng));
+  FX_PETSC(MatMult(K, x, y));
+  FX_PETSC(MatMult(mf->matrix(), x, z));
+  PetscReal scale = 0, err = 0;
+  FX_PETSC(VecNorm(y, NORM_INFINITY, &scale));
+  FX_PETSC(VecAXPY(z, -1.0, y));
+  FX_PETSC(VecNorm(z, NORM_INFINITY, &err));
+  // Sums of 8 element contributions of at most |K^0| |x| each, in another order.
+  EXPECT_LT(err, 1e-14 * scale);
+  PetscRandomDestroy(&rng), VecDestroy(&x), VecDestroy(&y), VecDestroy(&z), MatDestroy(&K);
+
+  EXPECT_FALSE(fem::MatrixFreeStiffness::create(box(8, 8, 4, true), mat));
+  EXPECT_FALSE(
+      fem::MatrixFreeStiffness::create(test_support::load_test_mesh("beam.geo", 0.03, 1), mat));
 }
 
 TEST(LatticeMultigrid, DirectArrayAssemblyGivesMatSetValuesMatrixBitForBit) {

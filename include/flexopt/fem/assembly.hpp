@@ -34,9 +34,15 @@ class UnitStiffness {
 public:
   UnitStiffness(ElementType type, const IsotropicMaterial &material)
       : type_(type), material_(material) {}
+  static constexpr std::size_t kMaxShapes = 8;
   /// K_e^0 of the element with node coordinates X; the reference is valid until the next call.
   /// Throws for a degenerate element (element_stiffness).
   const ElementMatrix &operator()(const ElementCoords &X);
+  /// The number of X's shape among the kept ones (a new shape is kept while there are fewer than
+  /// kMaxShapes), or -1. Throws for a degenerate element.
+  int shape(const ElementCoords &X);
+  /// K^0 of kept shape s (shape()'s number); valid while this object lives.
+  const ElementMatrix &matrix(int s) const { return shapes_[static_cast<std::size_t>(s)].K; }
   int computed() const { return computed_; } ///< element matrices computed so far
 
 private:

@@ -45,4 +45,25 @@ std::vector<std::array<PetscInt, 3>> lattice_levels(const Lattice &lattice, int 
 std::string set_lattice_multigrid(PC pc, const mesh::DistributedMesh &mesh, const Lattice &lattice,
                                   const std::vector<std::array<PetscInt, 3>> &levels);
 
+/// The coarse operators of a lattice multigrid (set_lattice_multigrid) whose finest operator is
+/// applied without its matrix (MatrixFreeStiffness as the KSP's Amat, the assembled stiffness as
+/// its Pmat). PCMG forms Galerkin products from the Amat too, which a shell matrix cannot give;
+/// here the finest level smooths and forms residuals with the Amat (PCSetUseAmat) and the coarse
+/// operators are P^T A P of the assembled Pmat, level by level, the same MatPtAP products PCMG
+/// forms. Call update() after every change of the Pmat's values. Collective.
+class LatticeCoarseOperators {
+public:
+  explicit LatticeCoarseOperators(PC pc);
+  ~LatticeCoarseOperators();
+  LatticeCoarseOperators(const LatticeCoarseOperators &) = delete;
+  LatticeCoarseOperators &operator=(const LatticeCoarseOperators &) = delete;
+  /// Forms every coarse operator from `fine` (the assembled finest operator) and gives it to its
+  /// level (the first time; later the same matrices get new values).
+  void update(Mat fine);
+
+private:
+  PC pc_;
+  std::vector<Mat> coarse_; ///< PCMG level l's operator at [l] (0: coarsest)
+};
+
 } // namespace flexopt::fem

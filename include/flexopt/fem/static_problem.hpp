@@ -8,9 +8,13 @@
 #include "flexopt/fem/assembly.hpp"
 #include "flexopt/io/case.hpp"
 
+#include <memory>
 #include <petscksp.h>
 
 namespace flexopt::fem {
+
+class MatrixFreeStiffness;
+class LatticeCoarseOperators;
 
 class StaticProblem {
 public:
@@ -71,6 +75,9 @@ private:
   StaticProblem() = default;
   /// Sets the supported DOFs of a right-hand side to zero (all prescribed values are 0).
   void zero_supported(Vec rhs) const;
+  /// Gives the matrix-free operator the current factors and supports, and forms the coarse
+  /// operators from K.
+  void update_matrix_free();
   mesh::DistributedMesh mesh_;
   IsotropicMaterial material_{};
   std::vector<double> factor_;
@@ -80,6 +87,11 @@ private:
   Vec f_surface_ = nullptr;       ///< the tractions and line loads (no body forces)
   std::vector<double> body_load_; ///< f_e of every local element, flat (empty: no body force)
   KSP ksp_ = nullptr;
+  double support_diagonal_ = 1.0; ///< the supported rows' diagonal entry in K
+  /// Lattice multigrid with the finest level matrix-free (-lattice_mg_matrix_free, default on):
+  /// the KSP's operator, and the coarse levels' Galerkin operators of K.
+  std::unique_ptr<MatrixFreeStiffness> mf_;
+  std::unique_ptr<LatticeCoarseOperators> coarse_;
   std::string solver_;
   int iterations_ = 0;
   Timings timings_;
@@ -96,7 +108,9 @@ std::vector<PetscInt> support_dofs(const mesh::DistributedMesh &mesh, const io::
 /// CG is a Galerkin method in the energy norm). Options from the case's `solver:` string and the
 /// command line are applied afterwards (KSPSetFromOptions). Returns the solver in words.
 /// Collective.
-std::string configure_elasticity_solver(KSP ksp, Mat A, const mesh::DistributedMesh &mesh);
+/// `lattice_multigrid` (optional) tells whether the lattice's geometric multigrid was chosen.
+std::string configure_elasticity_solver(KSP ksp, Mat A, const mesh::DistributedMesh &mesh,
+                                        bool *lattice_multigrid = nullptr);
 
 /// Throws a collective flexopt::Error naming `what` if the last KSPSolve diverged.
 void check_converged(KSP ksp, const std::string &what);
