@@ -306,9 +306,8 @@ private:
 
   /// Whether the pattern has rows in triples with equal columns and columns in runs of 3 from a
   /// multiple of 3. The check reads every column index (O(nnz): 0.03 of 0.25 s per assembly at
-  /// 212k DOFs, 2 ranks), so its
-  /// verdict is kept per matrix (PETSc object id) and nonzero state: it runs again only when the
-  /// pattern changes.
+  /// 212k DOFs, 2 ranks), so its verdict is kept per matrix (PETSc object id) and nonzero state:
+  /// it runs again only when the pattern changes.
   bool pattern_fits(Mat A) const {
     struct Verdict {
       PetscObjectId id;
