@@ -1023,6 +1023,32 @@ long long DynamicProblem::dofs() const {
   return n;
 }
 
+std::vector<std::string> DynamicProblem::solve_to_round_off() {
+  // Newton's method proper: responses smooth in the design to round-off (docs/theory.md 9.5).
+  set_newton_reuse(0);
+  std::vector<std::string> limits;
+  const std::string filter = field_->filter().solve_to_round_off();
+  filter_limited_ = !filter.empty();
+  if (filter_limited_) limits.push_back(filter);
+  if (ffrf_design_) {
+    // The reduction's fixed-interface modes are solved to 1e-13 (reduce_flexible_body) unless
+    // -eps_tol says otherwise.
+    PetscReal tol = 0;
+    PetscBool given = PETSC_FALSE;
+    FX_PETSC(PetscOptionsGetReal(nullptr, nullptr, "-eps_tol", &tol, &given));
+    if (given && tol > 1e-13)
+      limits.push_back("the FFRF reduction's eigenpairs stop at -eps_tol " + std::to_string(tol));
+  }
+  return limits;
+}
+
+bool DynamicProblem::set_random_start(unsigned long seed) {
+  // Every other solve of a dynamic evaluation is direct, or Newton's to 1e-12, whatever its
+  // start; the filter's own tolerance (1e-12) keeps its noise below noise_floor(). Only a
+  // filter loosened by the user's options is worth two more runs to measure.
+  return field_->filter().set_random_start(filter_limited_ ? seed : 0) && filter_limited_;
+}
+
 double DynamicProblem::noise_floor(std::size_t i) const {
   const std::string &type = specs_[i]->type;
   return type == "volume_fraction" || type == "mass" ? 1e-14 : noise_floor();

@@ -9,6 +9,7 @@ namespace flexopt::adjoint {
 class DynamicProblem;
 }
 
+#include <memory>
 #include <string>
 
 namespace flexopt::app {
@@ -30,7 +31,20 @@ std::string write_gradients(const optimize::DesignProblem &problem, const optimi
 /// collective flexopt::Error naming the file if it holds no design.
 void load_design(MPI_Comm comm, const io::Case &c, optimize::DesignProblem &design,
                  const std::string &file, Vec x);
+/// The design problem of a case: the static SIMP problem or the dynamic one (adjoint module);
+/// `optimizing`: a dynamic design region touching an interface of its flexible body is refused.
+/// Collective.
+std::unique_ptr<optimize::DesignProblem>
+create_design_problem(MPI_Comm comm, const io::Case &c, bool optimizing, const std::string &dir);
 } // namespace detail
+
+/// `check-gradient`: the Taylor test and central differences of a design problem's adjoint
+/// gradients, on evaluations solved to round-off, with their measured noise
+/// (src/app/check_gradient.cpp; docs/theory.md section 5, "Checking a gradient"). Collective.
+int run_check_gradient(const Context &ctx, const Options &o, const io::Case &c, double t0);
+/// The case's `solver:` string for check-gradient: without its tolerances and warm start
+/// (-*ksp_rtol, -*ksp_atol, -*eps_tol, -fx_warm_start), which are named on rank 0. Collective.
+std::string check_gradient_solver_options(const Context &ctx, const io::Case &c);
 
 /// `simulate` for `analysis: dynamic`: generalized-alpha run of the mechanism, motion.xdmf and
 /// summary.json. Collective.

@@ -110,6 +110,15 @@ void write_summary(const Context &ctx, const std::string &dir, io::Json &s, doub
   });
 }
 
+/// The design problem of a case: the static SIMP problem or the dynamic one (adjoint module);
+/// `optimizing`: a dynamic design region touching an interface of its flexible body is refused.
+/// Collective.
+std::unique_ptr<optimize::DesignProblem>
+create_design_problem(MPI_Comm comm, const io::Case &c, bool optimizing, const std::string &dir) {
+  if (c.analysis == "dynamic") return adjoint::DynamicProblem::create(comm, c, dir, optimizing);
+  return optimize::TopologyProblem::create(comm, c);
+}
+
 } // namespace detail
 
 using detail::base_summary;
@@ -475,297 +484,13 @@ int run_modes(const Context &ctx, const Options &o, const io::Case &c, double t0
   return 0;
 }
 
-/// A reproducible pseudo-random number in [0, 1) from an integer key (splitmix64), so that
-/// directions and sample elements depend on Gmsh element tags, not on the partition.
-double hash_uniform(std::uint64_t key) {
-  std::uint64_t z = key + 0x9e3779b97f4a7c15ULL;
-  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
-  z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
-  z ^= z >> 31;
-  return static_cast<double>(z >> 11) * 0x1.0p-53;
-}
-
-/// All response values of an evaluation: objective first, then the constraints.
-std::vector<double> response_values(const optimize::Evaluation &e) {
-  std::vector<double> v{e.objective};
-  v.insert(v.end(), e.constraints.begin(), e.constraints.end());
-  return v;
-}
-
-/// The design problem of a case: the static SIMP problem or the dynamic one (adjoint module);
-/// `optimizing`: a dynamic design region touching an interface of its flexible body is refused.
-/// Collective.
-std::unique_ptr<optimize::DesignProblem>
-create_design_problem(MPI_Comm comm, const io::Case &c, bool optimizing, const std::string &dir) {
-  if (c.analysis == "dynamic") return adjoint::DynamicProblem::create(comm, c, dir, optimizing);
-  return optimize::TopologyProblem::create(comm, c);
-}
-
-int run_check_gradient(const Context &ctx, const Options &o, const io::Case &c, double t0) {
-  const std::string dir = output_directory(ctx, o);
-  std::unique_ptr<optimize::DesignProblem> problem =
-      create_design_problem(ctx.comm(), c, false, dir);
-  if (auto *dynamic = dynamic_cast<adjoint::DynamicProblem *>(problem.get())) {
-    // Newton's method proper: responses smooth in the design to round-off (docs/theory.md 9.5).
-    dynamic->set_newton_reuse(0);
-    print0(ctx.comm(), "check-gradient: every time step solved by Newton's method proper "
-                       "(time.newton_reuse = 0), so that the responses are smooth in the design to "
-                       "round-off\n");
-  }
-  const auto &names = problem->response_names();
-  const std::size_t nr = names.size();
-  print0(ctx.comm(), "check-gradient: %lld design variables, %zu response(s)\n",
-         static_cast<long long>(problem->design_size()), nr);
-
-  Vec x0 = problem->create_design_vector(), x, direction;
-  if (o.design.empty()) {
-    problem->initial_design(x0);
-  } else {
-    detail::load_design(ctx.comm(), c, *problem, o.design, x0);
-    print0(ctx.comm(), "check-gradient: at the design of %s (projection beta %g)\n",
-           o.design.c_str(), problem->field().beta());
-  }
-  FX_PETSC(VecDuplicate(x0, &x));
-  FX_PETSC(VecDuplicate(x0, &direction));
-  {
-    // d_e uniform in [-1, 1] from the element's tag; a variable at a bound of [0, 1] (an
-    // optimized design's) is moved into the box only, so that x0 + h d stays a design.
-    PetscScalar *d;
-    const PetscScalar *a;
-    FX_PETSC(VecGetArray(direction, &d));
-    FX_PETSC(VecGetArrayRead(x0, &a));
-    const auto &tags = problem->design_tags();
-    for (std::size_t k = 0; k < tags.size(); ++k) {
-      d[k] = 2.0 * hash_uniform(tags[k]) - 1.0;
-      if (a[k] <= 0) d[k] = std::abs(d[k]);
-      if (a[k] >= 1) d[k] = -std::abs(d[k]);
-    }
-    FX_PETSC(VecRestoreArrayRead(x0, &a));
-    FX_PETSC(VecRestoreArray(direction, &d));
-  }
-  // Progress: 1 evaluation with gradients, then 5 Taylor steps and 2 (L + 1) per checked
-  // element (L the finite-difference levels, below).
-  constexpr int kSamples = 5;
-  const int fd_levels = o.fd_step > 0 ? 1 : problem->fd_levels();
-  const int most = 1 + 5 + kSamples * 2 * (fd_levels + 1);
-  const double t_check = wall_time();
-  int evaluations = 0;
-  auto progress = [&](const char *what) {
-    ++evaluations;
-    print0(ctx.comm(), "check-gradient: evaluation %d of at most %d (%s) done after %.1f s\n",
-           evaluations, most, what, wall_time() - t_check);
-  };
-  optimize::Evaluation base;
-  problem->evaluate(x0, true, base);
-  progress("responses and adjoint gradients");
-  const std::vector<double> r0 = response_values(base);
-  const std::string gradient_file = detail::write_gradients(*problem, base, dir);
-  std::vector<double> slope(nr);
-  for (std::size_t i = 0; i < nr; ++i) FX_PETSC(VecDot(base.gradient(i), direction, &slope[i]));
-
-  // Taylor test: |R(x0 + h d) - R(x0) - h g.d| = O(h^2) if g is the gradient.
-  const std::vector<double> steps{1e-1, 1e-2, 1e-3, 1e-4, 1e-5};
-  std::vector<std::vector<double>> remainders(nr);
-  for (double h : steps) {
-    FX_PETSC(VecWAXPY(x, h, direction, x0));
-    optimize::Evaluation e;
-    problem->evaluate(x, false, e);
-    progress("Taylor test");
-    const auto r = response_values(e);
-    for (std::size_t i = 0; i < nr; ++i)
-      remainders[i].push_back(std::abs(r[i] - r0[i] - h * slope[i]));
-  }
-  io::Json s = base_summary(ctx, o, c);
-  // Remainders below noise_floor(i) |R| are round-off of the evaluation itself (the problem
-  // says how large: the static state solve's eps * cond(K), the dynamic Newton tolerance). An
-  // order is taken only between steps whose remainders both exceed kResolved times that floor:
-  // noise of at most 1/kResolved of a remainder moves the order by at most log10(1.1) = 0.04
-  // (a remainder just above the floor carries noise of its own size, and an order near 1.88
-  // for a correct gradient). A response whose remainders all lie below the floor is linear
-  // in the design (the volume fraction): exact.
-  constexpr double kResolved = 10;
-  io::Json taylor = io::Json::array();
-  for (std::size_t i = 0; i < nr; ++i) {
-    std::vector<double> orders;
-    double min_order = 1e300;
-    const double floor = problem->noise_floor(i) * std::max(std::abs(r0[i]), 1e-300);
-    for (std::size_t k = 0; k + 1 < steps.size(); ++k) {
-      orders.push_back(std::log10(remainders[i][k] / remainders[i][k + 1]) /
-                       std::log10(steps[k] / steps[k + 1]));
-      if (remainders[i][k + 1] > kResolved * floor) min_order = std::min(min_order, orders.back());
-    }
-    const bool linear = remainders[i][0] <= floor;
-    const bool resolved = min_order < 1e300;
-    io::Json t = io::Json::object();
-    t["response"] = names[i];
-    t["value"] = r0[i];
-    t["steps"] = steps;
-    t["remainders"] = remainders[i];
-    t["orders"] = orders;
-    t["noise_floor"] = floor;
-    t["linear"] = linear;
-    t["min_order"] = linear || !resolved ? io::Json() : io::Json(min_order);
-    t["resolved"] = linear || resolved;
-    taylor.push_back(t);
-    print0(ctx.comm(), "taylor %-28s value %.10g  remainders", names[i].c_str(), r0[i]);
-    for (double rem : remainders[i]) print0(ctx.comm(), " %.3e", rem);
-    print0(ctx.comm(), "  orders");
-    for (double ord : orders) print0(ctx.comm(), " %.3f", ord);
-    if (linear)
-      print0(ctx.comm(), "  (linear: remainders at round-off)");
-    else if (!resolved)
-      print0(ctx.comm(), "  no two remainders above %g x the noise floor: order not measured",
-             kResolved);
-    else
-      print0(ctx.comm(), "  min order above the noise floor %.3f", min_order);
-    print0(ctx.comm(), "\n");
-  }
-  s["taylor"] = taylor;
-
-  // Central differences on 5 design elements chosen by their tags' hashes among those whose
-  // objective sensitivity is at least kSignificant of the largest: on the others a difference
-  // quotient measures the evaluation's round-off (eps cond(K) |R| / step), not the gradient.
-  // Fourth order: D = (4 D(h/2) - D(h)) / 3 with D(h) the central difference of step h.
-  const double kStep = o.fd_step > 0 ? o.fd_step : problem->fd_step();
-  constexpr double kSignificant = 1e-2;
-  PetscReal gmax = 0;
-  FX_PETSC(VecNorm(base.d_objective, NORM_INFINITY, &gmax));
-  std::vector<std::pair<double, unsigned long long>> mine;
-  {
-    const PetscScalar *g;
-    FX_PETSC(VecGetArrayRead(base.d_objective, &g));
-    const auto &tags = problem->design_tags();
-    for (std::size_t k = 0; k < tags.size(); ++k)
-      if (std::abs(g[k]) >= kSignificant * gmax)
-        mine.emplace_back(hash_uniform(tags[k] ^ 0x5bd1e995ULL), tags[k]);
-    FX_PETSC(VecRestoreArrayRead(base.d_objective, &g));
-  }
-  std::sort(mine.begin(), mine.end());
-  mine.resize(std::min<std::size_t>(mine.size(), kSamples));
-  std::vector<double> keys;
-  for (auto &p : mine) keys.insert(keys.end(), {p.first, static_cast<double>(p.second)});
-  int n_mine = static_cast<int>(keys.size());
-  std::vector<int> counts(static_cast<std::size_t>(ctx.size())),
-      displs(static_cast<std::size_t>(ctx.size()), 0);
-  MPI_Allgather(&n_mine, 1, MPI_INT, counts.data(), 1, MPI_INT, ctx.comm());
-  for (int p = 1; p < ctx.size(); ++p)
-    displs[static_cast<std::size_t>(p)] =
-        displs[static_cast<std::size_t>(p - 1)] + counts[static_cast<std::size_t>(p - 1)];
-  std::vector<double> all(static_cast<std::size_t>(displs.back() + counts.back()));
-  MPI_Allgatherv(keys.data(), n_mine, MPI_DOUBLE, all.data(), counts.data(), displs.data(),
-                 MPI_DOUBLE, ctx.comm());
-  std::vector<std::pair<double, unsigned long long>> candidates;
-  for (std::size_t k = 0; k < all.size(); k += 2)
-    candidates.emplace_back(all[k], static_cast<unsigned long long>(all[k + 1]));
-  std::sort(candidates.begin(), candidates.end());
-  candidates.resize(std::min<std::size_t>(candidates.size(), kSamples));
-
-  io::Json fd = io::Json::array();
-  double max_rel = 0, max_beyond = 0;
-  for (const auto &cand : candidates) {
-    const unsigned long long tag = cand.second;
-    const auto &tags = problem->design_tags();
-    const auto it = std::find(tags.begin(), tags.end(), static_cast<std::size_t>(tag));
-    const PetscInt local = it == tags.end() ? -1 : static_cast<PetscInt>(it - tags.begin());
-    PetscInt first = 0;
-    FX_PETSC(VecGetOwnershipRange(x0, &first, nullptr));
-    std::vector<double> adjoint(nr, 0.0), value(2 * nr, 0.0);
-    for (std::size_t i = 0; i < nr; ++i) {
-      if (local >= 0) {
-        const PetscScalar *g;
-        Vec gv = base.gradient(i);
-        FX_PETSC(VecGetArrayRead(gv, &g));
-        adjoint[i] = g[local];
-        FX_PETSC(VecRestoreArrayRead(gv, &g));
-      }
-    }
-    MPI_Allreduce(MPI_IN_PLACE, adjoint.data(), static_cast<int>(nr), MPI_DOUBLE, MPI_SUM,
-                  ctx.comm());
-    // Central differences c_k at the steps h_k = h 2^-k, k = 0 ... L (L = fd_levels()), their
-    // Richardson extrapolations D_k = (4 c_(k+1) - c_k) / 3, and per response the D_k that
-    // agrees best with D_(k+1) (with L = 1 the one D_0 of the steps h and h/2).
-    const int levels = fd_levels;
-    std::vector<std::vector<double>> c(static_cast<std::size_t>(levels + 1),
-                                       std::vector<double>(nr, 0.0));
-    for (int k = 0; k <= levels; ++k) {
-      const double hk = kStep * std::ldexp(1.0, -k);
-      std::vector<std::vector<double>> sided;
-      for (double delta : {hk, -hk}) {
-        FX_PETSC(VecCopy(x0, x));
-        if (local >= 0) FX_PETSC(VecSetValue(x, first + local, delta, ADD_VALUES));
-        FX_PETSC(VecAssemblyBegin(x));
-        FX_PETSC(VecAssemblyEnd(x));
-        optimize::Evaluation e;
-        problem->evaluate(x, false, e);
-        progress("central differences");
-        sided.push_back(response_values(e));
-      }
-      for (std::size_t i = 0; i < nr; ++i)
-        c[static_cast<std::size_t>(k)][i] = (sided[0][i] - sided[1][i]) / (2 * hk);
-    }
-    for (std::size_t i = 0; i < nr; ++i) {
-      auto D = [&](int k) {
-        return (4.0 * c[static_cast<std::size_t>(k + 1)][i] - c[static_cast<std::size_t>(k)][i]) /
-               3.0;
-      };
-      int best = 0;
-      double best_gap = std::numeric_limits<double>::infinity();
-      for (int k = 0; k + 1 < levels; ++k) {
-        const double gap = std::abs(D(k) - D(k + 1));
-        if (gap < best_gap) best_gap = gap, best = k;
-      }
-      const double f = D(best);
-      const double rel = std::abs(adjoint[i] - f) / std::max(std::abs(f), 1e-300);
-      // The extrapolation's own uncertainty is its gap to the next one (truncation and the
-      // responses' noise over the step): only the part of the disagreement beyond it counts
-      // against the adjoint (docs/theory.md, the FFRF design sensitivities' noise).
-      // With one extrapolation (fd_levels 1) there is no gap to measure: no allowance.
-      const double uncertainty = std::isfinite(best_gap) ? best_gap : 0.0;
-      const double beyond =
-          std::max(0.0, std::abs(adjoint[i] - f) - uncertainty) / std::max(std::abs(f), 1e-300);
-      max_rel = std::max(max_rel, rel);
-      max_beyond = std::max(max_beyond, beyond);
-      io::Json row = io::Json::object();
-      row["element"] = static_cast<long long>(tag);
-      row["response"] = names[i];
-      row["adjoint"] = adjoint[i];
-      row["fd"] = f;
-      row["rel_err"] = rel;
-      row["fd_uncertainty"] = uncertainty;
-      row["rel_err_beyond_uncertainty"] = beyond;
-      row["step"] = kStep * std::ldexp(1.0, -best);
-      fd.push_back(row);
-      print0(ctx.comm(),
-             "fd element %-8llu %-28s adjoint % .10e  fd % .10e ± %.1e  rel err %.2e (beyond "
-             "the fd's uncertainty %.2e)  (h %.3g)\n",
-             tag, names[i].c_str(), adjoint[i], f, uncertainty, rel, beyond,
-             kStep * std::ldexp(1.0, -best));
-    }
-  }
-  s["fd"] = fd;
-  s["fd_step"] = kStep;
-  s["fd_significance"] = kSignificant;
-  s["max_rel_err"] = max_rel;
-  s["max_rel_err_beyond_uncertainty"] = max_beyond;
-  problem->describe(s);
-  FX_PETSC(VecDestroy(&x0));
-  FX_PETSC(VecDestroy(&x));
-  FX_PETSC(VecDestroy(&direction));
-  write_summary(ctx, dir, s, t0);
-  print0(ctx.comm(),
-         "check-gradient: max relative error of the adjoint gradient %.2e; wrote %s (cell "
-         "arrays gradient_objective, gradient_constraint0, ...) and %s\n",
-         max_rel, gradient_file.c_str(), (fs::path(dir) / "summary.json").c_str());
-  return 0;
-}
-
 int run_optimize(const Context &ctx, const Options &o, const io::Case &c, double t0) {
   if (!c.design)
     throw Error(c.file + ": optimize needs design:, objective: (and constraints:) sections", true);
   const std::string dir = output_directory(ctx, o);
   io::Case run_case = c;
   if (o.max_iterations > 0) run_case.optimizer.max_iterations = o.max_iterations;
-  auto problem = create_design_problem(ctx.comm(), run_case, true, dir);
+  auto problem = detail::create_design_problem(ctx.comm(), run_case, true, dir);
   const auto r = optimize::run_optimization(ctx.comm(), *problem, run_case, dir, o.restart);
   io::Json s = base_summary(ctx, o, c);
   s["dofs"] = r.dofs;
@@ -835,7 +560,9 @@ int run(const Context &ctx, const Options &given) {
   const double t0 = wall_time();
   Options o = given;
   io::Case c = io::load_case(o.case_dir);
-  if (!c.solver.empty()) insert_default_petsc_options(c.solver, c.file + ": solver");
+  const std::string solver =
+      o.command == "check-gradient" ? check_gradient_solver_options(ctx, c) : c.solver;
+  if (!solver.empty()) insert_default_petsc_options(solver, c.file + ": solver");
   if (o.command == "plan") return run_plan(ctx, o, c, t0);
   // `model: auto` bodies of a dynamic case take the plan's models (docs/theory.md section 12).
   if (c.analysis == "dynamic" && o.command != "info" &&

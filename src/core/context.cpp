@@ -66,10 +66,12 @@ double wall_time() {
   return MPI_Wtime();
 }
 
-void insert_default_petsc_options(const std::string &options, const std::string &origin) {
+std::vector<PetscOption> parse_petsc_options(const std::string &options,
+                                             const std::string &origin) {
   std::istringstream in(options);
   std::vector<std::string> tokens;
   for (std::string t; in >> t;) tokens.push_back(t);
+  std::vector<PetscOption> out;
   for (std::size_t i = 0; i < tokens.size();) {
     const std::string &name = tokens[i];
     if (name.size() < 2 || name[0] != '-' || (name[1] >= '0' && name[1] <= '9'))
@@ -77,17 +79,24 @@ void insert_default_petsc_options(const std::string &options, const std::string 
                       ": PETSc option string: expected an option name starting with '-', got '" +
                       name + "'",
                   true);
-    std::string value;
-    bool has_value =
+    // A value follows unless the next token is an option name (a negative number is a value).
+    const bool has_value =
         i + 1 < tokens.size() &&
         !(tokens[i + 1][0] == '-' && tokens[i + 1].size() > 1 &&
           !(tokens[i + 1][1] >= '0' && tokens[i + 1][1] <= '9') && tokens[i + 1][1] != '.');
-    if (has_value) value = tokens[i + 1];
-    PetscBool set = PETSC_FALSE;
-    FX_PETSC(PetscOptionsHasName(nullptr, nullptr, name.c_str(), &set));
-    if (!set)
-      FX_PETSC(PetscOptionsSetValue(nullptr, name.c_str(), has_value ? value.c_str() : nullptr));
+    out.push_back({name, has_value ? tokens[i + 1] : std::string()});
     i += has_value ? 2 : 1;
+  }
+  return out;
+}
+
+void insert_default_petsc_options(const std::string &options, const std::string &origin) {
+  for (const PetscOption &o : parse_petsc_options(options, origin)) {
+    PetscBool set = PETSC_FALSE;
+    FX_PETSC(PetscOptionsHasName(nullptr, nullptr, o.name.c_str(), &set));
+    if (!set)
+      FX_PETSC(
+          PetscOptionsSetValue(nullptr, o.name.c_str(), o.value.empty() ? nullptr : o.value.c_str()));
   }
 }
 

@@ -2,6 +2,7 @@
 
 #include "flexopt/core/context.hpp"
 #include "flexopt/core/error.hpp"
+#include "flexopt/core/krylov.hpp"
 #include "flexopt/core/log.hpp"
 #include "flexopt/fem/lattice_multigrid.hpp"
 #include "flexopt/fem/matrix_free.hpp"
@@ -244,10 +245,26 @@ void StaticProblem::update_matrix_free() {
   coarse_->update(K_);
 }
 
-void StaticProblem::start_from_previous_solution() {
-  PetscBool preonly = PETSC_FALSE;
-  FX_PETSC(PetscObjectTypeCompare(reinterpret_cast<PetscObject>(ksp_), KSPPREONLY, &preonly));
-  if (!preonly) FX_PETSC(KSPSetInitialGuessNonzero(ksp_, PETSC_TRUE));
+bool StaticProblem::set_random_start(unsigned long seed) {
+  random_start_ = seed;
+  random_draws_ = 0;
+  return !is_direct(ksp_);
+}
+
+std::string StaticProblem::solve_to_round_off() {
+  return tighten_krylov(ksp_, 1e-12, 10000, "the state and adjoint solves");
+}
+
+void StaticProblem::prepare_start(Vec x) {
+  const bool iterative = !is_direct(ksp_);
+  if (iterative && random_start_ != 0) {
+    PetscReal scale = 0;
+    FX_PETSC(VecNorm(x, NORM_INFINITY, &scale));
+    // A start as far from the solution as zero is, in another direction.
+    fill_random(x, random_start_ * 1000003UL + random_draws_++, scale > 0 ? scale : 1.0);
+  }
+  FX_PETSC(KSPSetInitialGuessNonzero(
+      ksp_, iterative && (warm_start_ || random_start_ != 0) ? PETSC_TRUE : PETSC_FALSE));
 }
 
 void StaticProblem::zero_supported(Vec rhs) const {
@@ -267,6 +284,7 @@ void StaticProblem::solve() {
   FX_PETSC(KSPSetUpOnBlocks(ksp_));
   timings_.setup = wall_time() - t;
   t = wall_time();
+  prepare_start(u_);
   FX_PETSC(KSPSolve(ksp_, rhs_, u_));
   timings_.solve = wall_time() - t;
   check_converged(ksp_, "static solve");
@@ -280,6 +298,7 @@ void StaticProblem::solve() {
 void StaticProblem::solve_adjoint(Vec rhs, Vec lambda) {
   LogScope log("FxAdjointSolve");
   zero_supported(rhs);
+  prepare_start(lambda);
   FX_PETSC(KSPSolve(ksp_, rhs, lambda));
   check_converged(ksp_, "adjoint solve");
   FX_PETSC(VecGhostUpdateBegin(lambda, INSERT_VALUES, SCATTER_FORWARD));

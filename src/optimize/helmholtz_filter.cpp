@@ -1,6 +1,7 @@
 #include "flexopt/optimize/helmholtz_filter.hpp"
 
 #include "flexopt/core/error.hpp"
+#include "flexopt/core/krylov.hpp"
 #include "flexopt/core/log.hpp"
 #include "flexopt/fem/assembly.hpp"
 #include "flexopt/fem/static_problem.hpp"
@@ -175,8 +176,22 @@ void HelmholtzFilter::nodes_to_element(Vec phi, Vec y) const {
   FX_PETSC(VecGhostRestoreLocalForm(phi, &local));
 }
 
+std::string HelmholtzFilter::solve_to_round_off() {
+  return tighten_krylov(ksp_, 1e-12, 10000, "the filter's solves");
+}
+
+bool HelmholtzFilter::set_random_start(unsigned long seed) {
+  random_start_ = seed;
+  random_draws_ = 0;
+  return !is_direct(ksp_);
+}
+
 void HelmholtzFilter::solve(Vec b, Vec phi) const {
   LogScope log("FxFilterSolve");
+  const bool random = random_start_ != 0 && !is_direct(ksp_);
+  // Filtered densities lie in [0, 1]: a random start of that size.
+  if (random) fill_random(phi, random_start_ * 1000003UL + random_draws_++, 1.0);
+  FX_PETSC(KSPSetInitialGuessNonzero(ksp_, random ? PETSC_TRUE : PETSC_FALSE));
   FX_PETSC(KSPSolve(ksp_, b, phi));
   fem::check_converged(ksp_, "Helmholtz filter");
   PetscInt its = 0;

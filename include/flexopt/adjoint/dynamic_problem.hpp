@@ -132,6 +132,12 @@ public:
   /// 1e-10 relative noise in the responses of a 2,000-step run (docs/theory.md section 9.5),
   /// above what a finite difference of a single element resolves.
   void set_newton_reuse(double reuse) { newton_.reuse_contraction = reuse; }
+  /// Newton's method proper (set_newton_reuse(0)) and the filter's solves to round-off; names
+  /// the user's options that loosen the filter or the FFRF reduction's eigen solve (-eps_tol).
+  std::vector<std::string> solve_to_round_off() override;
+  /// Random starts for the filter's solves only when the user's options loosened them: every
+  /// other solve is direct or Newton's, whatever its start.
+  bool set_random_start(unsigned long seed) override;
   /// The design body's index among the case's bodies (and the scene's).
   std::size_t design_body() const { return static_cast<std::size_t>(design_body_); }
   /// The scene, its design body with the mass of the last evaluation's design.
@@ -192,6 +198,7 @@ private:
   std::vector<double> s_, ds_; ///< SIMP modulus factors (ACF design body), per local element
   int acf_design_ = -1;        ///< the design body's index in scene_.acf (-1: rigid)
   bool ffrf_design_ = false;   ///< the design body is an FFRF body
+  bool filter_limited_ = false; ///< the user's options loosen the filter's solves
   /// The FFRF design body's reduction at the last design (with its adjoint data).
   std::shared_ptr<const reduce::FlexibleReduction> reduction_;
   /// The element factors reduction_ was made with (a new design with the same factors, the

@@ -45,4 +45,12 @@ double wall_time();
 /// string is malformed.
 void insert_default_petsc_options(const std::string &options, const std::string &origin);
 
+/// One option of a PETSc option string: its name ("-ksp_rtol") and value ("" for a flag).
+struct PetscOption {
+  std::string name, value;
+};
+/// The options of a PETSc option string in order. Throws flexopt::Error naming `origin` if the
+/// string is malformed (a token where an option name belongs that does not start with '-').
+std::vector<PetscOption> parse_petsc_options(const std::string &options, const std::string &origin);
+
 } // namespace flexopt

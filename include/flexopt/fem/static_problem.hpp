@@ -26,11 +26,21 @@ public:
   void assemble_operator(const std::vector<double> &modulus_factor);
   /// Solves K u = f. Throws (collectively) if the linear solver does not converge. Collective.
   void solve();
-  /// Starts every later Krylov solve (state and adjoint) from the vector it writes into (its
-  /// previous solution) instead of zero; the stopping test stays relative to the right-hand
-  /// side, so the accuracy is unchanged. Not with a direct solver (-ksp_type preonly).
-  /// Topology optimization: successive designs have nearby solutions.
-  void start_from_previous_solution();
+  /// `on`: every later Krylov solve (state and adjoint) starts from the vector it writes into
+  /// (its previous solution) instead of zero (the warm start); the stopping test stays relative
+  /// to the right-hand side. Topology optimization: successive designs have nearby solutions.
+  /// Off by default; no effect with a direct solver (-ksp_type preonly).
+  void set_warm_start(bool on) { warm_start_ = on; }
+  bool warm_start() const { return warm_start_; }
+  /// seed != 0: the later state and adjoint solves start from random vectors drawn with `seed`
+  /// (of the size of their previous solution) instead, until called with 0 (check-gradient's
+  /// measurement of the evaluation noise). Returns whether the solves are iterative (a direct
+  /// solver has no start to perturb).
+  bool set_random_start(unsigned long seed);
+  /// check-gradient: the state and adjoint solves to a relative residual of 1e-12, unless the
+  /// options set -ksp_rtol (then that). Returns what limits their accuracy, in words ("":
+  /// round-off). Collective.
+  std::string solve_to_round_off();
   /// Solves the adjoint system K lambda = rhs with the forward operator and preconditioner
   /// (K is symmetric); the supported DOFs of rhs are zeroed first (rhs is modified).
   /// `lambda` must be a ghosted vector from this problem's layout; its ghosts are updated.
@@ -78,6 +88,9 @@ private:
   /// Gives the matrix-free operator the current factors and supports, and forms the coarse
   /// operators from K.
   void update_matrix_free();
+  /// The start of the next Krylov solve into x: x itself (warm start), random (set_random_start)
+  /// or zero.
+  void prepare_start(Vec x);
   mesh::DistributedMesh mesh_;
   IsotropicMaterial material_{};
   std::vector<double> factor_;
@@ -94,6 +107,9 @@ private:
   std::unique_ptr<LatticeCoarseOperators> coarse_;
   std::string solver_;
   int iterations_ = 0;
+  bool warm_start_ = false;
+  unsigned long random_start_ = 0; ///< seed of the random starts (0: none)
+  unsigned long random_draws_ = 0; ///< random starts drawn with it so far
   Timings timings_;
 };
 

@@ -26,6 +26,17 @@ public:
   virtual void apply_transpose(Vec g_filtered, Vec g) const = 0;
   /// One line for the log, e.g. "Helmholtz filter r = 0.05".
   virtual std::string describe() const = 0;
+  /// check-gradient: a filter that solves iteratively solves to round-off from now on, unless
+  /// the options set its tolerance; returns what limits its accuracy, in words ("": nothing).
+  /// Collective.
+  virtual std::string solve_to_round_off() { return ""; }
+  /// seed != 0: the later solves start from random vectors drawn with `seed`, until called with
+  /// 0 (check-gradient's measurement of the evaluation noise). Returns whether the filter solves
+  /// iteratively (else it has no start to perturb).
+  virtual bool set_random_start(unsigned long seed) {
+    (void)seed;
+    return false;
+  }
 };
 
 /// The filter named by `type` ("helmholtz" or "cone") with its length `radius` [m] (> 0): the

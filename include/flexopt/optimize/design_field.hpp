@@ -58,6 +58,7 @@ public:
   void set_beta(double beta) { beta_ = beta; }
   double beta() const { return beta_; }
   const DensityFilter &filter() const { return *filter_; }
+  DensityFilter &filter() { return *filter_; }
   /// The filter's description, and where its radius came from when design.filter.radius was
   /// not given (the default below).
   std::string filter_description() const;

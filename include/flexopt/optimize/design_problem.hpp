@@ -76,6 +76,18 @@ public:
   /// large enough that noise_floor() |R| / (h |dR/dx_e|) stays below the checked tolerance,
   /// small enough that the fourth-order truncation does too.
   virtual double fd_step() const { return 1e-2; }
+  /// check-gradient: every later evaluation solved as exactly as the problem can (its
+  /// iterative solves from zero to a relative residual of 1e-12, Newton's method proper), where
+  /// the user's options (the case's `solver:`, the command line) do not set otherwise. Returns
+  /// what still limits the evaluations' accuracy, one phrase per limit naming its option
+  /// (empty: round-off alone). Collective.
+  virtual std::vector<std::string> solve_to_round_off() = 0;
+  /// check-gradient's measurement of the evaluation noise: seed != 0 makes the later
+  /// evaluations start their iterative solves from random vectors drawn with `seed` (as far from
+  /// the solution as a start from zero), seed 0 from where they normally start. Returns whether
+  /// any solve's start was perturbed (false: the evaluations are the same whatever the start,
+  /// and their noise is their round-off, noise_floor()). Collective.
+  virtual bool set_random_start(unsigned long seed) { return field().filter().set_random_start(seed); }
   /// How many halvings of fd_step() check-gradient tries (1: the steps h and h/2, one
   /// Richardson extrapolation; L > 1: L + 1 steps, and per response the extrapolation that
   /// agrees best with the next, where truncation and noise balance).

@@ -28,6 +28,10 @@ public:
   /// g = F^T g_filtered (sensitivities through the filter). Collective.
   void apply_transpose(Vec g_filtered, Vec g) const override;
   std::string describe() const override;
+  /// The filter's solves to a relative residual of 1e-12 (already the default) unless
+  /// -filter_ksp_rtol is set.
+  std::string solve_to_round_off() override;
+  bool set_random_start(unsigned long seed) override;
   /// Krylov iterations of the last solve.
   int last_iterations() const { return iterations_; }
   double radius() const { return radius_; }
@@ -49,6 +53,8 @@ private:
   KSP ksp_ = nullptr;
   Vec rhs_ = nullptr, phi_ = nullptr, scaled_ = nullptr;
   mutable int iterations_ = 0;
+  unsigned long random_start_ = 0;         ///< seed of random starts (0: start from zero)
+  mutable unsigned long random_draws_ = 0; ///< random starts drawn with it so far
 };
 
 } // namespace flexopt::optimize

@@ -28,6 +28,11 @@ public:
   /// 1e-10: the state solve is accurate to about eps cond(K), measured ~1e-11 relative on the
   /// test cases.
   double noise_floor() const override { return 1e-10; }
+  /// The state and adjoint solves from zero (never warm-started: -fx_warm_start does not apply)
+  /// to a relative residual of 1e-12, the filter's too, unless the options set their tolerances.
+  std::vector<std::string> solve_to_round_off() override;
+  /// Random starts for the state, adjoint and filter solves (those that are iterative).
+  bool set_random_start(unsigned long seed) override;
   long long dofs() const override { return static_cast<long long>(static_->global_dofs()); }
   /// solve (assembly and state solve), adjoint (the sensitivities and their adjoint solves).
   std::vector<Timing> timings() const override {
