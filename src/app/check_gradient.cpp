@@ -132,10 +132,11 @@ Noise measure_noise(optimize::DesignProblem &problem, Vec x0, Vec direction,
 /// gradient leaves an O(h) remainder that still falls). An order is taken only between steps
 /// whose smaller remainder exceeds kResolved times its floor, so it is never negative. A
 /// response whose remainders all lie within their floors is linear in the design (the volume
-/// fraction): exact. `limited`: set when the measured noise exceeds the round-off floor.
+/// fraction): exact. `above_round_off`: set when the measured noise of a response that is not
+/// linear exceeds its round-off floor.
 io::Json taylor_test(const Context &ctx, optimize::DesignProblem &problem, Vec x0, Vec direction,
                      const std::vector<double> &r0, const std::vector<double> &slope,
-                     const Noise &noise, Progress &progress, bool &limited) {
+                     const Noise &noise, Progress &progress, bool &above_round_off) {
   const std::size_t nr = r0.size();
   const auto &steps = kTaylorSteps;
   std::vector<std::vector<double>> remainders(nr);
@@ -165,7 +166,7 @@ io::Json taylor_test(const Context &ctx, optimize::DesignProblem &problem, Vec x
       floors.push_back(std::max({round_off, measured, stalled}));
       linear = linear && rem[k] <= std::max(round_off, measured);
     }
-    limited = limited || (!linear && 2 * noise.value[i] > round_off);
+    above_round_off = above_round_off || (!linear && 2 * noise.value[i] > round_off);
     double min_order = 1e300;
     for (std::size_t k = 0; k + 1 < steps.size(); ++k) {
       orders.push_back(std::log10(rem[k] / rem[k + 1]) / std::log10(steps[k] / steps[k + 1]));
@@ -378,16 +379,18 @@ std::string check_gradient_solver_options(const Context &ctx, const io::Case &c)
   for (const PetscOption &p : parse_petsc_options(c.solver, c.file + ": solver")) {
     const std::string text = p.name + (p.value.empty() ? "" : " " + p.value);
     const bool loose = std::any_of(loosening.begin(), loosening.end(), [&](const std::string &l) {
-      return p.name.size() >= l.size() && p.name.compare(p.name.size() - l.size(), l.size(), l) == 0;
+      return p.name.size() >= l.size() &&
+             p.name.compare(p.name.size() - l.size(), l.size(), l) == 0;
     });
     (loose ? left_out : kept) += (loose ? left_out : kept).empty() ? text : " " + text;
   }
   if (!left_out.empty())
-    print0(ctx.comm(),
-           "check-gradient: the case's solver: options %s are left out, so that every evaluation is "
-           "solved to round-off (optimize keeps them); give them on the command line to check "
-           "the gradient at them\n",
-           left_out.c_str());
+    print0(
+        ctx.comm(),
+        "check-gradient: the case's solver: options %s are left out, so that every evaluation is "
+        "solved to round-off (optimize keeps them); give them on the command line to check "
+        "the gradient at them\n",
+        left_out.c_str());
   return kept;
 }
 
@@ -420,9 +423,8 @@ int run_check_gradient(const Context &ctx, const Options &o, const io::Case &c, 
   // Progress: 1 evaluation with gradients, its repeats, 5 Taylor steps and 2 (L + 1) per
   // checked element (L the finite-difference levels).
   const int fd_levels = o.fd_step > 0 ? 1 : problem->fd_levels();
-  Progress progress{ctx.comm(),
-                    1 + kNoiseRepeats + static_cast<int>(kTaylorSteps.size()) +
-                        kSamples * 2 * (fd_levels + 1)};
+  Progress progress{ctx.comm(), 1 + kNoiseRepeats + static_cast<int>(kTaylorSteps.size()) +
+                                    kSamples * 2 * (fd_levels + 1)};
   optimize::Evaluation base;
   problem->evaluate(x0, true, base);
   progress("responses and adjoint gradients");
@@ -432,9 +434,10 @@ int run_check_gradient(const Context &ctx, const Options &o, const io::Case &c, 
   for (std::size_t i = 0; i < nr; ++i) FX_PETSC(VecDot(base.gradient(i), direction, &slope[i]));
   const Noise noise = measure_noise(*problem, x0, direction, r0, slope, progress);
 
-  bool limited = !limits.empty();
+  bool above_round_off = false;
   io::Json s = detail::base_summary(ctx, o, c);
-  s["taylor"] = taylor_test(ctx, *problem, x0, direction, r0, slope, noise, progress, limited);
+  s["taylor"] =
+      taylor_test(ctx, *problem, x0, direction, r0, slope, noise, progress, above_round_off);
   const double step = o.fd_step > 0 ? o.fd_step : problem->fd_step();
   const FdSummary fd =
       finite_differences(ctx, *problem, x0, base, noise, step, fd_levels, progress);
@@ -445,25 +448,30 @@ int run_check_gradient(const Context &ctx, const Options &o, const io::Case &c, 
   io::Json limit_list = io::Json::array();
   for (const std::string &l : limits) limit_list.push_back(l);
   s["solver_limits"] = limit_list;
+  s["solver_limited"] = !limits.empty();
   s["noise_measured"] = !noise.repeats.empty();
-  s["solver_limited"] = limited;
+  s["noise_above_round_off"] = above_round_off;
   problem->describe(s);
   FX_PETSC(VecDestroy(&x0));
   FX_PETSC(VecDestroy(&direction));
   detail::write_summary(ctx, dir, s, t0);
-  if (limited)
+  if (above_round_off)
+    print0(ctx.comm(), "check-gradient: the evaluations' measured noise lies above their round-off "
+                       "(the noise floors above): orders and differences are judged above it\n");
+  if (!limits.empty())
     print0(ctx.comm(),
-           "check-gradient: solver-limited: the evaluations carry noise above round-off; max "
-           "relative error of the adjoint gradient %.2e beyond the differences' uncertainty "
-           "(%.2e in all, the solves' share included)\n",
+           "check-gradient: solver-limited (the command line's options): max relative error of "
+           "the adjoint gradient %.2e beyond the differences' uncertainty (%.2e in all, the "
+           "solves' share included)\n",
            fd.max_beyond, fd.max_rel);
   else
     print0(ctx.comm(),
            "check-gradient: max relative error of the adjoint gradient %.2e (%.2e beyond the "
            "differences' uncertainty)\n",
            fd.max_rel, fd.max_beyond);
-  print0(ctx.comm(), "check-gradient: wrote %s (cell arrays gradient_objective, "
-                     "gradient_constraint0, ...) and %s\n",
+  print0(ctx.comm(),
+         "check-gradient: wrote %s (cell arrays gradient_objective, "
+         "gradient_constraint0, ...) and %s\n",
          gradient_file.c_str(), (fs::path(dir) / "summary.json").c_str());
   return 0;
 }

@@ -95,8 +95,8 @@ void insert_default_petsc_options(const std::string &options, const std::string 
     PetscBool set = PETSC_FALSE;
     FX_PETSC(PetscOptionsHasName(nullptr, nullptr, o.name.c_str(), &set));
     if (!set)
-      FX_PETSC(
-          PetscOptionsSetValue(nullptr, o.name.c_str(), o.value.empty() ? nullptr : o.value.c_str()));
+      FX_PETSC(PetscOptionsSetValue(nullptr, o.name.c_str(),
+                                    o.value.empty() ? nullptr : o.value.c_str()));
   }
 }
 

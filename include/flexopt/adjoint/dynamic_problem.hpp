@@ -195,9 +195,9 @@ private:
   bodies::Vec3 reference_{0, 0, 0};
   std::vector<bodies::MassParameters> element_theta_; ///< per local element of the design body
   std::vector<double> w_, dw_;                        ///< mass factors, per local element
-  std::vector<double> s_, ds_; ///< SIMP modulus factors (ACF design body), per local element
-  int acf_design_ = -1;        ///< the design body's index in scene_.acf (-1: rigid)
-  bool ffrf_design_ = false;   ///< the design body is an FFRF body
+  std::vector<double> s_, ds_;  ///< SIMP modulus factors (ACF design body), per local element
+  int acf_design_ = -1;         ///< the design body's index in scene_.acf (-1: rigid)
+  bool ffrf_design_ = false;    ///< the design body is an FFRF body
   bool filter_limited_ = false; ///< the user's options loosen the filter's solves
   /// The FFRF design body's reduction at the last design (with its adjoint data).
   std::shared_ptr<const reduce::FlexibleReduction> reduction_;

@@ -3,7 +3,6 @@
 /// starts that can be perturbed, so that an evaluation's noise can be measured
 /// (docs/theory.md section 5, "Checking a gradient"; docs/solvers.md, "Warm start").
 #include <petscksp.h>
-
 #include <string>
 
 namespace flexopt {

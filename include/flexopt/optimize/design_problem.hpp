@@ -87,7 +87,9 @@ public:
   /// the solution as a start from zero), seed 0 from where they normally start. Returns whether
   /// any solve's start was perturbed (false: the evaluations are the same whatever the start,
   /// and their noise is their round-off, noise_floor()). Collective.
-  virtual bool set_random_start(unsigned long seed) { return field().filter().set_random_start(seed); }
+  virtual bool set_random_start(unsigned long seed) {
+    return field().filter().set_random_start(seed);
+  }
   /// How many halvings of fd_step() check-gradient tries (1: the steps h and h/2, one
   /// Richardson extrapolation; L > 1: L + 1 steps, and per response the extrapolation that
   /// agrees best with the next, where truncation and noise balance).
