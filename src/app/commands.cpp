@@ -9,6 +9,7 @@
 #include "flexopt/io/json.hpp"
 #include "flexopt/io/restart.hpp"
 #include "flexopt/io/xdmf.hpp"
+#include "flexopt/mesh/grid_layout.hpp"
 #include "flexopt/mesh/load.hpp"
 #include "flexopt/optimize/optimizer.hpp"
 #include "flexopt/optimize/topology_problem.hpp"

@@ -14,6 +14,7 @@
 #include "flexopt/io/frame_schedule.hpp"
 #include "flexopt/io/motion_writer.hpp"
 #include "flexopt/io/restart.hpp"
+#include "flexopt/mesh/grid_layout.hpp"
 
 #include <cmath>
 #include <cstdio>

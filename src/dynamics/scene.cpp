@@ -187,7 +187,7 @@ void add_acf_body(MPI_Comm comm, const io::BodySpec &spec, const io::MaterialSpe
   std::string names;
   for (const std::string &iface : spec.interfaces) {
     const Vec3 cI =
-        mesh::surface_centroid(m, iface, spec.where.str() + ": body '" + spec.name + "' interface");
+        fem::surface_centroid(m, iface, spec.where.str() + ": body '" + spec.name + "' interface");
     sb.interfaces[iface] = cI;
     sb.nodes.push_back(static_cast<int>(mech.bodies.size()));
     sb.centroids.push_back(cI);

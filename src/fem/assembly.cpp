@@ -477,6 +477,27 @@ void assemble_stiffness_and_mass(const mesh::DistributedMesh &mesh,
   assemble_mass(mesh, material.density, {}, M);
 }
 
+Eigen::Vector3d surface_centroid(const mesh::DistributedMesh &mesh, const std::string &name,
+                                 const std::string &where) {
+  const mesh::LocalSurface &s = mesh.surface(name, where);
+  const int nf = nodes_per_face(s.type);
+  double local[4] = {0, 0, 0, 0};
+  for (std::size_t f = 0; f < s.size(); ++f) {
+    const FaceCoords Xf = s.face_coordinates(f);
+    // int N_a dA from the consistent load of a unit traction (1, 0, 0).
+    const ElementVector w = face_traction_load(s.type, Xf, Eigen::Vector3d(1, 0, 0));
+    for (int a = 0; a < nf; ++a) {
+      local[3] += w(3 * a);
+      for (int k = 0; k < 3; ++k) local[k] += w(3 * a) * Xf(a, k);
+    }
+  }
+  double global[4];
+  MPI_Allreduce(local, global, 4, MPI_DOUBLE, MPI_SUM, mesh.comm);
+  if (!(global[3] > 0))
+    throw Error(where + ": surface '" + name + "' of " + mesh.source + " has no area", true);
+  return Eigen::Vector3d(global[0], global[1], global[2]) / global[3];
+}
+
 double surface_area(const mesh::DistributedMesh &mesh, const std::string &surface,
                     const std::string &where) {
   const mesh::LocalSurface &s = mesh.surface(surface, where);

@@ -53,34 +53,6 @@ constexpr int kQuad4Degree = 7;
 /// only if curved; 5 Gauss points, degree 9, integrate curved Gmsh edges to round-off level).
 constexpr int kLineDegree = 9;
 
-int type_index(ElementType type) {
-  switch (type) {
-  case ElementType::Tet4:
-    return 0;
-  case ElementType::Tet10:
-    return 1;
-  case ElementType::Hex8:
-    return 2;
-  }
-  throw Error("flexopt::fem: invalid ElementType value " + std::to_string(static_cast<int>(type)));
-}
-
-int face_index(FaceType type) {
-  switch (type) {
-  case FaceType::Tri3:
-    return 0;
-  case FaceType::Tri6:
-    return 1;
-  case FaceType::Quad4:
-    return 2;
-  case FaceType::Line2:
-    return 3;
-  case FaceType::Line3:
-    return 4;
-  }
-  throw Error("flexopt::fem: invalid FaceType value " + std::to_string(static_cast<int>(type)));
-}
-
 // ---------------------------------------------------------------------------------------------
 // 1D Gauss-Legendre rules
 
@@ -246,7 +218,7 @@ const ShapeTable &volume_table(ElementType type, int degree) {
     for (ElementType t : {ElementType::Tet4, ElementType::Tet10, ElementType::Hex8})
       for (int d = 0; d <= kMaxCachedDegree; ++d) {
         const QuadratureRule rule = volume_quadrature(t, d);
-        ShapeTable &tab = all[type_index(t)][d];
+        ShapeTable &tab = all[mesh::type_index(t)][d];
         tab.num_points = static_cast<int>(rule.points.size());
         tab.num_nodes = nodes_per_element(t);
         tab.weights = rule.weights;
@@ -258,7 +230,7 @@ const ShapeTable &volume_table(ElementType type, int degree) {
       }
     return all;
   }();
-  return tables[type_index(type)][degree];
+  return tables[mesh::type_index(type)][degree];
 }
 
 const ShapeTable &face_table(FaceType type, int degree) {
@@ -268,7 +240,7 @@ const ShapeTable &face_table(FaceType type, int degree) {
          {FaceType::Tri3, FaceType::Tri6, FaceType::Quad4, FaceType::Line2, FaceType::Line3})
       for (int d = 0; d <= kMaxCachedDegree; ++d) {
         const QuadratureRule rule = face_quadrature(t, d);
-        ShapeTable &tab = all[face_index(t)][d];
+        ShapeTable &tab = all[mesh::face_index(t)][d];
         tab.num_points = static_cast<int>(rule.points.size());
         tab.num_nodes = nodes_per_face(t);
         tab.weights = rule.weights;
@@ -280,7 +252,7 @@ const ShapeTable &face_table(FaceType type, int degree) {
       }
     return all;
   }();
-  return tables[face_index(type)][degree];
+  return tables[mesh::face_index(type)][degree];
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -565,31 +537,6 @@ double integrate_face(FaceType type, const FaceCoords &Xf, double *nodal) {
 
 // -----------------------------------------------------------------------------------------------
 // Element catalogue
-
-int nodes_per_element(ElementType type) {
-  static constexpr int kNodes[3] = {4, 10, 8};
-  return kNodes[type_index(type)];
-}
-
-int nodes_per_face(FaceType type) {
-  static constexpr int kNodes[5] = {3, 6, 4, 2, 3};
-  return kNodes[face_index(type)];
-}
-
-const char *element_name(ElementType type) {
-  static constexpr const char *kNames[3] = {"Tet4", "Tet10", "Hex8"};
-  return kNames[type_index(type)];
-}
-
-const char *face_name(FaceType type) {
-  static constexpr const char *kNames[5] = {"Tri3", "Tri6", "Quad4", "Line2", "Line3"};
-  return kNames[face_index(type)];
-}
-
-int corner_nodes(ElementType type) {
-  static constexpr int kCorners[3] = {4, 4, 8};
-  return kCorners[type_index(type)];
-}
 
 // -----------------------------------------------------------------------------------------------
 // Material

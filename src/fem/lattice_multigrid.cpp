@@ -32,7 +32,7 @@ PetscInt line_of(const std::vector<double> &axis, double x, double tol) {
 
 std::optional<Lattice> find_lattice(const mesh::DistributedMesh &m) {
   const MPI_Comm comm = m.comm;
-  int ok = m.type == ElementType::Hex8 ? 1 : 0;
+  int ok = m.type == mesh::ElementType::Hex8 ? 1 : 0;
   MPI_Allreduce(MPI_IN_PLACE, &ok, 1, MPI_INT, MPI_MIN, comm);
   if (!ok) return std::nullopt;
 

@@ -14,9 +14,9 @@ PetscInt DistributedMesh::local_elements() const {
   return static_cast<PetscInt>(connectivity.size()) / nodes_per_element();
 }
 
-fem::ElementCoords DistributedMesh::element_coordinates(PetscInt e) const {
+ElementCoords DistributedMesh::element_coordinates(PetscInt e) const {
   const int npe = nodes_per_element();
-  fem::ElementCoords X(npe, 3);
+  ElementCoords X(npe, 3);
   for (int a = 0; a < npe; ++a) {
     const PetscInt n = connectivity[static_cast<std::size_t>(e * npe + a)];
     for (int k = 0; k < 3; ++k) X(a, k) = coordinates[static_cast<std::size_t>(3 * n + k)];
@@ -57,35 +57,14 @@ const LocalSurface &DistributedMesh::surface(const std::string &name,
   return find_group(surfaces, name, "surface", source, where);
 }
 
-fem::FaceCoords LocalSurface::face_coordinates(std::size_t f) const {
-  const auto nf = static_cast<std::size_t>(fem::nodes_per_face(type));
-  fem::FaceCoords X(static_cast<Eigen::Index>(nf), 3);
+FaceCoords LocalSurface::face_coordinates(std::size_t f) const {
+  const auto nf = static_cast<std::size_t>(nodes_per_face(type));
+  FaceCoords X(static_cast<Eigen::Index>(nf), 3);
   for (std::size_t a = 0; a < nf; ++a)
     for (std::size_t k = 0; k < 3; ++k)
       X(static_cast<Eigen::Index>(a), static_cast<Eigen::Index>(k)) =
           coordinates[3 * (f * nf + a) + k];
   return X;
-}
-
-Eigen::Vector3d surface_centroid(const DistributedMesh &mesh, const std::string &name,
-                                 const std::string &where) {
-  const LocalSurface &s = mesh.surface(name, where);
-  const int nf = fem::nodes_per_face(s.type);
-  double local[4] = {0, 0, 0, 0};
-  for (std::size_t f = 0; f < s.size(); ++f) {
-    const fem::FaceCoords Xf = s.face_coordinates(f);
-    // int N_a dA from the consistent load of a unit traction (1, 0, 0).
-    const fem::ElementVector w = fem::face_traction_load(s.type, Xf, Eigen::Vector3d(1, 0, 0));
-    for (int a = 0; a < nf; ++a) {
-      local[3] += w(3 * a);
-      for (int k = 0; k < 3; ++k) local[k] += w(3 * a) * Xf(a, k);
-    }
-  }
-  double global[4];
-  MPI_Allreduce(local, global, 4, MPI_DOUBLE, MPI_SUM, mesh.comm);
-  if (!(global[3] > 0))
-    throw Error(where + ": surface '" + name + "' of " + mesh.source + " has no area", true);
-  return Eigen::Vector3d(global[0], global[1], global[2]) / global[3];
 }
 
 const std::vector<PetscInt> &DistributedMesh::volume_group(const std::string &name,
@@ -150,7 +129,7 @@ std::vector<int> partition_elements(const MeshData &m, int parts) {
   if (ne < parts)
     throw Error(m.source + ": the mesh has fewer elements (" + std::to_string(ne) +
                 ") than ranks (" + std::to_string(parts) + ")");
-  const int npe = fem::nodes_per_element(m.type), nc = fem::corner_nodes(m.type);
+  const int npe = nodes_per_element(m.type), nc = corner_nodes(m.type);
   std::vector<idx_t> eptr(static_cast<std::size_t>(ne + 1)),
       eind(static_cast<std::size_t>(ne * nc));
   for (std::int64_t e = 0; e < ne; ++e) {
@@ -161,7 +140,7 @@ std::vector<int> partition_elements(const MeshData &m, int parts) {
   }
   eptr[static_cast<std::size_t>(ne)] = static_cast<idx_t>(ne * nc);
   idx_t n_el = static_cast<idx_t>(ne), n_nodes = static_cast<idx_t>(m.node_count());
-  idx_t ncommon = (m.type == fem::ElementType::Hex8) ? 4 : 3;
+  idx_t ncommon = (m.type == ElementType::Hex8) ? 4 : 3;
   idx_t nparts = parts, objval = 0;
   idx_t options[METIS_NOPTIONS];
   METIS_SetDefaultOptions(options);
@@ -204,7 +183,7 @@ DistributedMesh distribute_mesh(MPI_Comm comm, const MeshData *root_mesh) {
   broadcast_string(comm, surface_names);
   MPI_Bcast(&type, 1, MPI_INT, 0, comm);
   MPI_Bcast(&n_nodes, 1, MPI_LONG_LONG, 0, comm);
-  dm.type = static_cast<fem::ElementType>(type);
+  dm.type = static_cast<ElementType>(type);
   dm.global_nodes = static_cast<PetscInt>(n_nodes);
   auto split = [](const std::string &s) {
     std::vector<std::string> out;
@@ -319,7 +298,7 @@ DistributedMesh distribute_mesh(MPI_Comm comm, const MeshData *root_mesh) {
     std::size_t si = 0;
     for (const auto &kv : m.surface_groups) {
       const SurfaceGroup &g = kv.second;
-      const int npf = fem::nodes_per_face(g.type);
+      const int npf = nodes_per_face(g.type);
       std::vector<PetscInt> nodes_on;
       for (std::size_t f = 0; f < g.size(); ++f) {
         const PetscInt first =
@@ -357,7 +336,7 @@ DistributedMesh distribute_mesh(MPI_Comm comm, const MeshData *root_mesh) {
     dm.volume_groups[vnames[g]] = scatter_parts(comm, vgroup_parts[g]);
   for (std::size_t g = 0; g < snames.size(); ++g) {
     LocalSurface &s = dm.surfaces[snames[g]];
-    s.type = static_cast<fem::FaceType>(face_types[g]);
+    s.type = static_cast<FaceType>(face_types[g]);
     s.global_nodes = scatter_parts(comm, sface_parts[g]);
     s.coordinates = scatter_parts(comm, scoord_parts[g]);
     dm.surface_nodes[snames[g]] = scatter_parts(comm, snode_parts[g]);

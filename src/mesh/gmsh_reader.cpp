@@ -17,11 +17,11 @@
 namespace flexopt::mesh {
 
 std::size_t SurfaceGroup::size() const {
-  return connectivity.size() / static_cast<std::size_t>(fem::nodes_per_face(type));
+  return connectivity.size() / static_cast<std::size_t>(nodes_per_face(type));
 }
 
 std::int64_t MeshData::element_count() const {
-  return static_cast<std::int64_t>(connectivity.size()) / fem::nodes_per_element(type);
+  return static_cast<std::int64_t>(connectivity.size()) / nodes_per_element(type);
 }
 
 std::string MeshEstimate::element_name() const {
@@ -58,14 +58,14 @@ struct GmshSession {
   }
 };
 
-fem::ElementType volume_type(int gmsh_type, const std::string &path) {
+ElementType volume_type(int gmsh_type, const std::string &path) {
   switch (gmsh_type) {
   case kGmshTet4:
-    return fem::ElementType::Tet4;
+    return ElementType::Tet4;
   case kGmshTet10:
-    return fem::ElementType::Tet10;
+    return ElementType::Tet10;
   case kGmshHex8:
-    return fem::ElementType::Hex8;
+    return ElementType::Hex8;
   default: {
     std::string name;
     int dim, order, nn, npn;
@@ -77,18 +77,18 @@ fem::ElementType volume_type(int gmsh_type, const std::string &path) {
   }
 }
 
-fem::FaceType face_type(int gmsh_type, const std::string &path, const std::string &group) {
+FaceType face_type(int gmsh_type, const std::string &path, const std::string &group) {
   switch (gmsh_type) {
   case kGmshTri3:
-    return fem::FaceType::Tri3;
+    return FaceType::Tri3;
   case kGmshTri6:
-    return fem::FaceType::Tri6;
+    return FaceType::Tri6;
   case kGmshQuad4:
-    return fem::FaceType::Quad4;
+    return FaceType::Quad4;
   case kGmshLine2:
-    return fem::FaceType::Line2;
+    return FaceType::Line2;
   case kGmshLine3:
-    return fem::FaceType::Line3;
+    return FaceType::Line3;
   default:
     throw Error(path + ": physical surface '" + group + "' has face elements of Gmsh type " +
                 std::to_string(gmsh_type) +
@@ -402,7 +402,7 @@ MeshData read_gmsh(const std::string &path, const MeshOptions &options, MeshEsti
     throw Error(path + ": the mesh has no volume elements (is there a Volume in the geometry, "
                        "and was it meshed in 3D?)");
   mesh.type = volume_type(vtype, path);
-  const int npe = fem::nodes_per_element(mesh.type);
+  const int npe = nodes_per_element(mesh.type);
 
   // Gmsh node tags -> compact indices over the nodes that volume elements use.
   std::unordered_map<std::size_t, std::int64_t> index_of;

@@ -1,3 +1,5 @@
+#include "flexopt/mesh/grid_layout.hpp"
+
 #include "flexopt/core/context.hpp"
 #include "flexopt/mesh/distributed_mesh.hpp"
 
@@ -25,20 +27,20 @@ io::GridLayout grid_layout(const DistributedMesh &mesh) {
   const int npe = mesh.nodes_per_element();
   g.nodes_per_cell = npe;
   switch (mesh.type) {
-  case fem::ElementType::Tet4:
+  case ElementType::Tet4:
     g.topology_type = "Tetrahedron";
     break;
-  case fem::ElementType::Tet10:
+  case ElementType::Tet10:
     g.topology_type = "Tetrahedron_10";
     break;
-  case fem::ElementType::Hex8:
+  case ElementType::Hex8:
     g.topology_type = "Hexahedron";
     break;
   }
   g.cell_nodes.resize(mesh.connectivity.size());
   for (PetscInt e = 0; e < mesh.local_elements(); ++e)
     for (int a = 0; a < npe; ++a) {
-      const int src = mesh.type == fem::ElementType::Tet10 ? kTet10GmshOfVtk[a] : a;
+      const int src = mesh.type == ElementType::Tet10 ? kTet10GmshOfVtk[a] : a;
       g.cell_nodes[static_cast<std::size_t>(e * npe + a)] =
           mesh.local_to_global(mesh.connectivity[static_cast<std::size_t>(e * npe + src)]);
     }

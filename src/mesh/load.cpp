@@ -1,6 +1,7 @@
 #include "flexopt/mesh/load.hpp"
 
 #include "flexopt/core/context.hpp"
+#include "flexopt/core/error.hpp"
 
 #include <cmath>
 #include <cstdio>
@@ -111,7 +112,7 @@ DistributedMesh load_body_mesh(MPI_Comm comm, const io::BodySpec &body,
          "mesh: body %s: %s in %.2f s: %lld %s elements, %lld nodes%s; partitioned over %d "
          "rank(s) (%.2f s)\n",
          body.name.c_str(), geo ? "meshed" : "read", t1 - t0,
-         static_cast<long long>(mesh.global_elements), fem::element_name(mesh.type),
+         static_cast<long long>(mesh.global_elements), element_name(mesh.type),
          static_cast<long long>(mesh.global_nodes), estimate_text, comm_size(comm),
          wall_time() - t1);
   return mesh;

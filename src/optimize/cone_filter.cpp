@@ -2,6 +2,7 @@
 
 #include "flexopt/core/error.hpp"
 #include "flexopt/core/log.hpp"
+#include "flexopt/fem/element.hpp"
 #include "flexopt/optimize/helmholtz_filter.hpp"
 
 #include <algorithm>

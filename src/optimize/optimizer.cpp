@@ -5,6 +5,7 @@
 #include "flexopt/io/json.hpp"
 #include "flexopt/io/restart.hpp"
 #include "flexopt/io/xdmf.hpp"
+#include "flexopt/mesh/grid_layout.hpp"
 #include "flexopt/optimize/mma.hpp"
 #include "flexopt/optimize/topology_problem.hpp"
 

@@ -22,7 +22,7 @@ void craig_bampton(const mesh::DistributedMesh &mesh, Mat K, Mat M,
   const std::size_t ni = interfaces.size();
   out.centroids.clear();
   for (const auto &name : interfaces)
-    out.centroids.push_back(mesh::surface_centroid(mesh, name, "Craig-Bampton interface"));
+    out.centroids.push_back(fem::surface_centroid(mesh, name, "Craig-Bampton interface"));
 
   // Owned DOFs of every interface surface, and the union of all of them.
   std::vector<std::vector<PetscInt>> nodes(ni);

@@ -4,6 +4,7 @@
 // force over all elements of all ranks. The default radius follows the design elements' mean
 // edge length.
 #include "flexopt/core/context.hpp"
+#include "flexopt/fem/element.hpp"
 #include "flexopt/mesh/distributed_mesh.hpp"
 #include "flexopt/optimize/cone_filter.hpp"
 #include "flexopt/optimize/design_field.hpp"

@@ -10,6 +10,7 @@
 #include "flexopt/io/json.hpp"
 #include "flexopt/io/motion_writer.hpp"
 #include "flexopt/mesh/distributed_mesh.hpp"
+#include "flexopt/mesh/grid_layout.hpp"
 #include "test_meshes.hpp"
 
 #include <algorithm>

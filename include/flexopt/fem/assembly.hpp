@@ -85,6 +85,12 @@ void add_element_pattern(const mesh::DistributedMesh &mesh, const std::vector<Pe
 void assemble_stiffness_and_mass(const mesh::DistributedMesh &mesh,
                                  const IsotropicMaterial &material, Mat &K, Mat &M);
 
+/// Area-weighted centroid of a physical surface over all ranks (each face lives on one rank).
+/// Collective; throws a collective flexopt::Error naming `where` for a missing surface or one
+/// without area.
+Eigen::Vector3d surface_centroid(const mesh::DistributedMesh &mesh, const std::string &name,
+                                 const std::string &where);
+
 /// The area of a physical surface (its faces summed over all ranks) [m^2]. Collective.
 double surface_area(const mesh::DistributedMesh &mesh, const std::string &surface,
                     const std::string &where);

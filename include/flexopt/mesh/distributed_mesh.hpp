@@ -7,7 +7,7 @@
 /// touch it. Local node numbering: owned nodes [0, owned_nodes) in global order, then ghost
 /// nodes (touched by local elements, owned elsewhere) in ascending global order — the layout
 /// of VecCreateGhostBlock.
-#include "flexopt/fem/element.hpp"
+#include "flexopt/mesh/element_type.hpp"
 #include "flexopt/mesh/mesh_data.hpp"
 
 #include <map>
@@ -21,20 +21,20 @@ namespace flexopt::mesh {
 /// The faces of one physical surface that this rank integrates (each face lives on exactly
 /// one rank), with their global node numbers and coordinates.
 struct LocalSurface {
-  fem::FaceType type = fem::FaceType::Tri3;
+  FaceType type = FaceType::Tri3;
   std::vector<PetscInt> global_nodes; ///< nodes_per_face per face
   std::vector<double> coordinates;    ///< 3 per face node
   std::size_t size() const {
-    return global_nodes.size() / static_cast<std::size_t>(fem::nodes_per_face(type));
+    return global_nodes.size() / static_cast<std::size_t>(nodes_per_face(type));
   }
   /// Coordinates of face f, one row per node.
-  fem::FaceCoords face_coordinates(std::size_t f) const;
+  FaceCoords face_coordinates(std::size_t f) const;
 };
 
 struct DistributedMesh {
   MPI_Comm comm = MPI_COMM_NULL;
   std::string source;
-  fem::ElementType type = fem::ElementType::Tet4;
+  ElementType type = ElementType::Tet4;
 
   PetscInt global_nodes = 0;       ///< over all ranks
   PetscInt owned_nodes = 0;        ///< owned by this rank
@@ -53,42 +53,21 @@ struct DistributedMesh {
 
   PetscInt local_nodes() const { return owned_nodes + static_cast<PetscInt>(ghosts.size()); }
   PetscInt local_elements() const;
-  int nodes_per_element() const { return fem::nodes_per_element(type); }
+  int nodes_per_element() const { return mesh::nodes_per_element(type); }
   PetscInt local_to_global(PetscInt local) const {
     return local < owned_nodes ? node_start + local
                                : ghosts[static_cast<std::size_t>(local - owned_nodes)];
   }
   /// Coordinates of local element e, one row per node.
-  fem::ElementCoords element_coordinates(PetscInt e) const;
+  ElementCoords element_coordinates(PetscInt e) const;
   /// Throws a collective flexopt::Error naming `where` if the group does not exist.
   const LocalSurface &surface(const std::string &name, const std::string &where) const;
   const std::vector<PetscInt> &volume_group(const std::string &name,
                                             const std::string &where) const;
 };
 
-/// Area-weighted centroid of a physical surface over all ranks (each face lives on one rank).
-/// Collective; throws a collective flexopt::Error naming `where` for a missing surface or one
-/// without area.
-Eigen::Vector3d surface_centroid(const DistributedMesh &mesh, const std::string &name,
-                                 const std::string &where);
-
 /// Partitions `root_mesh` (significant on rank 0 only) over `comm` and distributes it.
 /// Collective.
 DistributedMesh distribute_mesh(MPI_Comm comm, const MeshData *root_mesh);
-
-} // namespace flexopt::mesh
-
-#include "flexopt/io/xdmf.hpp"
-
-namespace flexopt::mesh {
-
-/// The mesh as the XDMF writer needs it (owned node coordinates, cells in global node
-/// numbers and VTK/XDMF node order). Not collective.
-io::GridLayout grid_layout(const DistributedMesh &mesh);
-
-/// Number of local elements on every rank (gathered to all). Collective.
-std::vector<PetscInt> elements_per_rank(const DistributedMesh &mesh);
-/// Number of owned nodes on every rank (gathered to all). Collective.
-std::vector<PetscInt> nodes_per_rank(const DistributedMesh &mesh);
 
 } // namespace flexopt::mesh

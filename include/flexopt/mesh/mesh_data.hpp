@@ -1,6 +1,6 @@
 #pragma once
 /// \file A whole body mesh as read from Gmsh, held on one rank before it is partitioned.
-#include "flexopt/fem/element.hpp"
+#include "flexopt/mesh/element_type.hpp"
 
 #include <cstdint>
 #include <functional>
@@ -12,7 +12,7 @@ namespace flexopt::mesh {
 
 /// Faces of one Gmsh physical surface (all of one face type).
 struct SurfaceGroup {
-  fem::FaceType type = fem::FaceType::Tri3;
+  FaceType type = FaceType::Tri3;
   std::vector<std::int64_t>
       connectivity;         ///< nodes_per_face entries per face, MeshData node indices
   std::size_t size() const; ///< number of faces
@@ -22,7 +22,7 @@ struct SurfaceGroup {
 /// Node indices are 0-based and only nodes used by volume elements are kept.
 struct MeshData {
   std::string source; ///< file the mesh came from (for messages)
-  fem::ElementType type = fem::ElementType::Tet4;
+  ElementType type = ElementType::Tet4;
   std::vector<double> coordinates;        ///< 3 per node [m]
   std::vector<std::int64_t> connectivity; ///< nodes_per_element per element, Gmsh node order
   std::vector<std::size_t> element_tags;  ///< Gmsh element tag of each element (for messages)
