@@ -3,7 +3,8 @@
 /// boxes): every node is a point (x_i, y_j, z_k) of a tensor grid and every element spans one
 /// cell of it. A coarse level keeps every second lattice line of the next finer one, its
 /// interpolation is trilinear in the lattice coordinates (exact for the Hex8 field of the coarse
-/// cells), and its operator is the Galerkin product P^T A P (PCMG). docs/theory.md section 5.4.
+/// cells), and its operator is the Galerkin product P^T A P (PCMG). docs/theory.md section 1,
+/// "Geometric multigrid on a structured Hex8 lattice".
 #include "flexopt/mesh/distributed_mesh.hpp"
 
 #include <array>
