@@ -365,7 +365,7 @@ void check_interfaces(const optimize::DesignField &f, const io::BodySpec &body,
 /// refused before any computation, with the mass of the material outside the region.
 void check_mass_bounds(const optimize::DesignField &f, const io::Case &c) {
   const io::DesignSpec &d = *c.design;
-  const double density = c.material(c.body(d.body).material).density;
+  const double density = c.body(d.body).material.density;
   const std::vector<double> &volume = f.element_volumes();
   double mass[2] = {0, 0}; // outside the region, inside it
   for (PetscInt e = 0; e < f.mesh().local_elements(); ++e)
@@ -456,7 +456,7 @@ std::unique_ptr<DynamicProblem> DynamicProblem::create(MPI_Comm comm, const io::
     const auto &solid =
         dynamic_cast<const bodies::RigidBody &>(p->scene_.mechanism.body(p->mechanism_body_));
     p->reference_ = solid.center();
-    const double density = c.material(body.material).density;
+    const double density = body.material.density;
     p->element_theta_.resize(static_cast<std::size_t>(m.local_elements()));
     for (PetscInt e = 0; e < m.local_elements(); ++e)
       p->element_theta_[static_cast<std::size_t>(e)] =
@@ -908,7 +908,7 @@ void DynamicProblem::add_ffrf_element_gradients(const Matrix &G, const StartAdjo
       const Matrix Wz = W.block(o + 7, o + 7, n, n);
       c.M += 0.5 * (Wz + Wz.transpose());
       const dynamics::SceneBody &dsb = scene_.bodies[static_cast<std::size_t>(design_body_)];
-      const double density = case_.material(spec.material).density;
+      const double density = spec.material.density;
       for (const bool rate : {false, true}) {
         const Vector &zeta = rate ? dsb.elastic_rate0 : dsb.elastic0;
         if (zeta.size() == 0) continue;

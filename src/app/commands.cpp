@@ -138,11 +138,6 @@ io::Json rank_counts(const std::vector<PetscInt> &v) {
   return a;
 }
 
-fem::IsotropicMaterial material_of(const io::Case &c, const io::BodySpec &b) {
-  const auto &m = c.material(b.material);
-  return fem::IsotropicMaterial{m.E, m.nu, m.density};
-}
-
 /// Writes the owner rank of each local element as a cell field.
 std::vector<double> owner_field(const mesh::DistributedMesh &m) {
   return std::vector<double>(static_cast<std::size_t>(m.local_elements()),
@@ -160,21 +155,21 @@ int run_info(const Context &ctx, const Options &o, const io::Case &c, double t0)
   for (const auto &b : c.bodies) {
     const double tb = wall_time();
     mesh::MeshEstimate est; // significant on rank 0, which prints and writes the summary
-    mesh::DistributedMesh m = mesh::load_body_mesh(ctx.comm(), b, {}, &est);
+    mesh::DistributedMesh m = mesh::load_body_mesh(ctx.comm(), b.mesh, {}, &est);
     const bool geo = est.elements > 0;
     const auto elems = mesh::elements_per_rank(m), nodes = mesh::nodes_per_rank(m);
-    const auto &mat = c.material(b.material);
+    const fem::IsotropicMaterial &mat = b.material;
     print0(ctx.comm(),
            "body %s: model %s, geometry %s, material %s (E %g Pa, nu %g, density %g kg/m^3)\n",
-           b.name.c_str(), b.model.c_str(), b.geometry_key.c_str(), mat.name.c_str(), mat.E, mat.nu,
-           mat.density);
+           b.name.c_str(), b.model.c_str(), b.mesh.geometry_key.c_str(), b.material_name.c_str(),
+           mat.E, mat.nu, mat.density);
     print0(ctx.comm(),
            "  mesh: %lld %s elements, %lld nodes, %lld DOFs (meshed and distributed in %.2f s)\n",
            static_cast<long long>(m.global_elements), fem::element_name(m.type),
            static_cast<long long>(m.global_nodes), 3LL * m.global_nodes, wall_time() - tb);
     const std::int64_t limit = b.mesh.max_elements > 0
                                    ? b.mesh.max_elements
-                                   : io::default_max_elements(b.mesh.order, est.hexahedra);
+                                   : mesh::default_max_elements(b.mesh.order, est.hexahedra);
     if (geo)
       print0(ctx.comm(),
              "  estimate before meshing: %.0f %s elements, %.0f nodes (volume %.6g m^3, effective "
@@ -253,7 +248,7 @@ int run_static(const Context &ctx, const Options &o, const io::Case &c, double t
         true);
   const std::string dir = output_directory(ctx, o);
   const double t_setup = wall_time();
-  auto problem = fem::StaticProblem::create(ctx.comm(), c);
+  auto problem = fem::StaticProblem::create(ctx.comm(), io::static_settings(c));
   const auto &m = problem->mesh();
   print0(ctx.comm(),
          "static: %lld DOFs on %d rank(s), K and f assembled in %.2f s (set-up %.2f s)\n",
@@ -337,8 +332,8 @@ int run_reduction(const Context &ctx, const Options &o, const io::Case &c, doubl
                     "' lists no interfaces; a reduction basis is clamped at the first one",
                 true);
   const std::string dir = output_directory(ctx, o);
-  mesh::DistributedMesh m = mesh::load_body_mesh(ctx.comm(), *body);
-  const fem::IsotropicMaterial mat = material_of(c, *body);
+  mesh::DistributedMesh m = mesh::load_body_mesh(ctx.comm(), body->mesh);
+  const fem::IsotropicMaterial mat = body->material;
   Mat K, M;
   fem::assemble_stiffness_and_mass(m, mat, K, M);
   const double t_red = wall_time();
@@ -423,10 +418,10 @@ int run_modes(const Context &ctx, const Options &o, const io::Case &c, double t0
   const std::string dir = output_directory(ctx, o);
   const io::BodySpec &body = c.bodies.front();
   const double t_setup = wall_time();
-  mesh::DistributedMesh m = mesh::load_body_mesh(ctx.comm(), body);
-  const fem::IsotropicMaterial mat = material_of(c, body);
+  mesh::DistributedMesh m = mesh::load_body_mesh(ctx.comm(), body.mesh);
+  const fem::IsotropicMaterial mat = body.material;
   std::vector<PetscInt> fixed;
-  if (!o.free) fixed = fem::support_dofs(m, c);
+  if (!o.free) fixed = fem::support_dofs(m, c.loads.supports);
   PetscInt nfix = static_cast<PetscInt>(fixed.size()), total_fixed = 0;
   MPI_Allreduce(&nfix, &total_fixed, 1, MPIU_INT, MPI_SUM, ctx.comm());
   const PetscInt dofs = 3 * m.global_nodes;

@@ -174,10 +174,10 @@ bodies::Vector initial_elastic(MPI_Comm comm, const io::BodySpec &spec,
 namespace {
 
 /// An ACF body: its mesh, its co-rotated elements, one interface node per interface.
-void add_acf_body(MPI_Comm comm, const io::BodySpec &spec, const io::MaterialSpec &mat,
+void add_acf_body(MPI_Comm comm, const io::BodySpec &spec, const fem::IsotropicMaterial &mat,
                   Scene &scene, SceneBody &sb) {
   Mechanism &mech = scene.mechanism;
-  scene.meshes.push_back(mesh::load_body_mesh(comm, spec));
+  scene.meshes.push_back(mesh::load_body_mesh(comm, spec.mesh));
   const mesh::DistributedMesh &m = scene.meshes.back();
   sb.mechanism = -1;
   sb.acf = static_cast<int>(scene.acf.size());
@@ -230,14 +230,14 @@ bodies::FfrfModel ffrf_model(const reduce::FlexibleReduction &red, const io::Bod
 
 /// An FFRF body: its mesh reduced (in parallel) to the floating frame and the Craig-Bampton
 /// basis, its initial elastic coordinates projected onto the basis.
-void add_ffrf_body(MPI_Comm comm, const io::BodySpec &spec, const io::MaterialSpec &mat,
+void add_ffrf_body(MPI_Comm comm, const io::BodySpec &spec, const fem::IsotropicMaterial &mat,
                    Scene &scene, SceneBody &sb, const InitialDesign *design) {
   if (spec.interfaces.empty())
     throw Error(spec.where.str() + ": body '" + spec.name +
                     "' (model: ffrf) lists no interfaces; its floating frame is clamped at "
                     "the first one",
                 true);
-  scene.meshes.push_back(mesh::load_body_mesh(comm, spec));
+  scene.meshes.push_back(mesh::load_body_mesh(comm, spec.mesh));
   const mesh::DistributedMesh &m = scene.meshes.back();
   // A design body is reduced with its first design's element factors (once, not with the
   // solid material and again for the design).
@@ -281,10 +281,10 @@ void add_ffrf_body(MPI_Comm comm, const io::BodySpec &spec, const io::MaterialSp
 /// A rigid body: mass properties and interface centroids from the whole mesh on rank 0,
 /// broadcast as one buffer, so that every rank, whatever the rank count, holds the same numbers
 /// to the last bit.
-void add_rigid_body(MPI_Comm comm, const io::BodySpec &spec, const io::MaterialSpec &mat,
+void add_rigid_body(MPI_Comm comm, const io::BodySpec &spec, const fem::IsotropicMaterial &mat,
                     Scene &scene, SceneBody &sb) {
   std::vector<double> buf(13 + 3 * spec.interfaces.size(), 0.0);
-  scene.meshes.push_back(mesh::load_body_mesh(comm, spec, [&](const mesh::MeshData &data) {
+  scene.meshes.push_back(mesh::load_body_mesh(comm, spec.mesh, [&](const mesh::MeshData &data) {
     const bodies::MassProperties p = bodies::mass_properties(data, mat.density);
     buf[0] = p.mass;
     for (int k = 0; k < 3; ++k) buf[static_cast<std::size_t>(1 + k)] = p.center(k);
@@ -366,7 +366,7 @@ void place(MPI_Comm comm, const io::Case &c, Scene &scene) {
 
 std::shared_ptr<reduce::FlexibleReduction> reduce_ffrf_body(const mesh::DistributedMesh &m,
                                                             const io::BodySpec &spec,
-                                                            const io::MaterialSpec &mat,
+                                                            const fem::IsotropicMaterial &mat,
                                                             const reduce::ElementFactors *design) {
   auto red = std::make_shared<reduce::FlexibleReduction>();
   reduce::reduce_flexible_body(m, fem::IsotropicMaterial{mat.E, mat.nu, mat.density},
@@ -386,7 +386,7 @@ Scene load_bodies(MPI_Comm comm, const io::Case &c, const InitialDesign *design)
   scene.bodies.resize(nbodies);
   for (std::size_t b = 0; b < nbodies; ++b) {
     const io::BodySpec &spec = c.bodies[b];
-    const auto &mat = c.material(spec.material);
+    const fem::IsotropicMaterial &mat = spec.material;
     SceneBody &sb = scene.bodies[b];
     sb.mechanism = static_cast<int>(scene.mechanism.bodies.size());
     const std::string model = io::simulated_model(spec.model);
@@ -611,11 +611,11 @@ set_ffrf_design(MPI_Comm comm, const io::Case &c, Scene &scene, std::size_t b,
     throw Error("set_ffrf_design: body '" + spec.name + "' is not an FFRF body", true);
   const mesh::DistributedMesh &m = scene.meshes[b];
   const double t0 = wall_time();
-  const auto red = reduce_ffrf_body(m, spec, c.material(spec.material), &factors);
+  const auto red = reduce_ffrf_body(m, spec, spec.material, &factors);
   sb.reduction = red;
   scene.owned_modes[b] = reduce::owned_basis_values(*red, m.owned_nodes);
   scene.reduction_seconds[b] = wall_time() - t0;
-  const double density = c.material(spec.material).density;
+  const double density = spec.material.density;
   sb.elastic0 = initial_elastic(comm, spec, m, density, *red, false, false);
   sb.elastic_rate0 = initial_elastic(comm, spec, m, density, *red, true, false);
   set_body_model(comm, c, scene, b,

@@ -13,9 +13,10 @@
 
 namespace flexopt::fem {
 
-std::vector<PetscInt> support_dofs(const mesh::DistributedMesh &mesh, const io::Case &c) {
+std::vector<PetscInt> support_dofs(const mesh::DistributedMesh &mesh,
+                                   const std::vector<Support> &supports) {
   std::vector<PetscInt> dofs;
-  for (const auto &s : c.supports) {
+  for (const auto &s : supports) {
     auto d = surface_dofs(mesh, s.surface, s.fix, s.where.str() + ": supports");
     dofs.insert(dofs.end(), d.begin(), d.end());
   }
@@ -103,22 +104,22 @@ void check_converged(KSP ksp, const std::string &what) {
   }
 }
 
-std::unique_ptr<StaticProblem> StaticProblem::create(MPI_Comm comm, const io::Case &c) {
+std::unique_ptr<StaticProblem> StaticProblem::create(MPI_Comm comm, const StaticSettings &c) {
   std::unique_ptr<StaticProblem> p(new StaticProblem());
-  const io::BodySpec &body = c.bodies.front();
-  const io::MaterialSpec &mat = c.material(body.material);
-  p->material_ = IsotropicMaterial{mat.E, mat.nu, mat.density};
+  p->material_ = c.material;
+  const IsotropicMaterial &mat = c.material;
   double t = wall_time();
-  p->mesh_ = mesh::load_body_mesh(comm, body);
+  p->mesh_ = mesh::load_body_mesh(comm, c.mesh);
   p->timings_.mesh = wall_time() - t;
   t = wall_time();
   const mesh::DistributedMesh &m = p->mesh_;
+  const StaticLoads &loads = c.loads;
 
-  p->fixed_ = support_dofs(m, c);
+  p->fixed_ = support_dofs(m, loads.supports);
   PetscInt n_fixed = static_cast<PetscInt>(p->fixed_.size()), total_fixed = 0;
   MPI_Allreduce(&n_fixed, &total_fixed, 1, MPIU_INT, MPI_SUM, comm);
   if (total_fixed == 0)
-    throw Error(c.file +
+    throw Error(c.case_file +
                     ": a static analysis needs supports (the body is free to move as a rigid body)",
                 true);
 
@@ -129,10 +130,10 @@ std::unique_ptr<StaticProblem> StaticProblem::create(MPI_Comm comm, const io::Ca
   FX_PETSC(VecDuplicate(p->f_, &p->rhs_));
   FX_PETSC(VecDuplicate(p->f_, &p->f_surface_));
   FX_PETSC(VecZeroEntries(p->f_surface_));
-  for (const auto &t : c.line_loads)
+  for (const auto &t : loads.line_loads)
     add_surface_traction(m, t.surface, Eigen::Vector3d(t.value[0], t.value[1], t.value[2]),
                          t.where.str() + ": line_loads", p->f_surface_);
-  for (const auto &t : c.tractions) {
+  for (const auto &t : loads.tractions) {
     Eigen::Vector3d value(t.value[0], t.value[1], t.value[2]);
     const std::string where = t.where.str() + ": tractions";
     if (t.total) { // a total force, spread uniformly: traction = force / area
@@ -142,14 +143,14 @@ std::unique_ptr<StaticProblem> StaticProblem::create(MPI_Comm comm, const io::Ca
     }
     add_surface_traction(m, t.surface, value, where, p->f_surface_);
   }
-  if (c.gravity || c.inertia) {
+  if (loads.gravity || loads.inertia) {
     // The body acceleration field b(X) = g - (a + alpha x r + omega x (omega x r)), r = X - p.
     Eigen::Vector3d g = Eigen::Vector3d::Zero(), a = g, w = g, al = g, x0 = g;
     auto v3 = [](const std::array<double, 3> &v) { return Eigen::Vector3d(v[0], v[1], v[2]); };
-    if (c.gravity) g = v3(*c.gravity);
-    if (c.inertia) {
-      a = v3(c.inertia->acceleration), w = v3(c.inertia->angular_velocity);
-      al = v3(c.inertia->angular_acceleration), x0 = v3(c.inertia->point);
+    if (loads.gravity) g = v3(*loads.gravity);
+    if (loads.inertia) {
+      a = v3(loads.inertia->acceleration), w = v3(loads.inertia->angular_velocity);
+      al = v3(loads.inertia->angular_acceleration), x0 = v3(loads.inertia->point);
     }
     const int npe = m.nodes_per_element(), nd = 3 * npe;
     p->body_load_.assign(static_cast<std::size_t>(m.local_elements() * nd), 0.0);

@@ -14,15 +14,6 @@ namespace fs = std::filesystem;
 
 namespace flexopt::io {
 
-std::string Location::str() const {
-  return file + ":" + std::to_string(line) + ":" + std::to_string(column);
-}
-
-std::int64_t default_max_elements(int order, bool hexahedra) {
-  if (hexahedra) return 500000;
-  return order == 2 ? 400000 : 2000000;
-}
-
 const MaterialSpec &Case::material(const std::string &n) const {
   for (const auto &m : materials)
     if (m.name == n) return m;
@@ -375,15 +366,16 @@ void read_bodies(const Reader &r, const YAML::Node &node, const fs::path &dir, C
                             "would brake its rigid motion (docs/theory.md section 8.1; an ffrf "
                             "body takes [a, b])");
     }
-    b.mesh.where = b.where;
-    b.geometry_key = r.string(r.require(v, "geometry", path), path + ".geometry");
-    b.geometry = (dir / b.geometry_key).string();
-    const std::string ext = fs::path(b.geometry).extension().string();
+    b.mesh.where = b.mesh.body_where = b.where;
+    b.mesh.body = b.name;
+    b.mesh.geometry_key = r.string(r.require(v, "geometry", path), path + ".geometry");
+    b.mesh.geometry = (dir / b.mesh.geometry_key).string();
+    const std::string ext = fs::path(b.mesh.geometry).extension().string();
     if (ext != ".geo" && ext != ".msh")
-      r.fail(v["geometry"], path + ".geometry: '" + b.geometry_key +
+      r.fail(v["geometry"], path + ".geometry: '" + b.mesh.geometry_key +
                                 "' must be a Gmsh .geo (meshed at run time) or .msh (v4) file");
-    if (!fs::is_regular_file(b.geometry))
-      r.fail(v["geometry"], path + ".geometry: file '" + b.geometry + "' does not exist");
+    if (!fs::is_regular_file(b.mesh.geometry))
+      r.fail(v["geometry"], path + ".geometry: file '" + b.mesh.geometry + "' does not exist");
     if (v["mesh"]) {
       const YAML::Node &m = v["mesh"];
       const std::string mp = path + ".mesh";
@@ -408,10 +400,12 @@ void read_bodies(const Reader &r, const YAML::Node &node, const fs::path &dir, C
           r.fail(m["max_elements"], mp + ".max_elements: must be a positive integer");
       }
     }
-    b.material = r.string(r.require(v, "material", path), path + ".material");
-    bool found = std::any_of(c.materials.begin(), c.materials.end(),
-                             [&](const MaterialSpec &m) { return m.name == b.material; });
-    if (!found) r.fail(v["material"], path + ".material: no material named '" + b.material + "'");
+    b.material_name = r.string(r.require(v, "material", path), path + ".material");
+    const auto mat = std::find_if(c.materials.begin(), c.materials.end(),
+                                  [&](const MaterialSpec &m) { return m.name == b.material_name; });
+    if (mat == c.materials.end())
+      r.fail(v["material"], path + ".material: no material named '" + b.material_name + "'");
+    b.material = fem::IsotropicMaterial{mat->E, mat->nu, mat->density};
     if (v["interfaces"]) {
       b.interfaces = r.string_list(v["interfaces"], path + ".interfaces");
       for (std::size_t k = 0; k < b.interfaces.size(); ++k)
@@ -450,10 +444,10 @@ void read_supports(const Reader &r, const YAML::Node &node, Case &c) {
     const std::string path = "supports[" + std::to_string(i) + "]";
     r.require_map(v, path);
     r.check_keys(v, path, {"body", "surface", "fix"});
-    SupportSpec s;
+    fem::Support s;
     s.where = r.where(v);
-    s.body = r.string(r.require(v, "body", path), path + ".body");
-    if (!has_body(c, s.body)) r.fail(v["body"], path + ".body: no body named '" + s.body + "'");
+    const std::string body = r.string(r.require(v, "body", path), path + ".body");
+    if (!has_body(c, body)) r.fail(v["body"], path + ".body: no body named '" + body + "'");
     s.surface = r.string(r.require(v, "surface", path), path + ".surface");
     auto fix = r.string_list(r.require(v, "fix", path), path + ".fix");
     if (fix.empty()) r.fail(v["fix"], path + ".fix: name at least one of x, y, z");
@@ -468,12 +462,12 @@ void read_supports(const Reader &r, const YAML::Node &node, Case &c) {
       else
         r.fail(v["fix"][k], path + ".fix: '" + f + "' is not one of x, y, z");
     }
-    c.supports.push_back(s);
+    c.loads.supports.push_back(s);
   }
 }
 
 void read_tractions(const Reader &r, const YAML::Node &node, Case &c, const char *key,
-                    const char *where_key, std::vector<TractionSpec> &out) {
+                    const char *where_key, std::vector<fem::SurfaceLoad> &out) {
   r.require_sequence(node, key);
   for (std::size_t i = 0; i < node.size(); ++i) {
     const YAML::Node &v = node[i];
@@ -484,10 +478,10 @@ void read_tractions(const Reader &r, const YAML::Node &node, Case &c, const char
       r.check_keys(v, path, {"body", where_key, "value", "force"});
     else
       r.check_keys(v, path, {"body", where_key, "value"});
-    TractionSpec t;
+    fem::SurfaceLoad t;
     t.where = r.where(v);
-    t.body = r.string(r.require(v, "body", path), path + ".body");
-    if (!has_body(c, t.body)) r.fail(v["body"], path + ".body: no body named '" + t.body + "'");
+    const std::string body = r.string(r.require(v, "body", path), path + ".body");
+    if (!has_body(c, body)) r.fail(v["body"], path + ".body: no body named '" + body + "'");
     t.surface = r.string(r.require(v, where_key, path), path + "." + where_key);
     if (surface && v["force"]) {
       if (v["value"])
@@ -780,7 +774,7 @@ void read_design(const Reader &r, const YAML::Node &v, Case &c) {
   // A static design under body forces (self-weight, inertia): a void element's load w(rho) f_e
   // must vanish faster than its SIMP stiffness, or it deforms without bound (docs/theory.md
   // section 5); the Du-Olhoff form (rho^6 below 0.1) does, a linear mass does not.
-  if (c.analysis == "static" && (c.gravity || c.inertia)) d.mass = "pedersen";
+  if (c.analysis == "static" && (c.loads.gravity || c.loads.inertia)) d.mass = "pedersen";
   if (v["interpolation"]) {
     const YAML::Node &i = v["interpolation"];
     const std::string ip = path + ".interpolation";
@@ -956,6 +950,11 @@ void read_adjoint(const Reader &r, const YAML::Node &v, Case &c) {
 
 } // namespace
 
+fem::StaticSettings static_settings(const Case &c) {
+  const BodySpec &body = c.bodies.front();
+  return fem::StaticSettings{body.mesh, body.material, c.loads, c.file};
+}
+
 Case load_case(const std::string &directory) {
   Case c;
   c.directory = directory;
@@ -1013,7 +1012,10 @@ Case load_case(const std::string &directory) {
     const YAML::Node &l = root["loads"];
     r.require_map(l, "loads");
     r.check_keys(l, "loads", {"gravity", "forces", "inertia"});
-    if (l["gravity"]) c.gravity = r.vector3(l["gravity"], "loads.gravity");
+    if (l["gravity"]) {
+      const std::array<double, 3> g = r.vector3(l["gravity"], "loads.gravity");
+      (dynamic ? c.gravity : c.loads.gravity) = g;
+    }
     if (l["inertia"]) {
       const YAML::Node &n = l["inertia"];
       if (dynamic)
@@ -1023,7 +1025,7 @@ Case load_case(const std::string &directory) {
       const std::string path = "loads.inertia";
       r.require_map(n, path);
       r.check_keys(n, path, {"point", "acceleration", "angular_velocity", "angular_acceleration"});
-      InertiaSpec in;
+      fem::RigidMotion in;
       in.where = r.where(n);
       if (n["point"]) in.point = r.vector3(n["point"], path + ".point");
       if (n["acceleration"]) in.acceleration = r.vector3(n["acceleration"], path + ".acceleration");
@@ -1032,7 +1034,7 @@ Case load_case(const std::string &directory) {
       if (n["angular_acceleration"])
         in.angular_acceleration =
             r.vector3(n["angular_acceleration"], path + ".angular_acceleration");
-      c.inertia = in;
+      c.loads.inertia = in;
     }
     if (l["forces"]) {
       if (!dynamic)
@@ -1044,9 +1046,9 @@ Case load_case(const std::string &directory) {
   if (root["time"]) read_time(r, root["time"], c);
   if (root["supports"]) read_supports(r, root["supports"], c);
   if (root["tractions"])
-    read_tractions(r, root["tractions"], c, "tractions", "surface", c.tractions);
+    read_tractions(r, root["tractions"], c, "tractions", "surface", c.loads.tractions);
   if (root["line_loads"])
-    read_tractions(r, root["line_loads"], c, "line_loads", "curve", c.line_loads);
+    read_tractions(r, root["line_loads"], c, "line_loads", "curve", c.loads.line_loads);
   if (root["sensors"]) read_sensors(r, root["sensors"], c);
   if (root["output"]) read_output(r, root["output"], dynamic, c);
   if (root["solver"]) c.solver = r.string(root["solver"], "solver");

@@ -21,81 +21,85 @@ std::string count_text(double n) {
 }
 
 /// Refuses a mesh whose estimate is above the body's limit, before Gmsh meshes the volumes.
-void check_limit(const io::BodySpec &body, const MeshEstimate &est) {
-  const std::int64_t limit = body.mesh.max_elements > 0
-                                 ? body.mesh.max_elements
-                                 : io::default_max_elements(body.mesh.order, est.hexahedra);
+void check_limit(const MeshSource &source, const MeshEstimate &est) {
+  const std::int64_t limit = source.max_elements > 0
+                                 ? source.max_elements
+                                 : default_max_elements(source.order, est.hexahedra);
   if (est.elements <= static_cast<double>(limit)) return;
   char size[160];
-  if (body.mesh.size > 0)
-    std::snprintf(size, sizeof size, "mesh.size %g m", body.mesh.size);
+  if (source.size > 0)
+    std::snprintf(size, sizeof size, "mesh.size %g m", source.size);
   else
     std::snprintf(size, sizeof size, "the sizes the .geo sets (effective size %.3g m)", est.size);
   char figures[200];
   std::snprintf(figures, sizeof figures, "volume %.4g m^3, effective element size %.3g m",
                 est.volume, est.size);
-  throw Error(
-      body.mesh.where.str() + ": body '" + body.name +
-          "': mesh.max_elements: " + body.geometry_key + " at " + size + " would make about " +
-          count_text(est.elements) + " " + est.element_name() + " elements (" + figures +
-          "), above the limit of " + count_text(static_cast<double>(limit)) +
-          (body.mesh.max_elements > 0 ? "" : " (the default for " + est.element_name() + ")") +
-          "; it was not meshed. Use a larger mesh.size, or raise the limit with "
-          "`mesh: {max_elements: N}` on this body if the machine has the memory "
-          "(docs/case-format.md, mesh size bound)",
-      true);
+  throw Error(source.where.str() + ": body '" + source.body + "': mesh.max_elements: " +
+                  source.geometry_key + " at " + size + " would make about " +
+                  count_text(est.elements) + " " + est.element_name() + " elements (" + figures +
+                  "), above the limit of " + count_text(static_cast<double>(limit)) +
+                  (source.max_elements > 0 ? "" : " (the default for " + est.element_name() + ")") +
+                  "; it was not meshed. Use a larger mesh.size, or raise the limit with "
+                  "`mesh: {max_elements: N}` on this body if the machine has the memory "
+                  "(docs/case-format.md, mesh size bound)",
+              true);
 }
 
 } // namespace
 
-bool meshed_from_geo(const io::BodySpec &body) {
-  return body.geometry.size() >= 4 && body.geometry.rfind(".geo") == body.geometry.size() - 4;
+std::int64_t default_max_elements(int order, bool hexahedra) {
+  if (hexahedra) return 500000;
+  return order == 2 ? 400000 : 2000000;
 }
 
-DistributedMesh load_body_mesh(MPI_Comm comm, const io::BodySpec &body,
+bool meshed_from_geo(const MeshSource &source) {
+  return source.geometry.size() >= 4 && source.geometry.rfind(".geo") == source.geometry.size() - 4;
+}
+
+DistributedMesh load_body_mesh(MPI_Comm comm, const MeshSource &source,
                                const std::function<void(const MeshData &)> &on_root,
                                MeshEstimate *estimate_out) {
   MeshData data;
   const double t0 = wall_time();
-  const bool geo = meshed_from_geo(body);
+  const bool geo = meshed_from_geo(source);
   if (!geo)
-    print0(comm, "mesh: body %s: reading %s with Gmsh on rank 0 ...\n", body.name.c_str(),
-           body.geometry_key.c_str());
+    print0(comm, "mesh: body %s: reading %s with Gmsh on rank 0 ...\n", source.body.c_str(),
+           source.geometry_key.c_str());
   MeshEstimate estimate;
   bool refused = false;
   std::string refusal;
-  MeshOptions options{body.mesh.size, body.mesh.order};
+  MeshOptions options{source.size, source.order};
   // Rank 0 runs Gmsh and prints directly (print0 is collective-free but the other ranks wait
   // in run_on_root's broadcast meanwhile).
   options.before_meshing = [&](const MeshEstimate &est) {
     try {
-      check_limit(body, est);
+      check_limit(source, est);
     } catch (const Error &e) {
       refused = true;
       refusal = e.what();
       throw;
     }
-    std::printf("mesh: body %s: meshing %s with Gmsh on rank 0 (", body.name.c_str(),
-                body.geometry_key.c_str());
-    if (body.mesh.size > 0) std::printf("size %g m, ", body.mesh.size);
-    std::printf("order %d; estimated %s %s elements, %s nodes) ...\n", body.mesh.order,
+    std::printf("mesh: body %s: meshing %s with Gmsh on rank 0 (", source.body.c_str(),
+                source.geometry_key.c_str());
+    if (source.size > 0) std::printf("size %g m, ", source.size);
+    std::printf("order %d; estimated %s %s elements, %s nodes) ...\n", source.order,
                 count_text(est.elements).c_str(), est.element_name().c_str(),
                 count_text(est.nodes).c_str());
     std::fflush(stdout);
   };
   options.progress = [&](const char *stage, double seconds) {
-    std::printf("mesh: body %s: Gmsh still meshing the %s, %.0f s so far ...\n", body.name.c_str(),
-                stage, seconds);
+    std::printf("mesh: body %s: Gmsh still meshing the %s, %.0f s so far ...\n",
+                source.body.c_str(), stage, seconds);
     std::fflush(stdout);
   };
   run_on_root(comm, 0, [&] {
     try {
-      data = read_gmsh(body.geometry, options, &estimate);
+      data = read_gmsh(source.geometry, options, &estimate);
       if (estimate_out && geo) *estimate_out = estimate;
       if (on_root) on_root(data);
     } catch (const std::exception &e) {
       if (refused) throw Error(refusal);
-      throw Error(body.where.str() + ": body '" + body.name + "': " + e.what());
+      throw Error(source.body_where.str() + ": body '" + source.body + "': " + e.what());
     }
   });
   const double t1 = wall_time();
@@ -111,7 +115,7 @@ DistributedMesh load_body_mesh(MPI_Comm comm, const io::BodySpec &body,
   print0(comm,
          "mesh: body %s: %s in %.2f s: %lld %s elements, %lld nodes%s; partitioned over %d "
          "rank(s) (%.2f s)\n",
-         body.name.c_str(), geo ? "meshed" : "read", t1 - t0,
+         source.body.c_str(), geo ? "meshed" : "read", t1 - t0,
          static_cast<long long>(mesh.global_elements), element_name(mesh.type),
          static_cast<long long>(mesh.global_nodes), estimate_text, comm_size(comm),
          wall_time() - t1);

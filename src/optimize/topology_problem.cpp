@@ -41,7 +41,7 @@ std::unique_ptr<TopologyProblem> TopologyProblem::create(MPI_Comm comm, const io
   insert_default_petsc_options(kTopologySolverDefaults, "topology optimization solver defaults");
   std::unique_ptr<TopologyProblem> p(new TopologyProblem());
   p->case_ = c;
-  p->static_ = fem::StaticProblem::create(comm, c);
+  p->static_ = fem::StaticProblem::create(comm, io::static_settings(c));
   // Each design's solve starts from the last design's displacement (and adjoint): the
   // reference code does the same; late in a run it halves the Krylov iterations
   // (docs/solvers.md). -fx_warm_start 0 starts every solve from zero.

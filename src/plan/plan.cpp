@@ -114,7 +114,7 @@ double max_norm(const Eigen::Matrix3Xd &S, const Eigen::MatrixXd &Z) {
 /// An upper bound of the mesh's highest angular frequency [rad/s]: the largest over the
 /// elements of the largest eigenvalue of K_e x = w^2 M_e x (the assembled spectrum lies below
 /// the elements' largest, Irons & Treharne 1971). Collective.
-double highest_frequency(const mesh::DistributedMesh &mesh, const io::MaterialSpec &mat) {
+double highest_frequency(const mesh::DistributedMesh &mesh, const fem::IsotropicMaterial &mat) {
   const fem::IsotropicMaterial material{mat.E, mat.nu, mat.density};
   double w2 = 0;
   for (PetscInt e = 0; e < mesh.local_elements(); ++e) {
@@ -496,7 +496,7 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
         dirs.push_back(
             reduce::basis_combination(red.basis, svd.matrixV().col(i).cwiseQuotient(root)));
       }
-      const io::MaterialSpec &mat = c.material(c.bodies[cd.body].material);
+      const fem::IsotropicMaterial &mat = c.bodies[cd.body].material;
       const std::vector<Eigen::MatrixXd> G =
           r ? reduce::reduced_geometric_stiffness(
                   mesh, fem::IsotropicMaterial{mat.E, mat.nu, mat.density}, red.basis, dirs, {},
@@ -625,8 +625,8 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
     std::optional<mesh::DistributedMesh> acf_mesh;
     const io::BodySpec &spec = pre.bodies[cd.body];
     if (bp.recommended == "acf" && bp.given == "auto" && !flexible_design && spec.mesh.size > 0 &&
-        mesh::meshed_from_geo(spec)) {
-      const io::MaterialSpec &mat = c.material(spec.material);
+        mesh::meshed_from_geo(spec.mesh)) {
+      const fem::IsotropicMaterial &mat = spec.material;
       const Eigen::MatrixXd F = cd.Q * full.E;
       const Eigen::MatrixXd Zf = modal_response(full.w2, F, h, start) * full.E.transpose();
       std::string trials;
@@ -636,7 +636,7 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
         std::optional<mesh::DistributedMesh> tm;
         std::shared_ptr<reduce::FlexibleReduction> tr;
         try {
-          tm.emplace(mesh::load_body_mesh(comm, trial));
+          tm.emplace(mesh::load_body_mesh(comm, trial.mesh));
           tr = dynamics::reduce_ffrf_body(*tm, trial, mat, nullptr);
         } catch (const Error &err) { // collective: every rank skips the size
           trials +=
@@ -672,13 +672,12 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
     // Tet4 (up to kLockingCheckNodes nodes) is reduced again on the same mesh at order 2, and a
     // first frequency more than eps above that one is reported.
     if (bp.recommended != "rigid" && mesh.type == fem::ElementType::Tet4 &&
-        mesh::meshed_from_geo(spec) && mesh.global_nodes <= kLockingCheckNodes) {
+        mesh::meshed_from_geo(spec.mesh) && mesh.global_nodes <= kLockingCheckNodes) {
       io::BodySpec quadratic = spec;
       quadratic.mesh.order = 2;
       try {
-        const mesh::DistributedMesh qm = mesh::load_body_mesh(comm, quadratic);
-        const auto qr =
-            dynamics::reduce_ffrf_body(qm, quadratic, c.material(spec.material), nullptr);
+        const mesh::DistributedMesh qm = mesh::load_body_mesh(comm, quadratic.mesh);
+        const auto qr = dynamics::reduce_ffrf_body(qm, quadratic, spec.material, nullptr);
         const double stiff = std::sqrt(red.eigenvalues(0) / qr->eigenvalues(0)) - 1;
         if (stiff > eps)
           bp.warnings.push_back(fmt(
@@ -734,7 +733,7 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
     // (docs/benchmarks.md "Where each method fails").
     if (bp.model == "acf") {
       const double w_max =
-          highest_frequency(acf_mesh ? *acf_mesh : mesh, c.material(c.bodies[cd.body].material));
+          highest_frequency(acf_mesh ? *acf_mesh : mesh, c.bodies[cd.body].material);
       est.highest_frequency = w_max / (2 * kPi);
       if (c.time.rho_inf > 0.99 && c.time.step * w_max > 2)
         bp.warnings.push_back(fmt(

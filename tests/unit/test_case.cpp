@@ -70,11 +70,12 @@ TEST_F(CaseFiles, ValidCaseParses) {
   EXPECT_EQ(c.bodies[0].mesh.order, 2);
   EXPECT_DOUBLE_EQ(c.bodies[0].mesh.size, 0.02);
   EXPECT_DOUBLE_EQ(c.material("steel").E, 2.1e11);
-  ASSERT_EQ(c.supports.size(), 1u);
-  EXPECT_TRUE(c.supports[0].fix[0] && c.supports[0].fix[1] && c.supports[0].fix[2]);
-  EXPECT_DOUBLE_EQ(c.tractions[0].value[1], -1.0e6);
-  ASSERT_TRUE(c.gravity.has_value());
-  EXPECT_DOUBLE_EQ((*c.gravity)[1], -9.81);
+  ASSERT_EQ(c.loads.supports.size(), 1u);
+  EXPECT_TRUE(c.loads.supports[0].fix[0] && c.loads.supports[0].fix[1] &&
+              c.loads.supports[0].fix[2]);
+  EXPECT_DOUBLE_EQ(c.loads.tractions[0].value[1], -1.0e6);
+  ASSERT_TRUE(c.loads.gravity.has_value());
+  EXPECT_DOUBLE_EQ((*c.loads.gravity)[1], -9.81);
   EXPECT_EQ(c.sensors[0].quantity, "displacement");
   EXPECT_EQ(c.solver, "-ksp_type preonly -pc_type lu");
 }
@@ -365,7 +366,7 @@ TEST_F(CaseFiles, DynamicCaseParsesFieldByField) {
   EXPECT_EQ(c.sensors[2].quantity, "displacement");
   EXPECT_EQ(c.output.every, 10);
   EXPECT_EQ(c.output.interval, 0.0);
-  EXPECT_TRUE(c.supports.empty());
+  EXPECT_TRUE(c.loads.supports.empty());
   EXPECT_FALSE(c.design.has_value());
 }
 

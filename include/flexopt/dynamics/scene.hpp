@@ -166,7 +166,7 @@ reduce::Field initial_elastic_field(const io::BodySpec &spec, bool rate);
 /// Collective.
 std::shared_ptr<reduce::FlexibleReduction> reduce_ffrf_body(const mesh::DistributedMesh &m,
                                                             const io::BodySpec &spec,
-                                                            const io::MaterialSpec &mat,
+                                                            const fem::IsotropicMaterial &mat,
                                                             const reduce::ElementFactors *design);
 
 /// The scene's ACF bodies, in order (DistributedAlpha's list).

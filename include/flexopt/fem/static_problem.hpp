@@ -6,20 +6,72 @@
 /// re-assemble with new element modulus factors and solve again, reusing the preconditioner
 /// set-up for adjoint solves.
 #include "flexopt/fem/assembly.hpp"
-#include "flexopt/io/case.hpp"
+#include "flexopt/io/location.hpp"
+#include "flexopt/mesh/load.hpp"
 
+#include <array>
 #include <memory>
+#include <optional>
 #include <petscksp.h>
+#include <string>
+#include <vector>
 
 namespace flexopt::fem {
 
 class MatrixFreeStiffness;
 class LatticeCoarseOperators;
 
+/// Dirichlet support (`supports:`): the listed displacement components of every node of
+/// `surface` are zero.
+struct Support {
+  std::string surface;
+  std::array<bool, 3> fix{false, false, false};
+  io::Location where;
+};
+
+/// A constant load on a physical surface (`tractions:`, [N/m^2], force per current = reference
+/// area) or curve (`line_loads:`, [N/m]).
+struct SurfaceLoad {
+  std::string surface; ///< the physical surface or curve
+  std::array<double, 3> value{0, 0, 0};
+  /// `force:` given instead of `value:`: `value` is a total force, spread as a uniform
+  /// traction over the surface (value / area).
+  bool total = false;
+  io::Location where;
+};
+
+/// The d'Alembert body force of a body moving rigidly (`loads.inertia`),
+/// b(x) = -rho (a + alpha x r + omega x (omega x r)), r = x - point, all in body axes
+/// (equivalent static loads of a mechanism link at one instant).
+struct RigidMotion {
+  std::array<double, 3> point{0, 0, 0};
+  std::array<double, 3> acceleration{0, 0, 0};
+  std::array<double, 3> angular_velocity{0, 0, 0};
+  std::array<double, 3> angular_acceleration{0, 0, 0};
+  io::Location where;
+};
+
+/// What a static analysis applies to its body.
+struct StaticLoads {
+  std::vector<Support> supports;
+  std::vector<SurfaceLoad> tractions;
+  std::vector<SurfaceLoad> line_loads;          ///< on physical curves (`surface` = curve name)
+  std::optional<std::array<double, 3>> gravity; ///< [m/s^2]
+  std::optional<RigidMotion> inertia;           ///< loads.inertia
+};
+
+/// The static problem of one body: its mesh, material and loads.
+struct StaticSettings {
+  mesh::MeshSource mesh;
+  IsotropicMaterial material;
+  StaticLoads loads;
+  std::string case_file; ///< case.yaml, for messages about the whole case
+};
+
 class StaticProblem {
 public:
-  /// Loads the case's single body, assembles K and f and sets up the solver. Collective.
-  static std::unique_ptr<StaticProblem> create(MPI_Comm comm, const io::Case &c);
+  /// Loads the body's mesh, assembles K and f and sets up the solver. Collective.
+  static std::unique_ptr<StaticProblem> create(MPI_Comm comm, const StaticSettings &settings);
   ~StaticProblem();
 
   /// Re-assembles K with one modulus factor per local element (empty: all 1). Collective.
@@ -113,8 +165,9 @@ private:
   Timings timings_;
 };
 
-/// Global DOFs of all supports of the case's body (owned by this rank, sorted, unique).
-std::vector<PetscInt> support_dofs(const mesh::DistributedMesh &mesh, const io::Case &c);
+/// Global DOFs of all `supports` (owned by this rank, sorted, unique).
+std::vector<PetscInt> support_dofs(const mesh::DistributedMesh &mesh,
+                                   const std::vector<Support> &supports);
 
 /// Sets the default solver for an SPD elasticity operator: CG with geometric multigrid where the
 /// mesh is a structured Hex8 lattice (lattice_multigrid.hpp; -lattice_mg_levels N or

@@ -4,6 +4,10 @@
 /// Every rank parses case.yaml itself (it is small), so that a malformed case raises the same
 /// collective flexopt::Error on every rank: `case.yaml:LINE:COL: message`. See
 /// docs/case-format.md for every key.
+#include "flexopt/fem/static_problem.hpp"
+#include "flexopt/io/location.hpp"
+#include "flexopt/mesh/load.hpp"
+
 #include <array>
 #include <cstdint>
 #include <optional>
@@ -12,36 +16,12 @@
 
 namespace flexopt::io {
 
-/// Position of a key in case.yaml, for messages that are raised later (e.g. a physical group
-/// named in the case that the mesh does not have). `str()` is "path/case.yaml:LINE:COL".
-struct Location {
-  std::string file;
-  int line = 0;
-  int column = 0;
-  std::string str() const;
-};
-
 struct MaterialSpec {
   std::string name;
   double E = 0;       ///< Young's modulus [Pa]
   double nu = 0;      ///< Poisson's ratio
   double density = 0; ///< [kg/m^3]
 };
-
-struct MeshSpec {
-  double size = 0;    ///< target element size [m] (.geo only); 0: the .geo's own sizes
-  int order = 1;      ///< 1: Tet4 (Hex8 if the .geo recombines), 2: Tet10
-  bool given = false; ///< true if the `mesh:` key was present
-  /// Largest estimated element count meshed (.geo only); 0: default_max_elements().
-  std::int64_t max_elements = 0;
-  Location where; ///< of the `mesh:` key, or of the body if it has none
-};
-
-/// Default `mesh.max_elements` for the element type Gmsh will make (order 1 tetrahedra, order
-/// 2 tetrahedra, or recombined hexahedra): 2 000 000 Tet4, 400 000 Tet10, 500 000 Hex8, each
-/// about 1.5 million DOFs, what the static benchmark solves on 2 ranks within 6 GiB of this
-/// 24 GiB machine (docs/case-format.md, "Mesh size bound"; docs/benchmarks.md).
-std::int64_t default_max_elements(int order, bool hexahedra);
 
 /// Placement of a body frame at t = 0 and its velocity (`bodies[].initial`, dynamic analyses).
 /// The body's mesh coordinates are body-frame coordinates; the frame is placed at `position`
@@ -76,11 +56,10 @@ struct ReductionSpec {
 /// (model_settings(), unused_settings()), so that switching a body's model is one word.
 struct BodySpec {
   std::string name;
-  std::string model = "auto"; ///< rigid | ffrf | acf | auto (dynamic: the plan's choice)
-  std::string geometry;       ///< path, resolved against the case directory
-  std::string geometry_key;   ///< as written in case.yaml
-  MeshSpec mesh;
-  std::string material;
+  std::string model = "auto";          ///< rigid | ffrf | acf | auto (dynamic: the plan's choice)
+  mesh::MeshSource mesh;               ///< geometry and mesh settings
+  std::string material_name;           ///< `material:`, a name of `materials:`
+  fem::IsotropicMaterial material;     ///< that material
   std::vector<std::string> interfaces; ///< physical surfaces for joints and forces, unique
   InitialSpec initial;                 ///< dynamic only (identity at rest if not given)
   ReductionSpec reduction;             ///< used by ffrf
@@ -178,36 +157,6 @@ struct OutputSpec {
   bool given() const { return every > 0 || interval > 0; }
 };
 
-/// Dirichlet support: the listed displacement components of every node of `surface` are zero.
-struct SupportSpec {
-  std::string body;
-  std::string surface;
-  std::array<bool, 3> fix{false, false, false};
-  Location where;
-};
-
-/// Constant surface traction [N/m^2] (force per current = reference area) on a surface.
-struct TractionSpec {
-  std::string body;
-  std::string surface;
-  std::array<double, 3> value{0, 0, 0};
-  /// `force:` given instead of `value:`: `value` is a total force, spread as a uniform
-  /// traction over the surface (value / area).
-  bool total = false;
-  Location where;
-};
-
-/// Static analyses: the d'Alembert body force of a body moving rigidly (`loads.inertia`),
-/// b(x) = -rho (a + alpha x r + omega x (omega x r)), r = x - point, all in body axes
-/// (equivalent static loads of a mechanism link at one instant).
-struct InertiaSpec {
-  std::array<double, 3> point{0, 0, 0};
-  std::array<double, 3> acceleration{0, 0, 0};
-  std::array<double, 3> angular_velocity{0, 0, 0};
-  std::array<double, 3> angular_acceleration{0, 0, 0};
-  Location where;
-};
-
 /// A point sensor: a quantity FE-interpolated at `point` (undeformed body coordinates); or a
 /// joint sensor (`joint:` set, quantity `reaction`): the force the joint applies to its body b.
 struct SensorSpec {
@@ -279,12 +228,8 @@ struct Case {
   std::string analysis;  ///< static | dynamic
   std::vector<MaterialSpec> materials;
   std::vector<BodySpec> bodies;
-  std::optional<std::array<double, 3>> gravity; ///< [m/s^2]
-  std::optional<InertiaSpec> inertia;           ///< static: loads.inertia
-  std::vector<SupportSpec> supports;
-  std::vector<TractionSpec> tractions;
-  std::vector<TractionSpec>
-      line_loads; ///< force per length [N/m] on physical curves (`surface` = curve name)
+  std::optional<std::array<double, 3>> gravity; ///< [m/s^2] (dynamic; static: in `loads`)
+  fem::StaticLoads loads; ///< static: supports, tractions, line loads, gravity, loads.inertia
   std::vector<SensorSpec> sensors;
   std::vector<GroundInterfaceSpec> ground; ///< dynamic: named points of the fixed frame
   std::vector<JointSpec> joints;           ///< dynamic
@@ -305,6 +250,9 @@ struct Case {
   const MaterialSpec &material(const std::string &name) const;
   const BodySpec &body(const std::string &name) const;
 };
+
+/// The static problem of a static case: its one body's mesh and material, and the loads.
+fem::StaticSettings static_settings(const Case &c);
 
 /// Reads and validates `<directory>/case.yaml`. Throws flexopt::Error (collective: call on
 /// every rank) with `case.yaml:LINE:COL: message` for unknown keys, wrong types, missing
