@@ -270,13 +270,14 @@ double trapezoid_weight(std::size_t n, std::size_t N) {
   return (n == 0 || n == N ? 0.5 : 1.0) / static_cast<double>(N);
 }
 
-SampledResponse sampled_response(const io::ResponseSpec &r, const std::vector<Vec3> &y, double h) {
+SampledResponse sampled_response(const optimize::ResponseSettings &r, const std::vector<Vec3> &y,
+                                 double h) {
   SampledResponse out;
   const std::size_t N = y.size() - 1;
   out.dy.assign(y.size(), Vec3::Zero());
   auto weight = [&](std::size_t n) { return trapezoid_weight(n, N); };
   const int K = r.component;
-  if (r.type == "tracking_error") {
+  if (r.type == optimize::ResponseType::TrackingError) {
     std::array<Expression, 3> target;
     for (int k = 0; k < 3; ++k)
       target[static_cast<std::size_t>(k)] = Expression(r.target[static_cast<std::size_t>(k)]);
@@ -299,10 +300,10 @@ SampledResponse sampled_response(const io::ResponseSpec &r, const std::vector<Ve
     return out;
   }
   // type sensor
-  if (r.measure == "final") {
+  if (r.measure == optimize::SensorMeasure::Final) {
     out.value = y[N](K);
     out.dy[N](K) = 1;
-  } else if (r.measure == "mean_square") {
+  } else if (r.measure == optimize::SensorMeasure::MeanSquare) {
     for (std::size_t n = 0; n <= N; ++n) {
       out.value += weight(n) * y[n](K) * y[n](K);
       out.dy[n](K) = 2 * weight(n) * y[n](K);
@@ -342,7 +343,7 @@ namespace {
 /// touches one is refused (`refuse`, optimize) or warned about (the derivatives of such a
 /// region are still right, and check-gradient and simulate take it).
 void check_interfaces(const optimize::DesignField &f, const io::BodySpec &body,
-                      const io::DesignSpec &d, bool refuse) {
+                      const optimize::DesignSettings &d, bool refuse) {
   const optimize::DesignField::SurfaceContact c = f.touched_surface(body.interfaces);
   if (c.elements == 0) return;
   const std::string what =
@@ -364,15 +365,15 @@ void check_interfaces(const optimize::DesignField &f, const io::BodySpec &body,
 /// A mass bound on the design body that even an empty design region exceeds cannot hold: it is
 /// refused before any computation, with the mass of the material outside the region.
 void check_mass_bounds(const optimize::DesignField &f, const io::Case &c) {
-  const io::DesignSpec &d = *c.design;
+  const optimize::DesignSettings &d = *c.design;
   const double density = c.body(d.body).material.density;
   const std::vector<double> &volume = f.element_volumes();
   double mass[2] = {0, 0}; // outside the region, inside it
   for (PetscInt e = 0; e < f.mesh().local_elements(); ++e)
     mass[f.is_design(e) ? 1 : 0] += density * volume[static_cast<std::size_t>(e)];
   MPI_Allreduce(MPI_IN_PLACE, mass, 2, MPI_DOUBLE, MPI_SUM, f.mesh().comm);
-  for (const io::ResponseSpec &r : c.constraints)
-    if (r.type == "mass" && r.body == d.body && r.max <= mass[0]) {
+  for (const optimize::ResponseSettings &r : c.constraints)
+    if (r.type == optimize::ResponseType::Mass && r.body == d.body && r.max <= mass[0]) {
       std::ostringstream msg;
       msg << r.where.str() << ": constraint mass of body '" << d.body << "' <= " << r.max
           << " kg cannot hold: the material outside design.region '" << d.region
@@ -389,7 +390,7 @@ std::unique_ptr<DynamicProblem> DynamicProblem::create(MPI_Comm comm, const io::
                                                        bool refuse_interfaces) {
   if (!c.design || !c.objective)
     throw Error(c.file + ": an optimization needs design: and objective: sections", true);
-  const io::DesignSpec &d = *c.design;
+  const optimize::DesignSettings &d = *c.design;
   const io::BodySpec &body = c.body(d.body);
   const std::string model = io::simulated_model(body.model);
   if (model != "rigid" && model != "acf" && model != "ffrf")
@@ -465,10 +466,11 @@ std::unique_ptr<DynamicProblem> DynamicProblem::create(MPI_Comm comm, const io::
 
   p->specs_.push_back(&*p->case_.objective);
   for (const auto &r : p->case_.constraints) p->specs_.push_back(&r);
-  p->names_.push_back("objective:" + c.objective->type);
+  p->names_.push_back(std::string("objective:") + optimize::response_type_name(c.objective->type));
   for (std::size_t i = 0; i < c.constraints.size(); ++i)
-    p->names_.push_back("constraint" + std::to_string(i) + ":" + c.constraints[i].type);
-  for (const io::ResponseSpec *r : p->specs_) {
+    p->names_.push_back("constraint" + std::to_string(i) + ":" +
+                        optimize::response_type_name(c.constraints[i].type));
+  for (const optimize::ResponseSettings *r : p->specs_) {
     int sensor = -1;
     if (!r->sensor.empty())
       for (std::size_t k = 0; k < p->scene_.sensors.size(); ++k)
@@ -482,7 +484,7 @@ std::unique_ptr<DynamicProblem> DynamicProblem::create(MPI_Comm comm, const io::
     }
     p->sensor_on_design_.push_back(on_design);
     p->strain_body_.push_back(-1);
-    if (r->type == "strain_energy_integral") {
+    if (r->type == optimize::ResponseType::StrainEnergyIntegral) {
       const std::string bm = io::simulated_model(c.body(r->body).model);
       if (bm == "rigid")
         throw Error(r->where.str() + ": strain_energy_integral of body '" + r->body +
@@ -604,9 +606,9 @@ Matrix DynamicProblem::design_partials(const Vector &q, const Vector &v, const V
 }
 
 double DynamicProblem::response_value(std::size_t i) const {
-  const io::ResponseSpec &r = *specs_[i];
-  if (r.type == "volume_fraction") return field_->volume_fraction();
-  if (r.type == "mass") {
+  const optimize::ResponseSettings &r = *specs_[i];
+  if (r.type == optimize::ResponseType::VolumeFraction) return field_->volume_fraction();
+  if (r.type == optimize::ResponseType::Mass) {
     if (r.body == case_.design->body && acf_design_ < 0 && !ffrf_design_) return theta_(0);
     for (std::size_t b = 0; b < case_.bodies.size(); ++b)
       if (case_.bodies[b].name == r.body) {
@@ -664,7 +666,7 @@ void DynamicProblem::evaluate(Vec x, bool gradients, optimize::Evaluation &out) 
       out.d_constraints.push_back(create_design_vector());
   }
   for (std::size_t i = 0; i < nr; ++i) {
-    if (specs_[i]->type == "volume_fraction") {
+    if (specs_[i]->type == optimize::ResponseType::VolumeFraction) {
       field_->volume_fraction_gradient(grad_physical_);
     } else {
       PetscScalar *g;
@@ -710,9 +712,9 @@ void DynamicProblem::add_rigid_element_gradients(const Matrix &G) {
   // dPsi/dw_e = G . theta_e (+ m_e for the design body's mass), then dw/d(physical).
   const PetscInt ne = mesh().local_elements();
   for (std::size_t i = 0; i < specs_.size(); ++i) {
-    const io::ResponseSpec &r = *specs_[i];
+    const optimize::ResponseSettings &r = *specs_[i];
     Vector g = G.col(static_cast<Eigen::Index>(i));
-    if (r.type == "mass" && r.body == case_.design->body) g(0) += 1;
+    if (r.type == optimize::ResponseType::Mass && r.body == case_.design->body) g(0) += 1;
     for (PetscInt e = 0; e < ne; ++e)
       element_gradient_[i][static_cast<std::size_t>(e)] +=
           dw_[static_cast<std::size_t>(e)] * g.dot(element_theta_[static_cast<std::size_t>(e)]);
@@ -842,10 +844,10 @@ void DynamicProblem::add_ffrf_element_gradients(const Matrix &G, const StartAdjo
   // The element terms of the initial fields' projections (section 10.2), per response.
   std::vector<std::vector<double>> projection_w(specs_.size());
   for (std::size_t i = 0; i < specs_.size(); ++i) {
-    const io::ResponseSpec &r = *specs_[i];
+    const optimize::ResponseSettings &r = *specs_[i];
     bodies::FfrfModel bar = unpack(G.col(static_cast<Eigen::Index>(i)), n, body.stiffening());
     bool used = !G.col(static_cast<Eigen::Index>(i)).isZero(0);
-    if (r.type == "mass" && r.body == case_.design->body) {
+    if (r.type == optimize::ResponseType::Mass && r.body == case_.design->body) {
       bar.invariants.mass += 1;
       used = true;
     }
@@ -1050,8 +1052,10 @@ bool DynamicProblem::set_random_start(unsigned long seed) {
 }
 
 double DynamicProblem::noise_floor(std::size_t i) const {
-  const std::string &type = specs_[i]->type;
-  return type == "volume_fraction" || type == "mass" ? 1e-14 : noise_floor();
+  const optimize::ResponseType type = specs_[i]->type;
+  return type == optimize::ResponseType::VolumeFraction || type == optimize::ResponseType::Mass
+             ? 1e-14
+             : noise_floor();
 }
 
 std::vector<optimize::Timing> DynamicProblem::timings() const {

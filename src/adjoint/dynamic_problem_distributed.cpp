@@ -33,7 +33,7 @@ void DynamicProblem::evaluate_distributed(bool gradients, optimize::Evaluation &
   // Which ACF body each strain energy response measures.
   std::vector<int> strain_body(nr, -1);
   for (std::size_t i = 0; i < nr; ++i)
-    if (specs_[i]->type == "strain_energy_integral")
+    if (specs_[i]->type == optimize::ResponseType::StrainEnergyIntegral)
       for (std::size_t b = 0; b < case_.bodies.size(); ++b)
         if (case_.bodies[b].name == specs_[i]->body) strain_body[i] = scene_.bodies[b].acf;
   // Local displacements of ACF body b at a state (mesh numbering, owned and ghosts).
@@ -115,7 +115,7 @@ void DynamicProblem::evaluate_distributed(bool gradients, optimize::Evaluation &
           element_gradient_[i][e] += trapezoid_weight(n, N) * ds_[e] / s_[e] *
                                      energy_steps[n * per_step + column * ne + e];
     }
-    if (specs_[i]->type == "mass" && specs_[i]->body == case_.design->body)
+    if (specs_[i]->type == optimize::ResponseType::Mass && specs_[i]->body == case_.design->body)
       for (std::size_t e = 0; e < ne; ++e)
         element_gradient_[i][e] += dw_[e] * body->material().density * volume[e];
   }

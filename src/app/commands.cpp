@@ -117,7 +117,7 @@ void write_summary(const Context &ctx, const std::string &dir, io::Json &s, doub
 std::unique_ptr<optimize::DesignProblem>
 create_design_problem(MPI_Comm comm, const io::Case &c, bool optimizing, const std::string &dir) {
   if (c.analysis == "dynamic") return adjoint::DynamicProblem::create(comm, c, dir, optimizing);
-  return optimize::TopologyProblem::create(comm, c);
+  return optimize::TopologyProblem::create(comm, io::topology_settings(c));
 }
 
 } // namespace detail
@@ -487,7 +487,8 @@ int run_optimize(const Context &ctx, const Options &o, const io::Case &c, double
   io::Case run_case = c;
   if (o.max_iterations > 0) run_case.optimizer.max_iterations = o.max_iterations;
   auto problem = detail::create_design_problem(ctx.comm(), run_case, true, dir);
-  const auto r = optimize::run_optimization(ctx.comm(), *problem, run_case, dir, o.restart);
+  const auto r =
+      optimize::run_optimization(ctx.comm(), *problem, run_case.optimizer, dir, o.restart);
   io::Json s = base_summary(ctx, o, c);
   s["dofs"] = r.dofs;
   s["elements"] = r.elements;

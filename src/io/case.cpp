@@ -172,6 +172,18 @@ public:
     fail(n, path + ": '" + s + "' is not one of " + list);
   }
 
+  /// The enumerator a name stands for (names and enumerators in `options`, in order).
+  template <class E>
+  E enumerated(const YAML::Node &n, const std::string &path,
+               std::initializer_list<std::pair<const char *, E>> options) const {
+    const std::string s = string(n, path);
+    for (const auto &o : options)
+      if (s == o.first) return o.second;
+    std::string list;
+    for (const auto &o : options) list += std::string(list.empty() ? "" : " | ") + o.first;
+    fail(n, path + ": '" + s + "' is not one of " + list);
+  }
+
   std::array<double, 3> vector3(const YAML::Node &n, const std::string &path) const {
     if (!n.IsSequence() || n.size() != 3)
       fail(n, path + ": expected a list of 3 numbers [x, y, z]");
@@ -755,7 +767,7 @@ void read_design(const Reader &r, const YAML::Node &v, Case &c) {
   const std::string path = "design";
   r.require_map(v, path);
   r.check_keys(v, path, {"body", "region", "initial", "interpolation", "filter", "projection"});
-  DesignSpec d;
+  optimize::DesignSettings d;
   d.where = r.where(v);
   d.body = r.string(r.require(v, "body", path), path + ".body");
   if (!has_body(c, d.body)) r.fail(v["body"], path + ".body: no body named '" + d.body + "'");
@@ -770,11 +782,12 @@ void read_design(const Reader &r, const YAML::Node &v, Case &c) {
   // modes, and its mass is best exactly the densities'.
   for (const BodySpec &b : c.bodies)
     if (b.name == d.body && c.analysis == "dynamic" && simulated_model(b.model) != "rigid")
-      d.mass = "pedersen";
+      d.mass = optimize::MassInterpolation::Pedersen;
   // A static design under body forces (self-weight, inertia): a void element's load w(rho) f_e
   // must vanish faster than its SIMP stiffness, or it deforms without bound (docs/theory.md
   // section 5); the Du-Olhoff form (rho^6 below 0.1) does, a linear mass does not.
-  if (c.analysis == "static" && (c.loads.gravity || c.loads.inertia)) d.mass = "pedersen";
+  if (c.analysis == "static" && (c.loads.gravity || c.loads.inertia))
+    d.mass = optimize::MassInterpolation::Pedersen;
   if (v["interpolation"]) {
     const YAML::Node &i = v["interpolation"];
     const std::string ip = path + ".interpolation";
@@ -789,7 +802,10 @@ void read_design(const Reader &r, const YAML::Node &v, Case &c) {
       if (!(d.min_stiffness > 0 && d.min_stiffness < 1))
         r.fail(i["min_stiffness"], ip + ".min_stiffness: E_min / E_0 must lie in (0, 1)");
     }
-    if (i["mass"]) d.mass = r.choice(i["mass"], ip + ".mass", {"linear", "pedersen"});
+    if (i["mass"])
+      d.mass = r.enumerated(i["mass"], ip + ".mass",
+                            {std::pair{"linear", optimize::MassInterpolation::Linear},
+                             {"pedersen", optimize::MassInterpolation::Pedersen}});
   }
   // Without filter: or its radius, DesignField takes a radius from the design elements' size
   // (filter_radius 0 here).
@@ -797,7 +813,9 @@ void read_design(const Reader &r, const YAML::Node &v, Case &c) {
     r.require_map(f, path + ".filter");
     r.check_keys(f, path + ".filter", {"type", "radius"});
     if (f["type"])
-      d.filter_type = r.choice(f["type"], path + ".filter.type", {"helmholtz", "cone"});
+      d.filter_type = r.enumerated(f["type"], path + ".filter.type",
+                                   {std::pair{"helmholtz", optimize::FilterType::Helmholtz},
+                                    {"cone", optimize::FilterType::Cone}});
     if (f["radius"]) {
       d.filter_radius = r.number(f["radius"], path + ".filter.radius");
       if (!(d.filter_radius > 0)) r.fail(f["radius"], path + ".filter.radius: must be positive");
@@ -827,34 +845,44 @@ void read_design(const Reader &r, const YAML::Node &v, Case &c) {
   c.design = d;
 }
 
-ResponseSpec read_response(const Reader &r, const YAML::Node &v, const std::string &path,
-                           bool constraint, const Case &c) {
+optimize::ResponseSettings read_response(const Reader &r, const YAML::Node &v,
+                                         const std::string &path, bool constraint, const Case &c) {
+  using optimize::ResponseType;
   r.require_map(v, path);
   r.check_keys(
       v, path,
       {"type", "sensor", "direction", "body", "target", "component", "measure", "ks", "max"});
-  ResponseSpec s;
+  optimize::ResponseSettings s;
   s.where = r.where(v);
   const bool dynamic = c.analysis == "dynamic";
-  s.type = r.choice(r.require(v, "type", path), path + ".type",
-                    {"compliance", "volume_fraction", "displacement", "strain_energy_integral",
-                     "tracking_error", "sensor", "mass"});
-  if (!dynamic && (s.type == "strain_energy_integral" || s.type == "tracking_error" ||
-                   s.type == "sensor" || s.type == "mass"))
-    r.fail(v["type"], path + ".type: '" + s.type + "' is a response of a dynamic analysis");
-  if (dynamic && (s.type == "compliance" || s.type == "displacement"))
-    r.fail(v["type"], path + ".type: '" + s.type +
+  s.type = r.enumerated(r.require(v, "type", path), path + ".type",
+                        {std::pair{"compliance", ResponseType::Compliance},
+                         {"volume_fraction", ResponseType::VolumeFraction},
+                         {"displacement", ResponseType::Displacement},
+                         {"strain_energy_integral", ResponseType::StrainEnergyIntegral},
+                         {"tracking_error", ResponseType::TrackingError},
+                         {"sensor", ResponseType::Sensor},
+                         {"mass", ResponseType::Mass}});
+  const std::string type = optimize::response_type_name(s.type);
+  const bool dynamic_only = s.type == ResponseType::StrainEnergyIntegral ||
+                            s.type == ResponseType::TrackingError ||
+                            s.type == ResponseType::Sensor || s.type == ResponseType::Mass;
+  if (!dynamic && dynamic_only)
+    r.fail(v["type"], path + ".type: '" + type + "' is a response of a dynamic analysis");
+  if (dynamic && (s.type == ResponseType::Compliance || s.type == ResponseType::Displacement))
+    r.fail(v["type"], path + ".type: '" + type +
                           "' is a response of a static analysis (dynamic: strain_energy_integral, "
                           "tracking_error, sensor, volume_fraction, mass)");
   // Which keys each type takes.
   std::set<std::string> takes;
-  if (s.type == "displacement") takes = {"sensor", "direction"};
-  if (s.type == "tracking_error") takes = {"sensor", "target"};
-  if (s.type == "sensor") takes = {"sensor", "component", "measure", "ks"};
-  if (s.type == "strain_energy_integral" || s.type == "mass") takes = {"body"};
+  if (s.type == ResponseType::Displacement) takes = {"sensor", "direction"};
+  if (s.type == ResponseType::TrackingError) takes = {"sensor", "target"};
+  if (s.type == ResponseType::Sensor) takes = {"sensor", "component", "measure", "ks"};
+  if (s.type == ResponseType::StrainEnergyIntegral || s.type == ResponseType::Mass)
+    takes = {"body"};
   for (const char *k : {"sensor", "direction", "body", "target", "component", "measure", "ks"})
     if (v[k] && !takes.count(k))
-      r.fail(v[k], path + "." + k + ": a '" + s.type + "' response does not take it");
+      r.fail(v[k], path + "." + k + ": a '" + type + "' response does not take it");
   auto find_sensor = [&]() {
     s.sensor = r.string(r.require(v, "sensor", path), path + ".sensor");
     for (const auto &sensor : c.sensors)
@@ -864,15 +892,17 @@ ResponseSpec read_response(const Reader &r, const YAML::Node &v, const std::stri
                                   sensor.quantity +
                                   ", which a response cannot use yet (position, displacement, "
                                   "elastic_displacement)");
+        s.point = sensor.point;
+        s.point_where = sensor.where;
         return;
       }
     r.fail(v["sensor"], path + ".sensor: no sensor named '" + s.sensor + "'");
   };
-  if (s.type == "displacement") {
+  if (s.type == ResponseType::Displacement) {
     find_sensor();
     s.direction = r.direction(r.require(v, "direction", path), path + ".direction");
   }
-  if (s.type == "tracking_error") {
+  if (s.type == ResponseType::TrackingError) {
     find_sensor();
     const YAML::Node &tg = r.require(v, "target", path);
     if (!tg.IsSequence() || tg.size() != 3)
@@ -892,7 +922,7 @@ ResponseSpec read_response(const Reader &r, const YAML::Node &v, const std::stri
         }
     }
   }
-  if (s.type == "sensor") {
+  if (s.type == ResponseType::Sensor) {
     find_sensor();
     const YAML::Node &cn = r.require(v, "component", path);
     const std::string cs = cn.IsScalar() ? cn.Scalar() : "";
@@ -904,24 +934,27 @@ ResponseSpec read_response(const Reader &r, const YAML::Node &v, const std::stri
       s.component = 2;
     else
       r.fail(cn, path + ".component: expected 0, 1, 2 (or x, y, z), got '" + cs + "'");
-    s.measure = r.choice(r.require(v, "measure", path), path + ".measure",
-                         {"final", "mean_square", "ks_max"});
+    s.measure = r.enumerated(r.require(v, "measure", path), path + ".measure",
+                             {std::pair{"final", optimize::SensorMeasure::Final},
+                              {"mean_square", optimize::SensorMeasure::MeanSquare},
+                              {"ks_max", optimize::SensorMeasure::KsMax}});
     if (v["ks"]) {
-      if (s.measure != "ks_max") r.fail(v["ks"], path + ".ks: only measure: ks_max takes it");
+      if (s.measure != optimize::SensorMeasure::KsMax)
+        r.fail(v["ks"], path + ".ks: only measure: ks_max takes it");
       s.ks = r.number(v["ks"], path + ".ks");
       if (!(s.ks > 0)) r.fail(v["ks"], path + ".ks: must be positive");
     }
   }
-  if (s.type == "strain_energy_integral" || s.type == "mass") {
+  if (s.type == ResponseType::StrainEnergyIntegral || s.type == ResponseType::Mass) {
     s.body = r.string(r.require(v, "body", path), path + ".body");
     if (!has_body(c, s.body)) r.fail(v["body"], path + ".body: no body named '" + s.body + "'");
   }
   if (constraint) {
     s.max = r.number(r.require(v, "max", path), path + ".max");
     s.has_max = true;
-    if (s.type == "volume_fraction" && !(s.max > 0 && s.max < 1))
+    if (s.type == ResponseType::VolumeFraction && !(s.max > 0 && s.max < 1))
       r.fail(v["max"], path + ".max: a volume fraction bound must lie in (0, 1)");
-    if (s.type == "mass" && !(s.max > 0))
+    if (s.type == ResponseType::Mass && !(s.max > 0))
       r.fail(v["max"], path + ".max: a mass bound must be positive [kg]");
   } else if (v["max"]) {
     r.fail(v["max"], path + ".max: the objective takes no bound");
@@ -953,6 +986,12 @@ void read_adjoint(const Reader &r, const YAML::Node &v, Case &c) {
 fem::StaticSettings static_settings(const Case &c) {
   const BodySpec &body = c.bodies.front();
   return fem::StaticSettings{body.mesh, body.material, c.loads, c.file};
+}
+
+optimize::TopologySettings topology_settings(const Case &c) {
+  if (!c.design || !c.objective)
+    throw Error(c.file + ": topology optimization needs design: and objective: sections", true);
+  return optimize::TopologySettings{static_settings(c), *c.design, *c.objective, c.constraints};
 }
 
 Case load_case(const std::string &directory) {
@@ -1097,6 +1136,12 @@ Case load_case(const std::string &directory) {
     r.fail(root, "objective/constraints/optimizer need a design: section (the design field)");
   if (c.design && !c.objective)
     r.fail(root["design"], "design: an optimization needs an objective:");
+
+  // The optimizer's share of other keys: the constraints' bounds, and design.xdmf's stride
+  // (output.every thins it in a static analysis only: in a dynamic one it counts the motion's
+  // time steps, docs/case-format.md "output").
+  for (const optimize::ResponseSettings &con : c.constraints) c.optimizer.bounds.push_back(con.max);
+  c.optimizer.output_every = dynamic ? 1 : std::max(c.output.every, 1);
 
   if (c.analysis == "static" && c.bodies.size() != 1)
     r.fail(root["bodies"], "bodies: a static analysis takes exactly one body (got " +

@@ -202,10 +202,9 @@ std::string ConeFilter::describe() const {
 }
 
 std::unique_ptr<DensityFilter> create_density_filter(const mesh::DistributedMesh &mesh,
-                                                     const std::string &type, double radius) {
-  if (type == "helmholtz") return HelmholtzFilter::create(mesh, radius);
-  if (type == "cone") return ConeFilter::create(mesh, radius);
-  throw Error("density filter: unknown type '" + type + "' (helmholtz | cone)", true);
+                                                     FilterType type, double radius) {
+  if (type == FilterType::Cone) return ConeFilter::create(mesh, radius);
+  return HelmholtzFilter::create(mesh, radius);
 }
 
 } // namespace flexopt::optimize

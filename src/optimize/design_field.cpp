@@ -15,7 +15,7 @@ Evaluation::~Evaluation() {
   for (Vec &v : d_constraints) VecDestroy(&v);
 }
 
-DesignField::DesignField(const mesh::DistributedMesh &m, const io::DesignSpec &d)
+DesignField::DesignField(const mesh::DistributedMesh &m, const DesignSettings &d)
     : mesh_(m), spec_(d) {
   const auto &region = m.volume_group(d.region, d.where.str() + ": design.region");
   is_design_.assign(static_cast<std::size_t>(m.local_elements()), 0);
@@ -46,8 +46,8 @@ DesignField::DesignField(const mesh::DistributedMesh &m, const io::DesignSpec &d
 }
 
 double DesignField::default_filter_radius(const mesh::DistributedMesh &m,
-                                          const std::vector<PetscInt> &elements,
-                                          const std::string &type, double *mean_edge) {
+                                          const std::vector<PetscInt> &elements, FilterType type,
+                                          double *mean_edge) {
   // The edges between corner nodes: 6 of a tet, 12 of a hexahedron (Gmsh's node order).
   static const int tet_edges[6][2] = {{0, 1}, {1, 2}, {2, 0}, {0, 3}, {1, 3}, {2, 3}};
   static const int hex_edges[12][2] = {{0, 1}, {1, 2}, {2, 3}, {3, 0}, {4, 5}, {5, 6},
@@ -71,16 +71,17 @@ double DesignField::default_filter_radius(const mesh::DistributedMesh &m,
   const double h = sum[0] / sum[1];
   if (mean_edge) *mean_edge = h;
   const double cone = 2.5 * h;
-  return type == "cone" ? cone : cone / (2 * std::sqrt(3.0));
+  return type == FilterType::Cone ? cone : cone / (2 * std::sqrt(3.0));
 }
 
 std::string DesignField::filter_description() const {
   std::string s = filter_->describe();
   if (default_edge_ > 0) {
     char buf[160];
-    std::snprintf(
-        buf, sizeof buf, " (design.filter.radius not given: %s2.5 x the mean element edge %.3g m)",
-        spec_.filter_type == "cone" ? "" : "the cone-equivalent 2 sqrt(3) r = ", default_edge_);
+    std::snprintf(buf, sizeof buf,
+                  " (design.filter.radius not given: %s2.5 x the mean element edge %.3g m)",
+                  spec_.filter_type == FilterType::Cone ? "" : "the cone-equivalent 2 sqrt(3) r = ",
+                  default_edge_);
     s += buf;
   }
   return s;
@@ -224,7 +225,7 @@ void DesignField::stiffness_factors(std::vector<double> &s, std::vector<double> 
 }
 
 void DesignField::mass_factors(std::vector<double> &w, std::vector<double> &dw) const {
-  const bool pedersen = spec_.mass == "pedersen";
+  const bool pedersen = spec_.mass == MassInterpolation::Pedersen;
   // pedersen keeps a floor of 1e-3 min_stiffness (docs/theory.md 9.1): 10^5 rho^6 underflows
   // for the voids of a projected design (rho ~ 1e-5 gives 1e-25), and an ACF body's nodes in
   // a massless, nearly stiffless void take unbounded accelerations from round-off forces at

@@ -71,11 +71,12 @@ void set_move_box(Vec x, double move, Vec xmin, Vec xmax) {
 
 } // namespace
 
-OptimizationResult run_optimization(MPI_Comm comm, DesignProblem &design, const io::Case &c,
-                                    const std::string &out_dir, bool restart) {
+OptimizationResult run_optimization(MPI_Comm comm, DesignProblem &design,
+                                    const OptimizerSettings &c, const std::string &out_dir,
+                                    bool restart) {
   DesignProblem *problem = &design;
   const auto &names = problem->response_names();
-  const std::size_t m = c.constraints.size();
+  const std::size_t m = c.bounds.size();
   OptimizationResult result;
   result.dofs = problem->dofs();
   result.elements = problem->mesh().global_elements;
@@ -125,12 +126,14 @@ OptimizationResult run_optimization(MPI_Comm comm, DesignProblem &design, const 
       comm,
       "optimize: %lld design variables, %zu constraint(s), at most %d iterations, move limit %g, "
       "%s\n",
-      static_cast<long long>(problem->design_size()), m, c.optimizer.max_iterations,
-      c.optimizer.move_limit, problem->field().filter_description().c_str());
+      static_cast<long long>(problem->design_size()), m, c.max_iterations, c.move_limit,
+      problem->field().filter_description().c_str());
   print0(comm, "%5s %16s", "it", "objective");
   for (std::size_t i = 0; i < m; ++i)
     print0(comm, " %16s",
-           ("c" + std::to_string(i) + ":" + c.constraints[i].type).substr(0, 16).c_str());
+           ("c" + std::to_string(i) + ":" + names[i + 1].substr(names[i + 1].find(':') + 1))
+               .substr(0, 16)
+               .c_str());
   print0(comm, " %10s", "change");
   for (const std::string &l : split_labels) print0(comm, " %8s", l.substr(0, 8).c_str());
   print0(comm, " %8s\n", "s");
@@ -140,7 +143,7 @@ OptimizationResult run_optimization(MPI_Comm comm, DesignProblem &design, const 
                                         problem->design_tags().end());
   int first = 1;
   // Projection continuation: stage index into design.projection.beta and its first iteration.
-  const std::vector<double> &betas = c.design->beta;
+  const std::vector<double> &betas = problem->field().settings().beta;
   int stage = 0, stage_start = 1;
   std::vector<double> seconds_list, split_list; // per iteration; the split k x nsplit
   if (restart) {
@@ -205,7 +208,7 @@ OptimizationResult run_optimization(MPI_Comm comm, DesignProblem &design, const 
   }
 
   Evaluation e;
-  for (int k = first; k <= c.optimizer.max_iterations; ++k) {
+  for (int k = first; k <= c.max_iterations; ++k) {
     const double t0 = wall_time();
     if (!betas.empty()) problem->field().set_beta(betas[static_cast<std::size_t>(stage)]);
     problem->evaluate(x, true, e);
@@ -213,9 +216,7 @@ OptimizationResult run_optimization(MPI_Comm comm, DesignProblem &design, const 
       throw Error("optimize: iteration " + std::to_string(k) + ": the objective is not finite",
                   true);
     if (k == 1) objective_scale = std::abs(e.objective) > 0 ? 10.0 / std::abs(e.objective) : 1.0;
-    // design.xdmf: every iteration by default; output.every thins it in a static analysis only
-    // (in a dynamic one it counts the motion's time steps, docs/case-format.md "output").
-    const int stride = c.analysis == "dynamic" ? 1 : std::max(c.output.every, 1);
+    const int stride = std::max(c.output_every, 1);
     const bool write = (k - 1) % stride == 0;
     if (write) write_densities(writer, problem->field(), k - 1);
 
@@ -225,14 +226,14 @@ OptimizationResult run_optimization(MPI_Comm comm, DesignProblem &design, const 
     for (std::size_t i = 0; i < m; ++i) {
       // R <= max as g = R / max - 1 <= 0 for a positive bound; a bound <= 0 (a sensor
       // component that must stay negative) as g = (R - max) / |max| (or R when max = 0).
-      const double bound = c.constraints[i].max;
+      const double bound = c.bounds[i];
       const double scale = bound > 0 ? bound : bound < 0 ? -bound : 1.0;
       g[i] = bound > 0 ? e.constraints[i] / bound - 1.0 : (e.constraints[i] - bound) / scale;
       FX_PETSC(VecCopy(e.d_constraints[i], dg[i]));
       FX_PETSC(VecScale(dg[i], 1.0 / scale));
     }
     FX_PETSC(VecCopy(x, xold));
-    set_move_box(x, c.optimizer.move_limit, xmin, xmax);
+    set_move_box(x, c.move_limit, xmin, xmax);
     mma->update(x, xmin, xmax, e.objective * objective_scale, df0, g, dg);
     const double change = max_abs_change(x, xold);
     const double seconds = wall_time() - t0;
@@ -283,8 +284,8 @@ OptimizationResult run_optimization(MPI_Comm comm, DesignProblem &design, const 
     // Advance the projection continuation: after `every` iterations at this beta, or when
     // the design has settled at it.
     const bool last_stage = betas.empty() || stage + 1 == static_cast<int>(betas.size());
-    const bool settled = change < c.optimizer.tolerance;
-    if (!last_stage && (settled || k - stage_start + 1 >= c.design->beta_every)) {
+    const bool settled = change < c.tolerance;
+    if (!last_stage && (settled || k - stage_start + 1 >= problem->field().settings().beta_every)) {
       ++stage;
       stage_start = k + 1;
       print0(comm, "optimize: projection beta -> %g from iteration %d\n",
@@ -300,10 +301,10 @@ OptimizationResult run_optimization(MPI_Comm comm, DesignProblem &design, const 
     for (const auto &row : result.constraints) flat.insert(flat.end(), row.begin(), row.end());
     rd.arrays["constraints"] = flat;
     io::write_restart(comm, restart_path, rd);
-    if (change < c.optimizer.tolerance && last_stage) {
+    if (change < c.tolerance && last_stage) {
       result.converged = true;
       result.stop_reason = "max design change " + std::to_string(change) + " < tolerance " +
-                           std::to_string(c.optimizer.tolerance);
+                           std::to_string(c.tolerance);
       break;
     }
   }

@@ -25,12 +25,7 @@ std::optional<bool> warm_start_option() {
 }
 } // namespace
 
-std::unique_ptr<TopologyProblem> TopologyProblem::create(MPI_Comm comm, const io::Case &c) {
-  if (!c.design || !c.objective)
-    throw Error(c.file + ": topology optimization needs design: and objective: sections", true);
-  if (c.analysis != "static")
-    throw Error(c.file + ": topology optimization is available for analysis: static only (so far)",
-                true);
+std::unique_ptr<TopologyProblem> TopologyProblem::create(MPI_Comm comm, const TopologySettings &c) {
   // Multigrid smoothing that survives the 1e-9 stiffness contrast of void elements: GAMG's
   // default smoothed-aggregation eigenvalue estimate makes Chebyshev smoothing indefinite
   // after the first design update (DIVERGED_INDEFINITE_PC); a 10-step CG (Lanczos) estimate
@@ -40,30 +35,24 @@ std::unique_ptr<TopologyProblem> TopologyProblem::create(MPI_Comm comm, const io
   // the case's solver string and the command line take precedence.
   insert_default_petsc_options(kTopologySolverDefaults, "topology optimization solver defaults");
   std::unique_ptr<TopologyProblem> p(new TopologyProblem());
-  p->case_ = c;
-  p->static_ = fem::StaticProblem::create(comm, io::static_settings(c));
+  p->responses_.push_back(c.objective);
+  p->responses_.insert(p->responses_.end(), c.constraints.begin(), c.constraints.end());
+  p->static_ = fem::StaticProblem::create(comm, c.problem);
   // Each design's solve starts from the last design's displacement (and adjoint): the
   // reference code does the same; late in a run it halves the Krylov iterations
   // (docs/solvers.md). -fx_warm_start 0 starts every solve from zero.
   p->static_->set_warm_start(warm_start_option().value_or(true));
   const mesh::DistributedMesh &m = p->static_->mesh();
-  const io::DesignSpec &d = *c.design;
-
-  p->field_ = std::make_unique<DesignField>(m, d);
-
-  p->names_.push_back("objective:" + c.objective->type);
-  for (std::size_t i = 0; i < c.constraints.size(); ++i)
-    p->names_.push_back("constraint" + std::to_string(i) + ":" + c.constraints[i].type);
-  auto locate = [&](const io::ResponseSpec &r) {
+  p->field_ = std::make_unique<DesignField>(m, c.design);
+  for (std::size_t i = 0; i < p->responses_.size(); ++i) {
+    const ResponseSettings &r = p->responses_[i];
+    p->names_.push_back((i == 0 ? std::string("objective") : "constraint" + std::to_string(i - 1)) +
+                        ":" + response_type_name(r.type));
     fem::PointLocation loc;
-    if (r.type == "displacement")
-      for (const auto &s : c.sensors)
-        if (s.name == r.sensor)
-          loc = fem::locate(m, s.point, s.where.str() + ": sensor '" + s.name + "'");
-    return loc;
-  };
-  p->sensor_locations_.push_back(locate(*c.objective));
-  for (const auto &r : c.constraints) p->sensor_locations_.push_back(locate(r));
+    if (r.type == ResponseType::Displacement)
+      loc = fem::locate(m, r.point, r.point_where.str() + ": sensor '" + r.sensor + "'");
+    p->sensor_locations_.push_back(loc);
+  }
 
   p->grad_physical_ = p->field_->filter().create_element_vector();
   p->adjoint_ = fem::create_ghosted_vector(m);
@@ -105,9 +94,9 @@ void TopologyProblem::describe(io::Json &s) const {
   s["krylov_iterations"] = krylov_;
 }
 
-double TopologyProblem::response_value(const io::ResponseSpec &r, std::size_t index) {
-  if (r.type == "compliance") return static_->compliance();
-  if (r.type == "volume_fraction") return field_->volume_fraction();
+double TopologyProblem::response_value(const ResponseSettings &r, std::size_t index) {
+  if (r.type == ResponseType::Compliance) return static_->compliance();
+  if (r.type == ResponseType::VolumeFraction) return field_->volume_fraction();
   // displacement: d . u(sensor point), at the location found once in create()
   const auto u = fem::probe_vector(mesh(), static_->displacement(), sensor_locations_[index]);
   return u[0] * r.direction[0] + u[1] * r.direction[1] + u[2] * r.direction[2];
@@ -134,11 +123,11 @@ const std::vector<double> &TopologyProblem::element_ku() {
   return element_ku_;
 }
 
-void TopologyProblem::response_gradient(const io::ResponseSpec &r, std::size_t index, Vec g) {
+void TopologyProblem::response_gradient(const ResponseSettings &r, std::size_t index, Vec g) {
   LogScope log("FxSensitivities");
   const mesh::DistributedMesh &m = mesh();
   PetscScalar *ga;
-  if (r.type == "volume_fraction") {
+  if (r.type == ResponseType::VolumeFraction) {
     field_->volume_fraction_gradient(g);
     return;
   }
@@ -148,7 +137,7 @@ void TopologyProblem::response_gradient(const io::ResponseSpec &r, std::size_t i
   // dR/dw_e = lambda_e . f_e, twice for the compliance f . u (its explicit f; docs/theory.md
   // section 5).
   Vec lambda = static_->displacement();
-  if (r.type == "displacement") {
+  if (r.type == ResponseType::Displacement) {
     FX_PETSC(VecZeroEntries(adjoint_rhs_));
     fem::add_point_functional(m, sensor_locations_[index], r.direction, adjoint_rhs_);
     static_->solve_adjoint(adjoint_rhs_, adjoint_);
@@ -163,7 +152,7 @@ void TopologyProblem::response_gradient(const io::ResponseSpec &r, std::size_t i
   FX_PETSC(VecGetArrayRead(ll, &l));
   FX_PETSC(VecGetArray(g, &ga));
   const bool body = static_->has_body_load();
-  const double load_weight = r.type == "compliance" ? 2.0 : 1.0;
+  const double load_weight = r.type == ResponseType::Compliance ? 2.0 : 1.0;
   for (PetscInt e = 0; e < m.local_elements(); ++e) {
     const double ds = dfactor_[static_cast<std::size_t>(e)];
     const double dw = body ? dmass_[static_cast<std::size_t>(e)] : 0.0;
@@ -206,22 +195,19 @@ void TopologyProblem::evaluate(Vec x, bool gradients, Evaluation &out) {
   solve_s_ = wall_time() - t_solve;
   adjoint_s_ = 0;
 
-  std::vector<const io::ResponseSpec *> specs{&*case_.objective};
-  for (const auto &r : case_.constraints) specs.push_back(&r);
-  out.constraints.assign(case_.constraints.size(), 0.0);
-  for (std::size_t i = 0; i < specs.size(); ++i) {
-    const double v = response_value(*specs[i], i);
-    out.value(i) = v;
-  }
+  const std::size_t constraints = responses_.size() - 1;
+  out.constraints.assign(constraints, 0.0);
+  for (std::size_t i = 0; i < responses_.size(); ++i)
+    out.value(i) = response_value(responses_[i], i);
   if (!gradients) return;
   if (!out.d_objective) {
     out.d_objective = create_design_vector();
-    for (std::size_t i = 0; i < case_.constraints.size(); ++i)
+    for (std::size_t i = 0; i < constraints; ++i)
       out.d_constraints.push_back(create_design_vector());
   }
-  for (std::size_t i = 0; i < specs.size(); ++i) {
+  for (std::size_t i = 0; i < responses_.size(); ++i) {
     const double t_adjoint = wall_time();
-    response_gradient(*specs[i], i, grad_physical_); // d/d(physical density)
+    response_gradient(responses_[i], i, grad_physical_); // d/d(physical density)
     adjoint_s_ += wall_time() - t_adjoint;
     field_->pull_back(grad_physical_, out.gradient(i));
   }

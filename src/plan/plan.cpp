@@ -560,14 +560,15 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
     };
     std::string acf_blocker;
     {
-      std::vector<const io::ResponseSpec *> responses;
+      std::vector<const optimize::ResponseSettings *> responses;
       if (c.objective) responses.push_back(&*c.objective);
-      for (const io::ResponseSpec &r : c.constraints) responses.push_back(&r);
-      for (const io::ResponseSpec *r : responses)
+      for (const optimize::ResponseSettings &r : c.constraints) responses.push_back(&r);
+      for (const optimize::ResponseSettings *r : responses)
         for (const io::SensorSpec &sensor : c.sensors)
           if (!r->sensor.empty() && sensor.name == r->sensor && sensor.body == bp.body &&
               sensor.quantity == "elastic_displacement" && acf_blocker.empty())
-            acf_blocker = "the " + r->type + " response uses sensor '" + sensor.name +
+            acf_blocker = std::string("the ") + optimize::response_type_name(r->type) +
+                          " response uses sensor '" + sensor.name +
                           "', this body's elastic displacement";
     }
     bp.modes = chosen;

@@ -30,8 +30,8 @@ struct FilterCase {
   const char *geometry;
   double size;
   int order;
-  const char *type; ///< helmholtz | cone
-  double radius;    ///< r (helmholtz) or R (cone)
+  optimize::FilterType type;
+  double radius; ///< r (helmholtz) or R (cone)
   const char *name;
 };
 
@@ -95,12 +95,13 @@ TEST_P(Filter, TransposeIsExact) {
 // Cone radius R = 2 sqrt(3) r: the weights' variance matches the Helmholtz filter's.
 INSTANTIATE_TEST_SUITE_P(
     Meshes, Filter,
-    ::testing::Values(FilterCase{"beam.geo", 0.02, 1, "helmholtz", 0.03, "HelmholtzTet4"},
-                      FilterCase{"beam.geo", 0.03, 2, "helmholtz", 0.03, "HelmholtzTet10"},
-                      FilterCase{"beam_hex.geo", 0.0, 1, "helmholtz", 0.03, "HelmholtzHex8"},
-                      FilterCase{"beam.geo", 0.02, 1, "cone", 0.104, "ConeTet4"},
-                      FilterCase{"beam.geo", 0.03, 2, "cone", 0.104, "ConeTet10"},
-                      FilterCase{"beam_hex.geo", 0.0, 1, "cone", 0.104, "ConeHex8"}),
+    ::testing::Values(
+        FilterCase{"beam.geo", 0.02, 1, optimize::FilterType::Helmholtz, 0.03, "HelmholtzTet4"},
+        FilterCase{"beam.geo", 0.03, 2, optimize::FilterType::Helmholtz, 0.03, "HelmholtzTet10"},
+        FilterCase{"beam_hex.geo", 0.0, 1, optimize::FilterType::Helmholtz, 0.03, "HelmholtzHex8"},
+        FilterCase{"beam.geo", 0.02, 1, optimize::FilterType::Cone, 0.104, "ConeTet4"},
+        FilterCase{"beam.geo", 0.03, 2, optimize::FilterType::Cone, 0.104, "ConeTet10"},
+        FilterCase{"beam_hex.geo", 0.0, 1, optimize::FilterType::Cone, 0.104, "ConeHex8"}),
     [](const auto &info) { return std::string(info.param.name); });
 
 // rho = cos(k x) along the beam (k = 4 pi / L, zero normal derivative at both ends) solves
@@ -211,15 +212,16 @@ TEST(DefaultFilterRadius, IsTwoAndAHalfMeanEdgesOfTheDesignElements) {
   for (PetscInt e = 0; e < m.local_elements(); ++e) all[static_cast<std::size_t>(e)] = e;
   const double h = (1.0 / 40 + 0.05 / 4 + 0.1 / 6) / 3;
   double edge = 0;
-  const double cone = optimize::DesignField::default_filter_radius(m, all, "cone", &edge);
+  const double cone =
+      optimize::DesignField::default_filter_radius(m, all, optimize::FilterType::Cone, &edge);
   EXPECT_NEAR(edge, h, 1e-14);
   EXPECT_NEAR(cone, 2.5 * h, 1e-14);
-  EXPECT_NEAR(optimize::DesignField::default_filter_radius(m, all, "helmholtz"),
+  EXPECT_NEAR(optimize::DesignField::default_filter_radius(m, all, optimize::FilterType::Helmholtz),
               2.5 * h / (2 * std::sqrt(3.0)), 1e-14);
 
-  io::DesignSpec spec;
+  optimize::DesignSettings spec;
   spec.region = "beam";
-  spec.filter_type = "cone";
+  spec.filter_type = optimize::FilterType::Cone;
   optimize::DesignField field(m, spec);
   const std::string text = field.filter_description();
   char expect[64];

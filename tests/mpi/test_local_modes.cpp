@@ -10,7 +10,6 @@
 // modes of the solid half alone, with no mesh difference. The fixed-interface modes come from the
 // FFRF reduction the dynamic optimization uses (reduce_flexible_body with element factors).
 #include "flexopt/fem/assembly.hpp"
-#include "flexopt/io/case.hpp"
 #include "flexopt/optimize/design_field.hpp"
 #include "flexopt/reduce/flexible_reduction.hpp"
 #include "flexopt/reduce/modal.hpp"
@@ -35,10 +34,11 @@ struct HalfVoid {
 /// the pedersen stiffness with the void's mass 0).
 HalfVoid half_void_modes(const mesh::DistributedMesh &m, const std::string &mass, double rho_void,
                          int count) {
-  io::DesignSpec spec;
+  optimize::DesignSettings spec;
   spec.region = "beam";
-  spec.mass = mass == "massless" ? "linear" : mass;
-  spec.filter_type = "cone";
+  spec.mass = mass == "pedersen" ? optimize::MassInterpolation::Pedersen
+                                 : optimize::MassInterpolation::Linear;
+  spec.filter_type = optimize::FilterType::Cone;
   spec.filter_radius = 1e-6; // below the element spacing: no filtering
   optimize::DesignField field(m, spec);
   Vec x = field.create_design_vector();

@@ -11,6 +11,7 @@
 namespace fs = std::filesystem;
 using flexopt::Error;
 using flexopt::io::load_case;
+namespace optimize = flexopt::optimize;
 
 namespace {
 
@@ -181,7 +182,7 @@ TEST_F(CaseFiles, DesignSectionParses) {
   EXPECT_DOUBLE_EQ(c.design->filter_radius, 0.02);
   EXPECT_DOUBLE_EQ(c.design->penalty, 3.0);
   ASSERT_TRUE(c.objective.has_value());
-  EXPECT_EQ(c.objective->type, "compliance");
+  EXPECT_EQ(c.objective->type, optimize::ResponseType::Compliance);
   ASSERT_EQ(c.constraints.size(), 2u);
   EXPECT_DOUBLE_EQ(c.constraints[0].max, 0.3);
   EXPECT_DOUBLE_EQ(c.constraints[1].direction[1], -1.0); // normalized
@@ -902,17 +903,17 @@ adjoint: {checkpoints: 32, storage: disk}
 )yaml");
   const auto c = load_case(dir_.string());
   ASSERT_TRUE(c.objective);
-  EXPECT_EQ(c.objective->type, "tracking_error");
+  EXPECT_EQ(c.objective->type, optimize::ResponseType::TrackingError);
   EXPECT_EQ(c.objective->target[0], "cos(t)");
   EXPECT_EQ(c.objective->target[2], "2*t");
   ASSERT_EQ(c.constraints.size(), 5u);
   EXPECT_EQ(c.constraints[0].component, 1);
-  EXPECT_EQ(c.constraints[0].measure, "ks_max");
+  EXPECT_EQ(c.constraints[0].measure, optimize::SensorMeasure::KsMax);
   EXPECT_EQ(c.constraints[0].ks, 30);
   EXPECT_EQ(c.constraints[1].component, 2);
   EXPECT_EQ(c.constraints[1].max, -0.5);
   EXPECT_EQ(c.constraints[2].body, "rod");
-  EXPECT_EQ(c.constraints[3].type, "mass");
+  EXPECT_EQ(c.constraints[3].type, optimize::ResponseType::Mass);
   EXPECT_EQ(c.adjoint.checkpoints, 32);
   EXPECT_EQ(c.adjoint.storage, "disk");
   write(std::string(kDynamic) +

@@ -61,7 +61,8 @@ struct SampledResponse {
 /// Psi and dPsi/dy_n of a tracking_error or sensor response from the samples y (one per main
 /// step n = 0 ... N at t_n = n h). Throws a collective flexopt::Error naming the response if a
 /// target is not finite.
-SampledResponse sampled_response(const io::ResponseSpec &r, const std::vector<Vec3> &y, double h);
+SampledResponse sampled_response(const optimize::ResponseSettings &r, const std::vector<Vec3> &y,
+                                 double h);
 
 /// dy/dq of a sensor of a rigid or FFRF body of the scene's mechanism at q (3 x n, the body's
 /// columns only; position and displacement: the anchor Jacobian, elastic displacement: S).
@@ -220,7 +221,7 @@ private:
   /// from the design field).
   std::vector<std::vector<double>> element_gradient_;
   bodies::MassParameters theta_ = bodies::MassParameters::Zero();
-  std::vector<const io::ResponseSpec *> specs_;
+  std::vector<const optimize::ResponseSettings *> specs_;
   std::vector<int> sensor_of_; ///< per response: index in scene_.sensors (-1: none)
   std::vector<std::string> names_;
   dynamics::AlphaParameters par_;

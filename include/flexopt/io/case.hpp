@@ -7,6 +7,10 @@
 #include "flexopt/fem/static_problem.hpp"
 #include "flexopt/io/location.hpp"
 #include "flexopt/mesh/load.hpp"
+#include "flexopt/optimize/design_field.hpp"
+#include "flexopt/optimize/optimizer.hpp"
+#include "flexopt/optimize/response.hpp"
+#include "flexopt/optimize/topology_problem.hpp"
 
 #include <array>
 #include <cstdint>
@@ -168,57 +172,12 @@ struct SensorSpec {
   Location where;
 };
 
-/// The design field of a topology optimization (`design:`).
-struct DesignSpec {
-  std::string body;
-  std::string region = "design"; ///< physical volume holding the design elements
-  double initial = 0.5;          ///< initial density of every design element
-  double penalty = 3.0;          ///< SIMP exponent p
-  double min_stiffness = 1e-9;   ///< E_min / E_0
-  /// Mass interpolation (dynamic analyses; static body forces): linear | pedersen; default
-  /// pedersen for an FFRF or ACF design body and for a static design under gravity or
-  /// loads.inertia, linear otherwise.
-  std::string mass = "linear";
-  std::string filter_type = "helmholtz"; ///< helmholtz | cone
-  double filter_radius = 0; ///< Helmholtz length scale r, or cone radius R [m]; 0: not given
-                            ///< (DesignField derives it from the design elements' size)
-  std::vector<double> beta; ///< Heaviside projection continuation (empty: no projection)
-  double eta = 0.5;         ///< projection threshold
-  int beta_every = 25;      ///< iterations per beta value (continuation)
-  Location where;
-};
-
-/// A response (objective or constraint). Static: compliance | volume_fraction | displacement.
-/// Dynamic (docs/theory.md section 9.3): strain_energy_integral | tracking_error | sensor |
-/// volume_fraction | mass.
-struct ResponseSpec {
-  std::string type;
-  std::string sensor;                       ///< displacement, tracking_error, sensor: a sensor name
-  std::array<double, 3> direction{0, 0, 0}; ///< displacement: unit direction
-  std::string body;                         ///< strain_energy_integral, mass: a body name
-  /// tracking_error: the target position, each component a number or an expression in t
-  /// (compiled when read, so flexopt::Expression(target[k]) does not throw).
-  std::array<std::string, 3> target;
-  int component = 0;   ///< sensor: 0, 1, 2 (x, y, z)
-  std::string measure; ///< sensor: final | mean_square | ks_max
-  double ks = 50;      ///< sensor ks_max: the aggregation parameter k [1/unit of the sensor]
-  double max = 0;      ///< constraints: upper bound
-  bool has_max = false;
-  Location where;
-};
-
 /// `adjoint:` of a dynamic optimization (docs/theory.md section 9.4).
 struct AdjointSpec {
   int checkpoints = 0;            ///< stored states; 0: all (`checkpoints: all`)
   std::string storage = "memory"; ///< memory | disk (an HDF5 file in the output directory)
   std::string basis = "exact";    ///< FFRF design bodies: exact | fixed
   Location where;
-};
-
-struct OptimizerSpec {
-  int max_iterations = 100;
-  double move_limit = 0.2;
-  double tolerance = 1e-3; ///< stop when the max design change is below
 };
 
 struct Case {
@@ -238,10 +197,10 @@ struct Case {
   TimeSpec time;                           ///< dynamic
   std::string solver;                      ///< PETSc options applied before the command line's
   OutputSpec output;                       ///< `output:` (docs/case-format.md)
-  std::optional<DesignSpec> design;        ///< topology optimization: the design field
-  std::optional<ResponseSpec> objective;   ///< topology optimization: minimized
-  std::vector<ResponseSpec> constraints;   ///< topology optimization: each <= max
-  OptimizerSpec optimizer;
+  std::optional<optimize::DesignSettings> design;      ///< topology optimization: the design field
+  std::optional<optimize::ResponseSettings> objective; ///< topology optimization: minimized
+  std::vector<optimize::ResponseSettings> constraints; ///< topology optimization: each <= max
+  optimize::OptimizerSettings optimizer;
   AdjointSpec adjoint; ///< dynamic optimization: checkpointing of the backward sweep
   /// `accuracy`: the relative error of the sensors the user accepts; `model: auto` and
   /// `flexopt plan` choose each body's model for it (docs/theory.md section 12).
@@ -253,6 +212,9 @@ struct Case {
 
 /// The static problem of a static case: its one body's mesh and material, and the loads.
 fem::StaticSettings static_settings(const Case &c);
+/// The topology optimization of a static case. Throws a collective flexopt::Error naming the
+/// case file if it has no design: or objective:.
+optimize::TopologySettings topology_settings(const Case &c);
 
 /// Reads and validates `<directory>/case.yaml`. Throws flexopt::Error (collective: call on
 /// every rank) with `case.yaml:LINE:COL: message` for unknown keys, wrong types, missing

@@ -39,10 +39,13 @@ public:
   }
 };
 
-/// The filter named by `type` ("helmholtz" or "cone") with its length `radius` [m] (> 0): the
+/// The density filter: the Helmholtz PDE filter or the classical cone filter.
+enum class FilterType { Helmholtz, Cone };
+
+/// The filter of `type` with its length `radius` [m] (> 0): the
 /// Helmholtz length scale r, or the cone radius R (R = 2 sqrt(3) r gives the same variance of
 /// the weights). `mesh` must outlive the filter. Collective.
 std::unique_ptr<DensityFilter> create_density_filter(const mesh::DistributedMesh &mesh,
-                                                     const std::string &type, double radius);
+                                                     FilterType type, double radius);
 
 } // namespace flexopt::optimize

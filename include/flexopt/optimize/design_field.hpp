@@ -4,7 +4,7 @@
 /// region), the density filter and the Heaviside projection, and the pull-back of
 /// sensitivities through them (docs/theory.md sections 4 and 5). Shared by the static problem
 /// and the dynamic one (docs/theory.md section 9).
-#include "flexopt/io/case.hpp"
+#include "flexopt/io/location.hpp"
 #include "flexopt/mesh/distributed_mesh.hpp"
 #include "flexopt/optimize/density_filter.hpp"
 
@@ -15,12 +15,35 @@
 
 namespace flexopt::optimize {
 
+/// How an element's mass follows its density (section 9.1): linear, or Pedersen's (rho above
+/// 0.1, 1e5 rho^6 below, so that void elements carry no spurious mass modes).
+enum class MassInterpolation { Linear, Pedersen };
+
+/// The design field of a topology optimization (`design:`).
+struct DesignSettings {
+  std::string body;
+  std::string region = "design"; ///< physical volume holding the design elements
+  double initial = 0.5;          ///< initial density of every design element
+  double penalty = 3.0;          ///< SIMP exponent p
+  double min_stiffness = 1e-9;   ///< E_min / E_0
+  /// Mass interpolation (dynamic analyses; static body forces); default pedersen for an FFRF or
+  /// ACF design body and for a static design under gravity or loads.inertia, linear otherwise.
+  MassInterpolation mass = MassInterpolation::Linear;
+  FilterType filter_type = FilterType::Helmholtz;
+  double filter_radius = 0; ///< Helmholtz length scale r, or cone radius R [m]; 0: not given
+                            ///< (DesignField derives it from the design elements' size)
+  std::vector<double> beta; ///< Heaviside projection continuation (empty: no projection)
+  double eta = 0.5;         ///< projection threshold
+  int beta_every = 25;      ///< iterations per beta value (continuation)
+  io::Location where;
+};
+
 class DesignField {
 public:
   /// The design region `spec.region` of `mesh` (which must outlive the field), its filter and
   /// projection (sharpness spec.beta.front(), or none). Collective; throws a collective
   /// flexopt::Error naming design.region for a missing or empty region.
-  DesignField(const mesh::DistributedMesh &mesh, const io::DesignSpec &spec);
+  DesignField(const mesh::DistributedMesh &mesh, const DesignSettings &spec);
   ~DesignField();
   DesignField(const DesignField &) = delete;
   DesignField &operator=(const DesignField &) = delete;
@@ -57,6 +80,8 @@ public:
   /// Projection sharpness (0: none). Set by the optimizer's continuation.
   void set_beta(double beta) { beta_ = beta; }
   double beta() const { return beta_; }
+  /// The settings the field was made with (the filter radius filled in when it was derived).
+  const DesignSettings &settings() const { return spec_; }
   const DensityFilter &filter() const { return *filter_; }
   DensityFilter &filter() { return *filter_; }
   /// The filter's description, and where its radius came from when design.filter.radius was
@@ -65,8 +90,8 @@ public:
   /// The default filter radius: the cone radius R = 2.5 h of the mean edge length h of the
   /// design elements, or the Helmholtz r = R / (2 sqrt 3) of the same smoothing. Collective.
   static double default_filter_radius(const mesh::DistributedMesh &mesh,
-                                      const std::vector<PetscInt> &elements,
-                                      const std::string &type, double *mean_edge = nullptr);
+                                      const std::vector<PetscInt> &elements, FilterType type,
+                                      double *mean_edge = nullptr);
 
   const std::vector<double> &element_volumes() const { return volume_; }
   double design_volume() const { return design_volume_; }
@@ -89,7 +114,7 @@ public:
 
 private:
   const mesh::DistributedMesh &mesh_;
-  io::DesignSpec spec_;
+  DesignSettings spec_;
   double default_edge_ = 0; ///< mean edge length behind a default filter radius (0: given)
   std::unique_ptr<DensityFilter> filter_;
   std::vector<PetscInt> design_elements_;

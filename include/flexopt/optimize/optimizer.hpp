@@ -1,6 +1,5 @@
 #pragma once
 /// \file The optimization loop: MMA on the topology problem, with history and density output.
-#include "flexopt/io/case.hpp"
 #include "flexopt/optimize/design_problem.hpp"
 
 #include <mpi.h>
@@ -8,6 +7,16 @@
 #include <vector>
 
 namespace flexopt::optimize {
+
+/// The MMA loop's settings (`optimizer:`, the constraints' bounds, `output.every`).
+struct OptimizerSettings {
+  int max_iterations = 100;
+  double move_limit = 0.2;
+  double tolerance = 1e-3; ///< stop when the max design change is below
+  /// design.xdmf: the densities every this many iterations (and at the last)
+  int output_every = 1;
+  std::vector<double> bounds; ///< each constraint's upper bound, in the problem's order
+};
 
 struct OptimizationResult {
   int iterations = 0;
@@ -25,15 +34,16 @@ struct OptimizationResult {
   std::string output; ///< design.xdmf path
 };
 
-/// Runs the case's optimization problem (design:, objective:, constraints:, optimizer:) on
-/// `problem` (static or dynamic: the same loop for both),
-/// writing `out_dir`/history.csv and `out_dir`/design.xdmf (+ .h5: design and filtered
-/// densities every output.every iterations and at the last). Prints one line per
-/// iteration. Collective.
+/// Runs MMA on `problem` (static or dynamic: the same loop for both), with the projection
+/// continuation of its design field (DesignSettings::beta, beta_every), writing
+/// `out_dir`/history.csv and `out_dir`/design.xdmf (+ .h5: design and filtered densities every
+/// settings.output_every iterations and at the last). Prints one line per iteration.
+/// Collective.
 /// With `restart`, continues from `out_dir`/restart.h5 (written atomically after every
 /// iteration: design, MMA state, objective scale and history, keyed by element tag so that
 /// any number of ranks can resume); the iterates are those of an uninterrupted run.
-OptimizationResult run_optimization(MPI_Comm comm, DesignProblem &problem, const io::Case &c,
-                                    const std::string &out_dir, bool restart = false);
+OptimizationResult run_optimization(MPI_Comm comm, DesignProblem &problem,
+                                    const OptimizerSettings &settings, const std::string &out_dir,
+                                    bool restart = false);
 
 } // namespace flexopt::optimize

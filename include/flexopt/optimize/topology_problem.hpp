@@ -3,8 +3,9 @@
 /// responses, with adjoint gradients (docs/theory.md, section 5).
 #include "flexopt/fem/probe.hpp"
 #include "flexopt/fem/static_problem.hpp"
-#include "flexopt/io/case.hpp"
+#include "flexopt/optimize/design_field.hpp"
 #include "flexopt/optimize/design_problem.hpp"
+#include "flexopt/optimize/response.hpp"
 
 #include <memory>
 #include <string>
@@ -12,10 +13,18 @@
 
 namespace flexopt::optimize {
 
+/// A static topology optimization: the static problem, the design field and the responses.
+struct TopologySettings {
+  fem::StaticSettings problem;
+  DesignSettings design;
+  ResponseSettings objective;
+  std::vector<ResponseSettings> constraints;
+};
+
 class TopologyProblem : public DesignProblem {
 public:
   /// Sets up the body, its static problem, the design region and the filter. Collective.
-  static std::unique_ptr<TopologyProblem> create(MPI_Comm comm, const io::Case &c);
+  static std::unique_ptr<TopologyProblem> create(MPI_Comm comm, const TopologySettings &settings);
   ~TopologyProblem();
 
   /// Evaluates the objective and every constraint at x; with `gradients`, also their
@@ -42,7 +51,6 @@ public:
   DesignField &field() override { return *field_; }
   const DesignField &field() const override { return *field_; }
   const std::vector<std::string> &response_names() const override { return names_; }
-  const io::Case &case_spec() const { return case_; }
   const mesh::DistributedMesh &mesh() const override { return static_->mesh(); }
   fem::StaticProblem &static_problem() { return *static_; }
   int state_solves() const { return solves_; }
@@ -50,14 +58,14 @@ public:
 private:
   TopologyProblem() = default;
   /// Value of response `index` (0: objective, i: constraint i - 1).
-  double response_value(const io::ResponseSpec &r, std::size_t index);
+  double response_value(const ResponseSettings &r, std::size_t index);
   /// K_e^0 u_e of every local element, computed once per evaluation for all stiffness
   /// responses (their gradients are -ds_e lambda_e . K_e^0 u_e).
   const std::vector<double> &element_ku();
   /// d(response)/d(filtered density) of all local elements into g.
-  void response_gradient(const io::ResponseSpec &r, std::size_t index, Vec g);
+  void response_gradient(const ResponseSettings &r, std::size_t index, Vec g);
 
-  io::Case case_;
+  std::vector<ResponseSettings> responses_; ///< objective, then constraints
   std::unique_ptr<fem::StaticProblem> static_;
   std::unique_ptr<DesignField> field_;
   std::vector<std::string> names_;                   ///< objective, then constraints

@@ -1,0 +1,47 @@
+#pragma once
+/// \file The responses a design problem evaluates, as objective or constraint (`objective:`,
+/// `constraints:`; docs/case-format.md): what each names and bounds. Static: compliance,
+/// volume_fraction, displacement (docs/theory.md section 5). Dynamic (section 9.3):
+/// strain_energy_integral, tracking_error, sensor, volume_fraction, mass.
+#include "flexopt/io/location.hpp"
+
+#include <array>
+#include <string>
+
+namespace flexopt::optimize {
+
+enum class ResponseType {
+  Compliance,
+  VolumeFraction,
+  Displacement,
+  StrainEnergyIntegral,
+  TrackingError,
+  Sensor,
+  Mass
+};
+/// The case-file name: "compliance", "volume_fraction", ...
+const char *response_type_name(ResponseType type);
+
+/// How a `sensor` response reduces its samples over the run (section 9.3).
+enum class SensorMeasure { Final, MeanSquare, KsMax };
+
+struct ResponseSettings {
+  ResponseType type = ResponseType::Compliance;
+  std::string sensor;                       ///< displacement, tracking_error, sensor: a sensor name
+  std::array<double, 3> direction{0, 0, 0}; ///< displacement: unit direction
+  /// displacement (static): the sensor's point in body coordinates [m], and where it is given
+  std::array<double, 3> point{0, 0, 0};
+  io::Location point_where;
+  std::string body; ///< strain_energy_integral, mass: a body name
+  /// tracking_error: the target position, each component a number or an expression in t
+  /// (compiled when read, so flexopt::Expression(target[k]) does not throw).
+  std::array<std::string, 3> target;
+  int component = 0;                            ///< sensor: 0, 1, 2 (x, y, z)
+  SensorMeasure measure = SensorMeasure::Final; ///< sensor
+  double ks = 50; ///< sensor ks_max: the aggregation parameter k [1/unit of the sensor]
+  double max = 0; ///< constraints: upper bound
+  bool has_max = false;
+  io::Location where;
+};
+
+} // namespace flexopt::optimize
