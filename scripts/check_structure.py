@@ -55,7 +55,6 @@ from pathlib import Path
 LINE_LIMIT, FILE_LIMIT = 120, 900
 SPLIT, FIX = "issue 40: to be split along docs/theory.md", "issue 40: to be fixed"
 EXCEPTIONS = {  # "path:function" (function length) or "path" (file length): reason
-    "src/adjoint/dynamic_problem.cpp:create": SPLIT,
     "src/adjoint/dynamic_problem.cpp:initial_state_adjoint": SPLIT,
     "src/adjoint/dynamic_problem.cpp:add_ffrf_element_gradients": SPLIT,
     "src/adjoint/dynamic_problem_distributed.cpp:evaluate_distributed": SPLIT,
@@ -77,15 +76,6 @@ EXCEPTIONS = {  # "path:function" (function length) or "path" (file length): rea
     "src/io/case.cpp": SPLIT,
 }
 INCLUDE_EXCEPTIONS = {  # "path:included header": reason
-    "include/flexopt/adjoint/dynamic_problem.hpp:flexopt/io/case.hpp": FIX,
-    "include/flexopt/dynamics/scene.hpp:flexopt/io/case.hpp": FIX,
-    "include/flexopt/fem/static_problem.hpp:flexopt/io/case.hpp": FIX,
-    "include/flexopt/io/frame_schedule.hpp:flexopt/io/case.hpp": FIX,
-    "include/flexopt/mesh/load.hpp:flexopt/io/case.hpp": FIX,
-    "include/flexopt/optimize/design_field.hpp:flexopt/io/case.hpp": FIX,
-    "include/flexopt/optimize/optimizer.hpp:flexopt/io/case.hpp": FIX,
-    "include/flexopt/optimize/topology_problem.hpp:flexopt/io/case.hpp": FIX,
-    "include/flexopt/plan/plan.hpp:flexopt/io/case.hpp": FIX,
 }
 BROKEN_CITATIONS_ALLOWED = {  # "path:section": reason
 }

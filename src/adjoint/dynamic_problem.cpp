@@ -6,7 +6,6 @@
 #include "flexopt/core/log.hpp"
 #include "flexopt/dynamics/consistent_start.hpp"
 #include "flexopt/fem/probe.hpp"
-#include "forward_loop.hpp"
 
 #include <Eigen/LU>
 #include <algorithm>
@@ -329,7 +328,7 @@ Matrix sensor_jacobian(const dynamics::Scene &scene, const dynamics::BoundSensor
   const dynamics::Mechanism &mech = scene.mechanism;
   const int o = mech.offset(s.body), nb = mech.size(s.body);
   Matrix D = Matrix::Zero(3, mech.coordinates());
-  if (s.quantity == "elastic_displacement") {
+  if (s.quantity == dynamics::SensorQuantity::ElasticDisplacement) {
     if (nb > 7) D.block(0, o + 7, 3, nb - 7) = s.S;
     return D;
   }
@@ -342,7 +341,7 @@ namespace {
 /// A flexible design body's interfaces are tied rigidly by the joints: a design region that
 /// touches one is refused (`refuse`, optimize) or warned about (the derivatives of such a
 /// region are still right, and check-gradient and simulate take it).
-void check_interfaces(const optimize::DesignField &f, const io::BodySpec &body,
+void check_interfaces(const optimize::DesignField &f, const dynamics::BodyDescription &body,
                       const optimize::DesignSettings &d, bool refuse) {
   const optimize::DesignField::SurfaceContact c = f.touched_surface(body.interfaces);
   if (c.elements == 0) return;
@@ -364,9 +363,9 @@ void check_interfaces(const optimize::DesignField &f, const io::BodySpec &body,
 
 /// A mass bound on the design body that even an empty design region exceeds cannot hold: it is
 /// refused before any computation, with the mass of the material outside the region.
-void check_mass_bounds(const optimize::DesignField &f, const io::Case &c) {
-  const optimize::DesignSettings &d = *c.design;
-  const double density = c.body(d.body).material.density;
+void check_mass_bounds(const optimize::DesignField &f, const DynamicSettings &c) {
+  const optimize::DesignSettings &d = c.design;
+  const double density = c.scene.body(d.body).material.density;
   const std::vector<double> &volume = f.element_volumes();
   double mass[2] = {0, 0}; // outside the region, inside it
   for (PetscInt e = 0; e < f.mesh().local_elements(); ++e)
@@ -385,29 +384,24 @@ void check_mass_bounds(const optimize::DesignField &f, const io::Case &c) {
 
 } // namespace
 
-std::unique_ptr<DynamicProblem> DynamicProblem::create(MPI_Comm comm, const io::Case &c,
+std::unique_ptr<DynamicProblem> DynamicProblem::create(MPI_Comm comm, const DynamicSettings &c,
                                                        const std::string &scratch,
                                                        bool refuse_interfaces) {
-  if (!c.design || !c.objective)
-    throw Error(c.file + ": an optimization needs design: and objective: sections", true);
-  const optimize::DesignSettings &d = *c.design;
-  const io::BodySpec &body = c.body(d.body);
-  const std::string model = io::simulated_model(body.model);
-  if (model != "rigid" && model != "acf" && model != "ffrf")
-    throw Error(d.where.str() + ": design.body '" + d.body + "' is simulated as " + model +
-                    ": design sensitivities are built for rigid, FFRF and ACF bodies",
-                true);
-  if (model == "ffrf")
+  const optimize::DesignSettings &d = c.design;
+  const dynamics::BodyDescription &body = c.scene.body(d.body);
+  using dynamics::BodyModel;
+  const BodyModel model = dynamics::simulated_model(body.model);
+  if (model == BodyModel::Ffrf)
     // What the FFRF design body's adjoint does not differentiate yet: say so before computing.
-    for (const io::BodySpec &b : c.bodies)
-      if (io::simulated_model(b.model) == "acf")
+    for (const dynamics::BodyDescription &b : c.scene.bodies)
+      if (dynamics::simulated_model(b.model) == BodyModel::Acf)
         throw Error(d.where.str() + ": design.body '" + d.body +
                         "' is an FFRF body in a scene with ACF bodies (body '" + b.name +
                         "'), whose design sensitivities are not built yet (FFRF design bodies: "
                         "scenes of rigid and FFRF bodies)",
                     true);
   std::unique_ptr<DynamicProblem> p(new DynamicProblem());
-  p->case_ = c;
+  p->settings_ = c;
   p->scratch_ = scratch;
   // An FFRF design body is reduced once, with its first design (the reduction is reused by
   // the first evaluation at that design).
@@ -429,30 +423,29 @@ std::unique_ptr<DynamicProblem> DynamicProblem::create(MPI_Comm comm, const io::
                                           VecDestroy(&x);
                                           return first;
                                         }};
-  p->scene_ = dynamics::build_scene(comm, c, model == "ffrf" ? &initial : nullptr);
-  for (std::size_t b = 0; b < c.bodies.size(); ++b)
-    if (c.bodies[b].name == d.body) p->design_body_ = static_cast<int>(b);
+  p->scene_ = dynamics::build_scene(comm, c.scene, model == BodyModel::Ffrf ? &initial : nullptr);
+  for (std::size_t b = 0; b < c.scene.bodies.size(); ++b)
+    if (c.scene.bodies[b].name == d.body) p->design_body_ = static_cast<int>(b);
   const dynamics::SceneBody &dsb = p->scene_.bodies[static_cast<std::size_t>(p->design_body_)];
   p->mechanism_body_ = dsb.mechanism;
   p->acf_design_ = dsb.acf;
-  p->ffrf_design_ = model == "ffrf";
+  p->ffrf_design_ = model == BodyModel::Ffrf;
   if (p->ffrf_design_) {
     p->reduction_ = dsb.reduction;
     p->reduced_factors_ = first;
     p->reduction_s_ = p->scene_.reduction_seconds[static_cast<std::size_t>(p->design_body_)];
   }
-  p->basis_ =
-      c.adjoint.basis == "fixed" ? reduce::BasisDerivative::Fixed : reduce::BasisDerivative::Exact;
+  p->basis_ = c.adjoint.basis;
   const mesh::DistributedMesh &m = p->scene_.meshes[static_cast<std::size_t>(p->design_body_)];
   if (field && &field->mesh() != &m)
     throw Error("DynamicProblem: the design field's mesh is not the scene's", true);
   p->field_ = field ? std::move(field) : std::make_unique<optimize::DesignField>(m, d);
   // A flexible body's interfaces are tied rigidly (FFRF: checked before the reduction, above).
-  if (model == "acf") check_interfaces(*p->field_, body, d, refuse_interfaces);
-  if (model != "ffrf") check_mass_bounds(*p->field_, c);
+  if (model == BodyModel::Acf) check_interfaces(*p->field_, body, d, refuse_interfaces);
+  if (model != BodyModel::Ffrf) check_mass_bounds(*p->field_, c);
   p->grad_physical_ = p->field_->filter().create_element_vector();
 
-  if (model == "rigid") {
+  if (model == BodyModel::Rigid) {
     // The design body keeps its solid centre of mass as its reference point (section 9.1).
     const auto &solid =
         dynamic_cast<const bodies::RigidBody &>(p->scene_.mechanism.body(p->mechanism_body_));
@@ -464,54 +457,61 @@ std::unique_ptr<DynamicProblem> DynamicProblem::create(MPI_Comm comm, const io::
           bodies::element_mass_parameters(m.type, m.element_coordinates(e), density, p->reference_);
   }
 
-  p->specs_.push_back(&*p->case_.objective);
-  for (const auto &r : p->case_.constraints) p->specs_.push_back(&r);
-  p->names_.push_back(std::string("objective:") + optimize::response_type_name(c.objective->type));
-  for (std::size_t i = 0; i < c.constraints.size(); ++i)
-    p->names_.push_back("constraint" + std::to_string(i) + ":" +
-                        optimize::response_type_name(c.constraints[i].type));
-  for (const optimize::ResponseSettings *r : p->specs_) {
+  p->bind_responses(model);
+  p->integration_ = dynamics::IntegratorSettings::from(c.time);
+  p->steps_ = p->integration_.steps;
+  return p;
+}
+
+void DynamicProblem::bind_responses(dynamics::BodyModel model) {
+  using dynamics::BodyModel;
+  specs_.push_back(&settings_.objective);
+  for (const auto &r : settings_.constraints) specs_.push_back(&r);
+  names_.push_back(std::string("objective:") +
+                   optimize::response_type_name(settings_.objective.type));
+  for (std::size_t i = 0; i < settings_.constraints.size(); ++i)
+    names_.push_back("constraint" + std::to_string(i) + ":" +
+                     optimize::response_type_name(settings_.constraints[i].type));
+  for (const optimize::ResponseSettings *r : specs_) {
     int sensor = -1;
     if (!r->sensor.empty())
-      for (std::size_t k = 0; k < p->scene_.sensors.size(); ++k)
-        if (p->scene_.sensors[k].name == r->sensor) sensor = static_cast<int>(k);
-    p->sensor_of_.push_back(sensor);
-    p->sensor_frames_.emplace_back();
+      for (std::size_t k = 0; k < scene_.sensors.size(); ++k)
+        if (scene_.sensors[k].name == r->sensor) sensor = static_cast<int>(k);
+    sensor_of_.push_back(sensor);
+    sensor_frames_.emplace_back();
     bool on_design = false;
-    if (sensor >= 0 && p->ffrf_design_) {
-      const dynamics::BoundSensor &s = p->scene_.sensors[static_cast<std::size_t>(sensor)];
-      on_design = s.acf_body < 0 && s.body == p->mechanism_body_ && s.quantity != "rotation_angle";
+    if (sensor >= 0 && ffrf_design_) {
+      const dynamics::BoundSensor &s = scene_.sensors[static_cast<std::size_t>(sensor)];
+      on_design = s.acf_body < 0 && s.body == mechanism_body_ &&
+                  s.quantity != dynamics::SensorQuantity::RotationAngle;
     }
-    p->sensor_on_design_.push_back(on_design);
-    p->strain_body_.push_back(-1);
+    sensor_on_design_.push_back(on_design);
+    strain_body_.push_back(-1);
     if (r->type == optimize::ResponseType::StrainEnergyIntegral) {
-      const std::string bm = io::simulated_model(c.body(r->body).model);
-      if (bm == "rigid")
+      const BodyModel bm = dynamics::simulated_model(settings_.scene.body(r->body).model);
+      if (bm == BodyModel::Rigid)
         throw Error(r->where.str() + ": strain_energy_integral of body '" + r->body +
                         "': a rigid body has no strain energy (ACF and FFRF bodies have)",
                     true);
-      if (bm == "ffrf" && !p->scene_.acf.empty())
+      if (bm == BodyModel::Ffrf && !scene_.acf.empty())
         throw Error(r->where.str() + ": strain_energy_integral of FFRF body '" + r->body +
                         "' in a scene with ACF bodies is not built yet (ACF bodies' strain "
                         "energy is, and FFRF bodies' in scenes without ACF bodies)",
                     true);
-      if (bm == "ffrf")
-        for (std::size_t b = 0; b < c.bodies.size(); ++b)
-          if (c.bodies[b].name == r->body) p->strain_body_.back() = p->scene_.bodies[b].mechanism;
+      if (bm == BodyModel::Ffrf)
+        for (std::size_t b = 0; b < settings_.scene.bodies.size(); ++b)
+          if (settings_.scene.bodies[b].name == r->body)
+            strain_body_.back() = scene_.bodies[b].mechanism;
     }
-    if (sensor >= 0 && model == "acf") {
-      const dynamics::BoundSensor &s = p->scene_.sensors[static_cast<std::size_t>(sensor)];
-      if (s.acf_body >= 0 && s.quantity == "elastic_displacement")
+    if (sensor >= 0 && model == BodyModel::Acf) {
+      const dynamics::BoundSensor &s = scene_.sensors[static_cast<std::size_t>(sensor)];
+      if (s.acf_body >= 0 && s.quantity == dynamics::SensorQuantity::ElasticDisplacement)
         throw Error(r->where.str() + ": sensor '" + s.name +
                         "' measures the elastic displacement of an ACF body, which a response "
                         "cannot use yet (position, displacement)",
                     true);
     }
   }
-  p->par_ = dynamics::AlphaParameters::from_rho_inf(c.time.rho_inf);
-  p->newton_.reuse_contraction = c.time.newton_reuse;
-  p->steps_ = std::llround(c.time.end / c.time.step);
-  return p;
 }
 
 DynamicProblem::~DynamicProblem() {
@@ -609,9 +609,9 @@ double DynamicProblem::response_value(std::size_t i) const {
   const optimize::ResponseSettings &r = *specs_[i];
   if (r.type == optimize::ResponseType::VolumeFraction) return field_->volume_fraction();
   if (r.type == optimize::ResponseType::Mass) {
-    if (r.body == case_.design->body && acf_design_ < 0 && !ffrf_design_) return theta_(0);
-    for (std::size_t b = 0; b < case_.bodies.size(); ++b)
-      if (case_.bodies[b].name == r.body) {
+    if (r.body == settings_.design.body && acf_design_ < 0 && !ffrf_design_) return theta_(0);
+    for (std::size_t b = 0; b < settings_.scene.bodies.size(); ++b)
+      if (settings_.scene.bodies[b].name == r.body) {
         const dynamics::SceneBody &sb = scene_.bodies[b];
         if (sb.acf >= 0) return scene_.acf[static_cast<std::size_t>(sb.acf)]->total_mass();
         return scene_.mechanism.body(sb.mechanism).mass();
@@ -635,8 +635,9 @@ void DynamicProblem::apply_design(Vec x) {
     if (any) {
       const double t0 = wall_time();
       reduced_factors_ = reduce::ElementFactors{s_, w_};
-      reduction_ = dynamics::set_ffrf_design(
-          mesh().comm, case_, scene_, static_cast<std::size_t>(design_body_), reduced_factors_);
+      reduction_ =
+          dynamics::set_ffrf_design(mesh().comm, settings_.scene, scene_,
+                                    static_cast<std::size_t>(design_body_), reduced_factors_);
       reduction_s_ = wall_time() - t0;
       last_.reduction = reduction_s_;
     }
@@ -662,7 +663,7 @@ void DynamicProblem::evaluate(Vec x, bool gradients, optimize::Evaluation &out) 
   last_.adjoint = adjoint_s_;
   if (!out.d_objective) {
     out.d_objective = create_design_vector();
-    for (std::size_t i = 0; i < case_.constraints.size(); ++i)
+    for (std::size_t i = 0; i < settings_.constraints.size(); ++i)
       out.d_constraints.push_back(create_design_vector());
   }
   for (std::size_t i = 0; i < nr; ++i) {
@@ -702,10 +703,10 @@ void DynamicProblem::set_rigid_design() {
   for (PetscInt e = 0; e < m.local_elements(); ++e)
     local += w_[static_cast<std::size_t>(e)] * element_theta_[static_cast<std::size_t>(e)];
   MPI_Allreduce(local.data(), theta_.data(), 10, MPI_DOUBLE, MPI_SUM, m.comm);
-  dynamics::set_body_model(
-      m.comm, case_, scene_, static_cast<std::size_t>(design_body_),
-      std::make_shared<bodies::RigidBody>(case_.bodies[static_cast<std::size_t>(design_body_)].name,
-                                          bodies::from_parameters(theta_, reference_)));
+  dynamics::set_body_model(m.comm, settings_.scene, scene_, static_cast<std::size_t>(design_body_),
+                           std::make_shared<bodies::RigidBody>(
+                               settings_.scene.bodies[static_cast<std::size_t>(design_body_)].name,
+                               bodies::from_parameters(theta_, reference_)));
 }
 
 void DynamicProblem::add_rigid_element_gradients(const Matrix &G) {
@@ -714,7 +715,7 @@ void DynamicProblem::add_rigid_element_gradients(const Matrix &G) {
   for (std::size_t i = 0; i < specs_.size(); ++i) {
     const optimize::ResponseSettings &r = *specs_[i];
     Vector g = G.col(static_cast<Eigen::Index>(i));
-    if (r.type == optimize::ResponseType::Mass && r.body == case_.design->body) g(0) += 1;
+    if (r.type == optimize::ResponseType::Mass && r.body == settings_.design.body) g(0) += 1;
     for (PetscInt e = 0; e < ne; ++e)
       element_gradient_[i][static_cast<std::size_t>(e)] +=
           dw_[static_cast<std::size_t>(e)] * g.dot(element_theta_[static_cast<std::size_t>(e)]);
@@ -727,7 +728,8 @@ void DynamicProblem::evaluate_rigid(bool gradients, optimize::Evaluation &out) {
   // Forward run (section 9.4): the records the backward sweep needs go to the store, all of
   // them or those of the binomial schedule's first descent; every main step's sensor samples.
   const double t_forward = wall_time();
-  const dynamics::GeneralizedAlpha ga(mech, par_, newton_);
+  const dynamics::Integrator integrator(scene_, integration_);
+  const dynamics::GeneralizedAlpha &ga = integrator.dense();
   dynamics::StartTrace trace; // what the start did to the velocities (section 9.2)
   StepRecord record{ga.initial_state(scene_.q0, scene_.v0, 0.0, nullptr, &trace), {}};
   const dynamics::State s0 = record.state;
@@ -736,7 +738,8 @@ void DynamicProblem::evaluate_rigid(bool gradients, optimize::Evaluation &out) {
   std::unique_ptr<CheckpointStore> store;
   if (gradients) {
     keep = plan_checkpoints(schedule);
-    store = case_.adjoint.storage == "disk" ? disk_store(checkpoint_file()) : memory_store();
+    store = settings_.adjoint.storage == CheckpointStorage::Disk ? disk_store(checkpoint_file())
+                                                                 : memory_store();
     store->put(0, record);
   }
   const std::size_t nr = specs_.size();
@@ -766,7 +769,7 @@ void DynamicProblem::evaluate_rigid(bool gradients, optimize::Evaluation &out) {
       const dynamics::BoundSensor &bs = scene_.sensors[static_cast<std::size_t>(sensor_of_[i])];
       samples_[i].push_back(dynamics::sensor_value(scene_, bs, s.q));
       if (sensor_on_design_[i])
-        sensor_frames_[i].emplace_back(bs.quantity == "elastic_displacement"
+        sensor_frames_[i].emplace_back(bs.quantity == dynamics::SensorQuantity::ElasticDisplacement
                                            ? bodies::Mat3::Identity()
                                            : bodies::rotation(s.q.segment<4>(od + 3)),
                                        s.q.segment(od + 7, nd - 7));
@@ -774,13 +777,13 @@ void DynamicProblem::evaluate_rigid(bool gradients, optimize::Evaluation &out) {
   };
   sample(record.state);
   if (observer_) observer_(0, dynamics::StepInfo{}, &record.state, nullptr);
-  const double h = case_.time.step;
-  detail::forward_loop(ga, steps_, h, record, substep_sizes_,
-                       [&](long long j, const dynamics::StepInfo &info) {
-                         sample(record.state);
-                         if (gradients && keep[static_cast<std::size_t>(j)]) store->put(j, record);
-                         if (observer_) observer_(j, info, &record.state, nullptr);
-                       });
+  const double h = settings_.time.step;
+  dynamics::run_steps(ga, steps_, h, record, &substep_sizes_,
+                      [&](long long j, const dynamics::StepInfo &info) {
+                        sample(record.state);
+                        if (gradients && keep[static_cast<std::size_t>(j)]) store->put(j, record);
+                        if (observer_) observer_(j, info, &record.state, nullptr);
+                      });
   // The responses on the time grid.
   sampled_.assign(nr, SampledResponse{});
   for (std::size_t i = 0; i < nr; ++i) {
@@ -834,7 +837,8 @@ void DynamicProblem::evaluate_rigid(bool gradients, optimize::Evaluation &out) {
 }
 
 void DynamicProblem::add_ffrf_element_gradients(const Matrix &G, const StartAdjoint &start) {
-  const io::BodySpec &spec = case_.bodies[static_cast<std::size_t>(design_body_)];
+  const dynamics::BodyDescription &spec =
+      settings_.scene.bodies[static_cast<std::size_t>(design_body_)];
   const auto &body = dynamic_cast<const bodies::FfrfBody &>(scene_.mechanism.body(mechanism_body_));
   const int n = body.coordinates() - 7;
   const mesh::DistributedMesh &m = mesh();
@@ -847,7 +851,7 @@ void DynamicProblem::add_ffrf_element_gradients(const Matrix &G, const StartAdjo
     const optimize::ResponseSettings &r = *specs_[i];
     bodies::FfrfModel bar = unpack(G.col(static_cast<Eigen::Index>(i)), n, body.stiffening());
     bool used = !G.col(static_cast<Eigen::Index>(i)).isZero(0);
-    if (r.type == optimize::ResponseType::Mass && r.body == case_.design->body) {
+    if (r.type == optimize::ResponseType::Mass && r.body == settings_.design.body) {
       bar.invariants.mass += 1;
       used = true;
     }
@@ -872,7 +876,7 @@ void DynamicProblem::add_ffrf_element_gradients(const Matrix &G, const StartAdjo
         sum += sampled_[i].dy[k];
       }
       const dynamics::BoundSensor &bs = scene_.sensors[static_cast<std::size_t>(sensor_of_[i])];
-      if (bs.quantity == "displacement") {
+      if (bs.quantity == dynamics::SensorQuantity::Displacement) {
         const int o = scene_.mechanism.offset(mechanism_body_);
         Sbar -= bodies::rotation(scene_.q0.segment<4>(o + 3)).transpose() * sum *
                 scene_.q0.segment(o + 7, n).transpose();
@@ -900,7 +904,7 @@ void DynamicProblem::add_ffrf_element_gradients(const Matrix &G, const StartAdjo
       Vector qbar = start.q.col(col);
       if (sensor_of_[i] >= 0 && sensor_on_design_[i]) {
         const dynamics::BoundSensor &bs = scene_.sensors[static_cast<std::size_t>(sensor_of_[i])];
-        if (bs.quantity == "displacement") {
+        if (bs.quantity == dynamics::SensorQuantity::Displacement) {
           Vec3 sum = Vec3::Zero();
           for (const Vec3 &dy : sampled_[i].dy) sum += dy;
           qbar -= sensor_jacobian(scene_, bs, scene_.q0).transpose() * sum;
@@ -959,7 +963,7 @@ void DynamicProblem::add_ffrf_element_gradients(const Matrix &G, const StartAdjo
 
 std::vector<char>
 DynamicProblem::plan_checkpoints(std::unique_ptr<BinomialSchedule> &schedule) const {
-  const int checkpoints = case_.adjoint.checkpoints; // 0: all
+  const int checkpoints = settings_.adjoint.checkpoints; // 0: all
   std::vector<char> keep(static_cast<std::size_t>(steps_ + 1), checkpoints == 0 ? 1 : 0);
   if (checkpoints > 0) {
     schedule = std::make_unique<BinomialSchedule>(
@@ -980,7 +984,7 @@ bool DynamicProblem::finish_forward(double t_forward, bool gradients, optimize::
   const double forward = wall_time() - t_forward;
   forward_total_s_ += forward;
   last_.forward = forward;
-  out.constraints.assign(case_.constraints.size(), 0.0);
+  out.constraints.assign(settings_.constraints.size(), 0.0);
   for (std::size_t i = 0; i < specs_.size(); ++i) out.value(i) = response_value(i);
   if (gradients) forward_s_ = forward;
   return gradients;
@@ -1014,8 +1018,8 @@ Matrix DynamicProblem::state_partials(long long j, const dynamics::State &state)
 
 StepRecord DynamicProblem::recompute(const dynamics::GeneralizedAlpha &ga,
                                      const StepRecord &previous, long long j) const {
-  return detail::recompute_step(ga, previous, j, case_.time.step,
-                                substep_sizes_[static_cast<std::size_t>(j)]);
+  return dynamics::recompute_step(ga, previous, j, settings_.time.step,
+                                  substep_sizes_[static_cast<std::size_t>(j)]);
 }
 
 long long DynamicProblem::dofs() const {
@@ -1078,19 +1082,20 @@ void DynamicProblem::describe(io::Json &s) const {
   s["forward_s"] = forward_s_; // of the last evaluation with gradients
   s["adjoint_s"] = adjoint_s_;
   s["forward_total_s"] = forward_total_s_;
-  if (case_.adjoint.checkpoints > 0)
-    s["checkpoints"] = case_.adjoint.checkpoints;
+  if (settings_.adjoint.checkpoints > 0)
+    s["checkpoints"] = settings_.adjoint.checkpoints;
   else
     s["checkpoints"] = "all";
-  s["storage"] = case_.adjoint.storage;
+  s["storage"] = settings_.adjoint.storage == CheckpointStorage::Disk ? "disk" : "memory";
   s["recomputed_steps"] = recomputed_;
   s["adjoint_factorizations"] = adjoint_factorizations_;
-  s["newton_reuse"] = newton_.reuse_contraction;
+  s["newton_reuse"] = integration_.newton.reuse_contraction;
   if (ffrf_design_) {
     s["reduction_s"] = reduction_s_; // of the last design
     s["reduction_adjoint_s"] = reduction_adjoint_s_;
     s["reduction_adjoint_cg_iterations"] = reduction_cg_iterations_;
-    s["basis_derivative"] = case_.adjoint.basis;
+    s["basis_derivative"] =
+        settings_.adjoint.basis == reduce::BasisDerivative::Fixed ? "fixed" : "exact";
   }
   s["checkpoint_bytes"] = checkpoint_bytes_;
 }

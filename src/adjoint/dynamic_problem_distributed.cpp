@@ -6,7 +6,6 @@
 #include "flexopt/adjoint/dynamic_problem.hpp"
 #include "flexopt/core/context.hpp"
 #include "flexopt/core/error.hpp"
-#include "forward_loop.hpp"
 
 #include <algorithm>
 #include <sstream>
@@ -22,11 +21,11 @@ void DynamicProblem::evaluate_distributed(bool gradients, optimize::Evaluation &
   const std::size_t nr = specs_.size();
   Matrix G = Matrix::Zero(10, static_cast<Eigen::Index>(nr)); // rigid: dPsi/dtheta
   dynamics::Mechanism &mech = scene_.mechanism;
-  const double h = case_.time.step;
+  const double h = settings_.time.step;
 
   const double t_forward = wall_time();
-  const dynamics::DistributedAlpha da(dynamics::acf_body_list(scene_), &mech, scene_.acf_interfaces,
-                                      mech.gravity, par_, newton_);
+  const dynamics::Integrator integrator(scene_, integration_);
+  const dynamics::DistributedAlpha &da = integrator.dist();
   dynamics::DistStartTrace trace; // what the start did to the velocities (section 9.2)
   DistRecord record;
   record.state = dynamics::acf_initial_state(scene_, da, nullptr, &trace);
@@ -34,8 +33,9 @@ void DynamicProblem::evaluate_distributed(bool gradients, optimize::Evaluation &
   std::vector<int> strain_body(nr, -1);
   for (std::size_t i = 0; i < nr; ++i)
     if (specs_[i]->type == optimize::ResponseType::StrainEnergyIntegral)
-      for (std::size_t b = 0; b < case_.bodies.size(); ++b)
-        if (case_.bodies[b].name == specs_[i]->body) strain_body[i] = scene_.bodies[b].acf;
+      for (std::size_t b = 0; b < settings_.scene.bodies.size(); ++b)
+        if (settings_.scene.bodies[b].name == specs_[i]->body)
+          strain_body[i] = scene_.bodies[b].acf;
   // Local displacements of ACF body b at a state (mesh numbering, owned and ghosts).
   auto displacement = [&](const dynamics::DistState &s, std::size_t b) {
     std::vector<double> u;
@@ -52,8 +52,9 @@ void DynamicProblem::evaluate_distributed(bool gradients, optimize::Evaluation &
   std::unique_ptr<DistCheckpointStore> store;
   if (gradients) {
     keep = plan_checkpoints(schedule);
-    store = case_.adjoint.storage == "disk" ? dist_disk_store(checkpoint_file(), da)
-                                            : dist_memory_store();
+    store = settings_.adjoint.storage == CheckpointStorage::Disk
+                ? dist_disk_store(checkpoint_file(), da)
+                : dist_memory_store();
   }
   auto sample = [&](const dynamics::DistState &s) {
     const dynamics::State small = da.small_state(s);
@@ -84,12 +85,12 @@ void DynamicProblem::evaluate_distributed(bool gradients, optimize::Evaluation &
   const dynamics::DistState s0 = record.state;
   if (gradients) store->put(0, record);
   if (observer_) observer_(0, dynamics::StepInfo{}, nullptr, &record.state);
-  detail::forward_loop(da, steps_, h, record, substep_sizes_,
-                       [&](long long j, const dynamics::StepInfo &info) {
-                         sample(record.state);
-                         if (gradients && keep[static_cast<std::size_t>(j)]) store->put(j, record);
-                         if (observer_) observer_(j, info, nullptr, &record.state);
-                       });
+  dynamics::run_steps(da, steps_, h, record, &substep_sizes_,
+                      [&](long long j, const dynamics::StepInfo &info) {
+                        sample(record.state);
+                        if (gradients && keep[static_cast<std::size_t>(j)]) store->put(j, record);
+                        if (observer_) observer_(j, info, nullptr, &record.state);
+                      });
   const auto N = static_cast<std::size_t>(steps_);
   sampled_.assign(nr, SampledResponse{});
   for (std::size_t i = 0; i < nr; ++i) {
@@ -115,7 +116,7 @@ void DynamicProblem::evaluate_distributed(bool gradients, optimize::Evaluation &
           element_gradient_[i][e] += trapezoid_weight(n, N) * ds_[e] / s_[e] *
                                      energy_steps[n * per_step + column * ne + e];
     }
-    if (specs_[i]->type == optimize::ResponseType::Mass && specs_[i]->body == case_.design->body)
+    if (specs_[i]->type == optimize::ResponseType::Mass && specs_[i]->body == settings_.design.body)
       for (std::size_t e = 0; e < ne; ++e)
         element_gradient_[i][e] += dw_[e] * body->material().density * volume[e];
   }
@@ -343,8 +344,8 @@ void DynamicProblem::evaluate_distributed(bool gradients, optimize::Evaluation &
 
 DistRecord DynamicProblem::recompute_dist(const dynamics::DistributedAlpha &da,
                                           const DistRecord &previous, long long j) const {
-  return detail::recompute_step(da, previous, j, case_.time.step,
-                                substep_sizes_[static_cast<std::size_t>(j)]);
+  return dynamics::recompute_step(da, previous, j, settings_.time.step,
+                                  substep_sizes_[static_cast<std::size_t>(j)]);
 }
 
 } // namespace flexopt::adjoint

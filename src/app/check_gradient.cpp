@@ -405,7 +405,7 @@ int run_check_gradient(const Context &ctx, const Options &o, const io::Case &c, 
     print0(ctx.comm(), "check-gradient: -fx_warm_start does not apply: every solve starts from "
                        "zero (a warm start's error follows the previous design, the other side of "
                        "a finite difference, and biases it)\n");
-  print_limits(ctx, limits, c.analysis == "dynamic");
+  print_limits(ctx, limits, c.dynamic());
   const std::size_t nr = problem->response_names().size();
   print0(ctx.comm(), "check-gradient: %lld design variables, %zu response(s)\n",
          static_cast<long long>(problem->design_size()), nr);

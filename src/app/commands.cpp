@@ -116,7 +116,8 @@ void write_summary(const Context &ctx, const std::string &dir, io::Json &s, doub
 /// Collective.
 std::unique_ptr<optimize::DesignProblem>
 create_design_problem(MPI_Comm comm, const io::Case &c, bool optimizing, const std::string &dir) {
-  if (c.analysis == "dynamic") return adjoint::DynamicProblem::create(comm, c, dir, optimizing);
+  if (c.dynamic())
+    return adjoint::DynamicProblem::create(comm, io::dynamic_settings(c), dir, optimizing);
   return optimize::TopologyProblem::create(comm, io::topology_settings(c));
 }
 
@@ -147,12 +148,12 @@ std::vector<double> owner_field(const mesh::DistributedMesh &m) {
 int run_info(const Context &ctx, const Options &o, const io::Case &c, double t0) {
   const std::string dir = output_directory(ctx, o);
   io::Json s = base_summary(ctx, o, c);
-  s["analysis"] = c.analysis;
+  s["analysis"] = c.analysis_name();
   print0(ctx.comm(), "case %s (%s), analysis: %s, %d rank(s)\n", c.name.c_str(), c.file.c_str(),
-         c.analysis.c_str(), ctx.size());
+         c.analysis_name(), ctx.size());
   long long total_dofs = 0, total_elements = 0;
   io::Json bodies = io::Json::array();
-  for (const auto &b : c.bodies) {
+  for (const auto &b : c.scene.bodies) {
     const double tb = wall_time();
     mesh::MeshEstimate est; // significant on rank 0, which prints and writes the summary
     mesh::DistributedMesh m = mesh::load_body_mesh(ctx.comm(), b.mesh, {}, &est);
@@ -161,8 +162,8 @@ int run_info(const Context &ctx, const Options &o, const io::Case &c, double t0)
     const fem::IsotropicMaterial &mat = b.material;
     print0(ctx.comm(),
            "body %s: model %s, geometry %s, material %s (E %g Pa, nu %g, density %g kg/m^3)\n",
-           b.name.c_str(), b.model.c_str(), b.mesh.geometry_key.c_str(), b.material_name.c_str(),
-           mat.E, mat.nu, mat.density);
+           b.name.c_str(), dynamics::model_name(b.model), b.mesh.geometry_key.c_str(),
+           b.material_name.c_str(), mat.E, mat.nu, mat.density);
     print0(ctx.comm(),
            "  mesh: %lld %s elements, %lld nodes, %lld DOFs (meshed and distributed in %.2f s)\n",
            static_cast<long long>(m.global_elements), fem::element_name(m.type),
@@ -187,7 +188,7 @@ int run_info(const Context &ctx, const Options &o, const io::Case &c, double t0)
              static_cast<long long>(nodes[static_cast<std::size_t>(r)]));
     io::Json jb = io::Json::object();
     jb["name"] = b.name;
-    jb["model"] = b.model;
+    jb["model"] = dynamics::model_name(b.model);
     jb["element_type"] = fem::element_name(m.type);
     jb["elements"] = static_cast<long long>(m.global_elements);
     jb["nodes"] = static_cast<long long>(m.global_nodes);
@@ -204,7 +205,7 @@ int run_info(const Context &ctx, const Options &o, const io::Case &c, double t0)
     }
     jb["elements_per_rank"] = rank_counts(elems);
     jb["nodes_per_rank"] = rank_counts(nodes);
-    if (c.analysis == "dynamic") {
+    if (c.dynamic()) {
       // Settings of other models that the body carries (switching `model:` would use them).
       const std::string note = io::unused_settings_note(b);
       if (!note.empty()) print0(ctx.comm(), "  %s\n", note.c_str());
@@ -212,7 +213,7 @@ int run_info(const Context &ctx, const Options &o, const io::Case &c, double t0)
       for (const std::string &key : io::unused_settings(b)) unused.push_back(key);
       jb["unused_settings"] = unused;
     }
-    if (c.analysis == "dynamic" && io::simulated_model(b.model) == "ffrf") {
+    if (c.dynamic() && dynamics::simulated_model(b.model) == dynamics::BodyModel::Ffrf) {
       // The reduced size follows from the case alone: 6 static modes per interface after the
       // frame, plus the fixed-interface modes (flexopt modes --body shows the basis itself).
       const int statics = 6 * std::max(0, static_cast<int>(b.interfaces.size()) - 1);
@@ -220,13 +221,14 @@ int run_info(const Context &ctx, const Options &o, const io::Case &c, double t0)
           ctx.comm(),
           "  ffrf: %d elastic coordinates (%d static modes + %d fixed-interface modes), frame %s "
           "at interface '%s', geometric stiffening %s, Rayleigh damping [%g, %g]\n",
-          statics + b.reduction.modes, statics, b.reduction.modes, b.reduction.frame.c_str(),
+          statics + b.reduction.modes, statics, b.reduction.modes,
+          dynamics::frame_name(b.reduction.frame),
           b.interfaces.empty() ? "(none)" : b.interfaces.front().c_str(),
           b.reduction.geometric_stiffening ? "on" : "off", b.rayleigh[0], b.rayleigh[1]);
       jb["elastic_coordinates"] = statics + b.reduction.modes;
       jb["static_modes"] = statics;
       jb["fixed_modes"] = b.reduction.modes;
-      jb["frame"] = b.reduction.frame;
+      jb["frame"] = dynamics::frame_name(b.reduction.frame);
     }
     bodies.push_back(jb);
     total_dofs += 3LL * m.global_nodes;
@@ -240,9 +242,9 @@ int run_info(const Context &ctx, const Options &o, const io::Case &c, double t0)
 }
 
 int run_static(const Context &ctx, const Options &o, const io::Case &c, double t0) {
-  if (c.analysis != "static")
+  if (c.dynamic())
     throw Error(
-        c.file + ": analysis '" + c.analysis +
+        c.file + ": analysis '" + c.analysis_name() +
             "' is not available yet in this version of flexopt (static only; `flexopt modes` "
             "works on any single body)",
         true);
@@ -281,18 +283,18 @@ int run_static(const Context &ctx, const Options &o, const io::Case &c, double t
   s["compliance"] = compliance;
   s["max_displacement"] = umax;
   io::Json sensors = io::Json::object();
-  for (const auto &sensor : c.sensors) {
+  for (const auto &sensor : c.scene.sensors) {
     auto u = fem::probe_vector(m, problem->displacement(), sensor.point,
                                sensor.where.str() + ": sensor '" + sensor.name + "'");
-    if (sensor.quantity == "position")
+    if (sensor.quantity == dynamics::SensorQuantity::Position)
       for (int k = 0; k < 3; ++k)
         u[static_cast<std::size_t>(k)] += sensor.point[static_cast<std::size_t>(k)];
-    sensors[sensor.name]["quantity"] = sensor.quantity;
+    sensors[sensor.name]["quantity"] = dynamics::quantity_name(sensor.quantity);
     sensors[sensor.name]["point"] = std::vector<double>(sensor.point.begin(), sensor.point.end());
     sensors[sensor.name]["value"] = std::vector<double>(u.begin(), u.end());
     print0(ctx.comm(), "sensor %s (%s at %g %g %g): [%.10g, %.10g, %.10g]\n", sensor.name.c_str(),
-           sensor.quantity.c_str(), sensor.point[0], sensor.point[1], sensor.point[2], u[0], u[1],
-           u[2]);
+           dynamics::quantity_name(sensor.quantity), sensor.point[0], sensor.point[1],
+           sensor.point[2], u[0], u[1], u[2]);
   }
   s["sensors"] = sensors;
 
@@ -318,12 +320,12 @@ int run_static(const Context &ctx, const Options &o, const io::Case &c, double t
 /// `modes --body NAME`: the Craig-Bampton basis of one body, and how well the reduced model
 /// reproduces the frequencies of the full body clamped at its first interface.
 int run_reduction(const Context &ctx, const Options &o, const io::Case &c, double t0) {
-  const io::BodySpec *body = nullptr;
-  for (const auto &b : c.bodies)
+  const dynamics::BodyDescription *body = nullptr;
+  for (const auto &b : c.scene.bodies)
     if (b.name == o.body) body = &b;
   if (!body) {
     std::string names;
-    for (const auto &b : c.bodies) names += (names.empty() ? "" : ", ") + b.name;
+    for (const auto &b : c.scene.bodies) names += (names.empty() ? "" : ", ") + b.name;
     throw Error(c.file + ": modes --body: no body named '" + o.body + "' (bodies: " + names + ")",
                 true);
   }
@@ -348,7 +350,7 @@ int run_reduction(const Context &ctx, const Options &o, const io::Case &c, doubl
                                        body->where.str() + ": interfaces");
   const int nfull = std::min<int>(o.count, static_cast<int>(cb.K.rows()));
   reduce::solve_modes(K, M, frame, nfull, kModalShift, full);
-  if (body->reduction.frame == "chord")
+  if (body->reduction.frame == reduce::FrameCondition::Chord)
     print0(ctx.comm(),
            "note: body %s uses reduction.frame: chord; this command shows the basis and "
            "frequencies with the frame clamped at '%s' (the chord frame adds a rigid rotation to "
@@ -411,12 +413,12 @@ int run_reduction(const Context &ctx, const Options &o, const io::Case &c, doubl
 
 int run_modes(const Context &ctx, const Options &o, const io::Case &c, double t0) {
   if (!o.body.empty()) return run_reduction(ctx, o, c, t0);
-  if (c.bodies.size() != 1)
-    throw Error(c.file + ": modes: the case has " + std::to_string(c.bodies.size()) +
+  if (c.scene.bodies.size() != 1)
+    throw Error(c.file + ": modes: the case has " + std::to_string(c.scene.bodies.size()) +
                     " bodies; modal analysis takes a single-body case",
                 true);
   const std::string dir = output_directory(ctx, o);
-  const io::BodySpec &body = c.bodies.front();
+  const dynamics::BodyDescription &body = c.scene.bodies.front();
   const double t_setup = wall_time();
   mesh::DistributedMesh m = mesh::load_body_mesh(ctx.comm(), body.mesh);
   const fem::IsotropicMaterial mat = body.material;
@@ -529,16 +531,16 @@ int run_optimize(const Context &ctx, const Options &o, const io::Case &c, double
 /// `flexopt plan CASE`: the choice per body with its reasons, numbers and predicted cost
 /// (docs/theory.md section 12); nothing is integrated but the rigid pre-run.
 int run_plan(const Context &ctx, const Options &o, io::Case c, double t0) {
-  if (c.analysis != "dynamic")
+  if (!c.dynamic())
     throw Error(c.file + ": flexopt plan chooses the models of a dynamic analysis (this case is " +
-                    c.analysis + ")",
+                    c.analysis_name() + ")",
                 true);
   const std::string dir = output_directory(ctx, o);
   print0(ctx.comm(), "case %s (%s), plan, %d rank(s)%s\n", c.name.c_str(), c.file.c_str(),
          ctx.size(), o.all_auto ? ", every body estimated as model: auto (--auto)" : "");
   if (o.all_auto)
-    for (io::BodySpec &b : c.bodies) b.model = "auto";
-  const plan::Plan p = plan::make_plan(ctx.comm(), c);
+    for (dynamics::BodyDescription &b : c.scene.bodies) b.model = dynamics::BodyModel::Auto;
+  const plan::Plan p = plan::make_plan(ctx.comm(), io::plan_settings(c));
   plan::print_plan(ctx.comm(), p);
   io::Json s = base_summary(ctx, o, c);
   s["plan"] = plan::plan_json(p);
@@ -562,28 +564,30 @@ int run(const Context &ctx, const Options &given) {
   if (!solver.empty()) insert_default_petsc_options(solver, c.file + ": solver");
   if (o.command == "plan") return run_plan(ctx, o, c, t0);
   // `model: auto` bodies of a dynamic case take the plan's models (docs/theory.md section 12).
-  if (c.analysis == "dynamic" && o.command != "info" &&
-      std::any_of(c.bodies.begin(), c.bodies.end(),
-                  [](const io::BodySpec &b) { return b.model == "auto"; })) {
-    const plan::Plan p = plan::make_plan(ctx.comm(), c);
+  if (c.dynamic() && o.command != "info" &&
+      std::any_of(c.scene.bodies.begin(), c.scene.bodies.end(),
+                  [](const dynamics::BodyDescription &b) {
+                    return b.model == dynamics::BodyModel::Auto;
+                  })) {
+    const plan::Plan p = plan::make_plan(ctx.comm(), io::plan_settings(c));
     plan::print_plan(ctx.comm(), p);
     o.plan = plan::plan_json(p);
-    c = plan::apply_plan(c, p);
+    plan::apply_plan(c.scene, p);
   }
-  const bool dynamic_simulate = o.command == "simulate" && c.analysis == "dynamic" && c.design;
+  const bool dynamic_simulate = o.command == "simulate" && c.dynamic() && c.design;
   if (!o.design.empty() && !(dynamic_simulate || (o.command == "check-gradient" && c.design)))
     throw Error("--design applies to `flexopt simulate` of a dynamic case with a design: section "
                 "and to `flexopt check-gradient` of a case with one; " +
-                    c.file + " is " + c.analysis + (c.design ? "" : " without design:"),
+                    c.file + " is " + c.analysis_name() + (c.design ? "" : " without design:"),
                 true);
   if (o.gradient && !dynamic_simulate)
     throw Error("--gradient applies to `flexopt simulate` of a dynamic case with a design: "
                 "section; " +
-                    c.file + " is " + c.analysis + (c.design ? "" : " without design:"),
+                    c.file + " is " + c.analysis_name() + (c.design ? "" : " without design:"),
                 true);
   if (o.command == "info") return run_info(ctx, o, c, t0);
   if (o.command == "simulate")
-    return c.analysis == "dynamic" ? run_dynamic(ctx, o, c, t0) : run_static(ctx, o, c, t0);
+    return c.dynamic() ? run_dynamic(ctx, o, c, t0) : run_static(ctx, o, c, t0);
   if (o.command == "modes") return run_modes(ctx, o, c, t0);
   if (o.command == "check-gradient") return run_check_gradient(ctx, o, c, t0);
   if (o.command == "optimize") return run_optimize(ctx, o, c, t0);

@@ -9,7 +9,7 @@
 #include "flexopt/bodies/rigid_body.hpp"
 #include "flexopt/core/context.hpp"
 #include "flexopt/core/error.hpp"
-#include "flexopt/dynamics/generalized_alpha.hpp"
+#include "flexopt/dynamics/integrator.hpp"
 #include "flexopt/dynamics/scene.hpp"
 #include "flexopt/io/frame_schedule.hpp"
 #include "flexopt/io/motion_writer.hpp"
@@ -29,39 +29,11 @@ namespace {
 /// before the run stops (structurally redundant rows stay at round-off, ~1e-15).
 constexpr double kRedundantDriftTolerance = 1e-8;
 
-/// Current world coordinates of the owned nodes of case body b (a rigid or FFRF body of the
-/// mechanism) and, for a flexible body, their elastic displacement Psi zeta (frame axes) into
-/// `elastic`.
-std::vector<double> body_positions(const dynamics::Scene &scene, std::size_t b,
-                                   const dynamics::Vector &q, std::vector<double> &elastic) {
-  const mesh::DistributedMesh &m = scene.meshes[b];
-  const dynamics::Mechanism &mech = scene.mechanism;
-  const int mb = scene.bodies[b].mechanism;
-  const int o = mech.offset(mb), ne = mech.size(mb) - 7;
-  const bodies::Vec3 r = q.segment<3>(o),
-                     origin = mech.bodies[static_cast<std::size_t>(mb)]->origin();
-  const bodies::Mat3 A = bodies::rotation(q.segment<4>(o + 3));
-  const auto nodes = static_cast<std::size_t>(m.owned_nodes);
-  std::vector<double> x(3 * nodes);
-  elastic.assign(ne > 0 ? 3 * nodes : 0, 0.0);
-  if (ne > 0)
-    Eigen::Map<Eigen::VectorXd>(elastic.data(), static_cast<Eigen::Index>(3 * nodes)) =
-        scene.owned_modes[b] * q.segment(o + 7, ne);
-  for (std::size_t i = 0; i < nodes; ++i) {
-    bodies::Vec3 X(m.coordinates[3 * i], m.coordinates[3 * i + 1], m.coordinates[3 * i + 2]);
-    X -= origin;
-    if (ne > 0) X += bodies::Vec3(elastic[3 * i], elastic[3 * i + 1], elastic[3 * i + 2]);
-    const bodies::Vec3 p = r + A * X;
-    for (std::size_t k = 0; k < 3; ++k) x[3 * i + k] = p(static_cast<Eigen::Index>(k));
-  }
-  return x;
-}
-
 /// Size of motion.h5 above which the run warns before it starts [bytes].
 constexpr double kLargeMotionBytes = 1e9;
 
 /// True if case body b writes an elastic_displacement field with its positions: an FFRF body
-/// with modes, or an ACF body with interfaces (Backend::positions).
+/// with modes, or an ACF body with interfaces (dynamics::Integrator::positions).
 bool writes_elastic(const dynamics::Scene &scene, std::size_t b) {
   const dynamics::SceneBody &sb = scene.bodies[b];
   if (sb.acf >= 0) return !sb.nodes.empty();
@@ -84,120 +56,6 @@ io::Json vec3_json(const bodies::Vec3 &v) {
   return io::Json(std::vector<double>{v.x(), v.y(), v.z()});
 }
 
-/// What the dense and the distributed runs do differently: the state and its integrator, the
-/// energy, the bodies' positions and the sensors. Every member is collective.
-class Backend {
-public:
-  virtual ~Backend() = default;
-  /// One step of h from the current state (which it replaces on success, with the time t).
-  virtual bool advance(double h, double t, dynamics::StepInfo &info) = 0;
-  /// The state of the mechanism (the small part of a scene with ACF bodies), replicated.
-  virtual const dynamics::State &mechanism_state() const = 0;
-  /// Largest residual of the ACF ties (0 without ACF bodies).
-  virtual double tie_violation() const = 0;
-  virtual double energy() const = 0;
-  virtual bodies::Vec3 sensor(const dynamics::BoundSensor &s) const = 0;
-  /// Owned node positions of case body b and the elastic displacement field (empty: none).
-  virtual std::vector<double> positions(std::size_t b, std::vector<double> &elastic) const = 0;
-  /// The state of a design's forward run at time t (its dense or distributed state; the other
-  /// pointer is null), in place of the backend's own: `simulate` writes its output from it.
-  virtual void set_state(const dynamics::State *dense, const dynamics::DistState *dist,
-                         double t) = 0;
-  /// What the consistent start did to the given velocities.
-  const dynamics::StartReport &start() const { return start_; }
-
-protected:
-  dynamics::StartReport start_;
-};
-
-/// Rigid and FFRF bodies: GeneralizedAlpha on the replicated mechanism.
-class DenseBackend : public Backend {
-public:
-  DenseBackend(const dynamics::Scene &scene, dynamics::AlphaParameters par,
-               dynamics::NewtonSettings newton)
-      : scene_(scene), ga_(scene.mechanism, par, newton),
-        state_(ga_.initial_state(scene.q0, scene.v0, 0.0, &start_)) {}
-  bool advance(double h, double t, dynamics::StepInfo &info) override {
-    if (!ga_.advance(state_, h, next_, info)) return false;
-    next_.t = t;
-    state_ = next_;
-    return true;
-  }
-  void set_state(const dynamics::State *dense, const dynamics::DistState *, double t) override {
-    state_ = *dense;
-    state_.t = t;
-  }
-  const dynamics::State &mechanism_state() const override { return state_; }
-  double tie_violation() const override { return 0; }
-  double energy() const override { return scene_.mechanism.energy(state_.q, state_.v); }
-  bodies::Vec3 sensor(const dynamics::BoundSensor &s) const override {
-    return dynamics::sensor_value(scene_, s, state_);
-  }
-  std::vector<double> positions(std::size_t b, std::vector<double> &elastic) const override {
-    return body_positions(scene_, b, state_.q, elastic);
-  }
-
-private:
-  const dynamics::Scene &scene_;
-  dynamics::GeneralizedAlpha ga_;
-  dynamics::State state_, next_;
-};
-
-/// A scene with ACF bodies: DistributedAlpha over all ranks, the mechanism as its small part.
-class DistributedBackend : public Backend {
-public:
-  /// Gravity acts on the ACF bodies as on the mechanism's.
-  DistributedBackend(const dynamics::Scene &scene, dynamics::AlphaParameters par,
-                     dynamics::NewtonSettings newton)
-      : scene_(scene), da_(dynamics::acf_body_list(scene), &scene.mechanism, scene.acf_interfaces,
-                           scene.mechanism.gravity, par, newton) {
-    state_ = dynamics::acf_initial_state(scene, da_, &start_);
-    small_ = da_.small_state(state_);
-  }
-  bool advance(double h, double t, dynamics::StepInfo &info) override {
-    if (!da_.advance(state_, h, next_, info)) return false;
-    next_.t = t;
-    state_ = next_;
-    small_ = da_.small_state(state_);
-    return true;
-  }
-  void set_state(const dynamics::State *, const dynamics::DistState *dist, double t) override {
-    state_ = *dist;
-    state_.t = t;
-    small_ = da_.small_state(state_);
-  }
-  const dynamics::State &mechanism_state() const override { return small_; }
-  double tie_violation() const override { return da_.tie_violation(state_); }
-  double energy() const override { return da_.energy(state_); }
-  bodies::Vec3 sensor(const dynamics::BoundSensor &s) const override {
-    if (s.acf_body >= 0) return dynamics::acf_sensor_value(scene_, da_, s, state_, small_);
-    return dynamics::sensor_value(scene_, s, small_);
-  }
-  std::vector<double> positions(std::size_t b, std::vector<double> &elastic) const override {
-    const dynamics::SceneBody &sb = scene_.bodies[b];
-    if (sb.acf < 0) return body_positions(scene_, b, small_.q, elastic);
-    std::vector<double> x = da_.owned_positions(state_, static_cast<std::size_t>(sb.acf));
-    elastic.clear();
-    if (sb.nodes.empty()) return x;
-    // The elastic displacement in the frame of the first interface node.
-    const dynamics::InterfaceFrame frame = dynamics::first_interface_frame(scene_, sb, small_);
-    const mesh::DistributedMesh &m = scene_.meshes[b];
-    elastic.resize(x.size());
-    for (std::size_t i = 0; i < x.size() / 3; ++i) {
-      const bodies::Vec3 e =
-          frame.elastic(bodies::Vec3(&x[3 * i]), bodies::Vec3(&m.coordinates[3 * i]));
-      for (int k = 0; k < 3; ++k) elastic[3 * i + static_cast<std::size_t>(k)] = e(k);
-    }
-    return x;
-  }
-
-private:
-  const dynamics::Scene &scene_;
-  dynamics::DistributedAlpha da_;
-  dynamics::DistState state_, next_;
-  dynamics::State small_;
-};
-
 /// Integrates `scene` (with `design`: the scene of that problem at the design x, through its
 /// forward run, and with `gradient` its adjoint gradients too), writes dir/NAME.xdmf (+ .h5)
 /// and the run's figures into s. Collective.
@@ -217,26 +75,20 @@ void integrate(const Context &ctx, const io::Case &c, dynamics::Scene &scene,
   }
   s["redundant_constraints"] = redundant;
 
-  const auto par = dynamics::AlphaParameters::from_rho_inf(c.time.rho_inf);
-  dynamics::NewtonSettings newton;
-  newton.reuse_contraction = c.time.newton_reuse;
-  // -fx_kept_turned 0: ACF kept matrices applied as assembled (for comparisons; docs/solvers.md).
-  PetscBool turned = PETSC_TRUE;
-  FX_PETSC(PetscOptionsGetBool(nullptr, nullptr, "-fx_kept_turned", &turned, nullptr));
-  newton.corotate_kept = turned == PETSC_TRUE;
-  std::unique_ptr<Backend> run;
-  if (scene.acf.empty()) {
-    run = std::make_unique<DenseBackend>(scene, par, newton);
-  } else {
+  const dynamics::IntegratorSettings settings = dynamics::IntegratorSettings::from(c.time);
+  const dynamics::AlphaParameters &par = settings.alpha;
+  const dynamics::NewtonSettings &newton = settings.newton;
+  if (!scene.acf.empty())
     print0(ctx.comm(),
            "mechanism: %zu ACF bodies on the distributed backend (one PETSc system over %d "
            "rank(s); Newton solver: options prefix mech_, MUMPS LU by default, KLU on one "
            "rank up to 2000 unknowns)\n",
            scene.acf.size(), ctx.size());
-    run = std::make_unique<DistributedBackend>(scene, par, newton);
-  }
+  auto run = std::make_unique<dynamics::Integrator>(scene, settings);
+  dynamics::StartReport start;
+  run->start(&start);
   {
-    const dynamics::StartReport &st = run->start();
+    const dynamics::StartReport &st = start;
     print0(ctx.comm(),
            "initial velocities: the rigid-body velocities made consistent with the joints and "
            "drivers; kinetic energy %.9g J given -> %.9g J (%+.6g J)\n",
@@ -251,8 +103,8 @@ void integrate(const Context &ctx, const io::Case &c, dynamics::Scene &scene,
     s["initial_kinetic_energy"]["start"] = st.kinetic;
     s["initial_kinetic_energy"]["elastic_corrected"] = st.elastic_corrected;
   }
-  const double h = c.time.step;
-  const long long steps = std::llround(c.time.end / h);
+  const double h = settings.step;
+  const long long steps = settings.steps;
   print0(ctx.comm(),
          "integrate: generalized-alpha rho_inf = %g (alpha_m %.4f, alpha_f %.4f, gamma %.4f, beta "
          "%.4f), %lld steps of %g s to t = %g s; Newton matrix kept while the contraction is <= "
@@ -262,8 +114,8 @@ void integrate(const Context &ctx, const io::Case &c, dynamics::Scene &scene,
   // rho_inf = 1 is the trapezoidal rule: it damps nothing, and on the index-3 equations of a
   // flexible mechanism the step can grow unstably (cases/slider_crank_start/README.md).
   if (par.rho_inf >= 1)
-    for (const auto &b : c.bodies)
-      if (io::simulated_model(b.model) != "rigid") {
+    for (const auto &b : c.scene.bodies)
+      if (dynamics::simulated_model(b.model) != dynamics::BodyModel::Rigid) {
         print0(ctx.comm(),
                "time: warning: rho_inf = 1 (no numerical dissipation) with the flexible body "
                "'%s': generalized-alpha on the index-3 equations of a flexible mechanism can grow "
@@ -273,14 +125,14 @@ void integrate(const Context &ctx, const io::Case &c, dynamics::Scene &scene,
       }
 
   std::vector<io::MotionBody> mb;
-  for (std::size_t b = 0; b < c.bodies.size(); ++b)
-    mb.push_back({c.bodies[b].name, mesh::grid_layout(scene.meshes[b])});
+  for (std::size_t b = 0; b < c.scene.bodies.size(); ++b)
+    mb.push_back({c.scene.bodies[b].name, mesh::grid_layout(scene.meshes[b])});
   // Frames of motion.xdmf (io::FrameSchedule). Energy and sensors are small: without output:
   // they keep every step; with it they are sampled at the frames, as the key always did.
   const io::FrameSchedule schedule(c.output, steps, h);
   const bool sample_every_step = !c.output.given();
-  std::vector<std::vector<std::string>> fields(c.bodies.size());
-  for (std::size_t b = 0; b < c.bodies.size(); ++b)
+  std::vector<std::vector<std::string>> fields(c.scene.bodies.size());
+  for (std::size_t b = 0; b < c.scene.bodies.size(); ++b)
     if (writes_elastic(scene, b)) fields[b] = {"elastic_displacement"};
   const long long frames = schedule.frames();
   const double motion_bytes = io::estimate_motion_bytes(mb, fields, frames);
@@ -356,7 +208,7 @@ void integrate(const Context &ctx, const io::Case &c, dynamics::Scene &scene,
     frame_t.push_back(t);
     writer.begin_step(t);
     std::vector<double> elastic;
-    for (std::size_t b = 0; b < c.bodies.size(); ++b) {
+    for (std::size_t b = 0; b < c.scene.bodies.size(); ++b) {
       const auto x = run->positions(b, elastic);
       writer.positions(b, x.data());
       if (!elastic.empty()) writer.node_vector(b, "elastic_displacement", elastic.data());
@@ -458,20 +310,15 @@ void integrate(const Context &ctx, const io::Case &c, dynamics::Scene &scene,
              design->forward_seconds(), design->adjoint_seconds(), file.c_str());
     }
   } else {
-    monitor();
-    sample(0.0);
-    frame(0.0);
-    for (long long n = 0; n < steps; ++n) {
-      dynamics::StepInfo info;
-      const double t_next = static_cast<double>(n + 1) * h; // no drift of t over many steps
-      if (!run->advance(h, t_next, info)) {
-        // every rank fails here (collective Newton loop)
-        throw Error(dynamics::newton_failure_message(n + 1, t_now, t_next, info,
-                                                     dynamics::NewtonSettings{}.max_halvings),
-                    true);
+    run->run([&](const dynamics::StepView &v) {
+      if (v.step == 0) {
+        monitor();
+        sample(0.0);
+        frame(0.0);
+      } else {
+        after_step(v.step - 1, v.info);
       }
-      after_step(n, info);
-    }
+    });
   }
   const double t_int = t_end - t_start; // the forward run (a design's backward sweep apart)
   FX_PETSC(PetscLogStagePop());
@@ -512,7 +359,7 @@ void integrate(const Context &ctx, const io::Case &c, dynamics::Scene &scene,
   io::Json sensors = io::Json::object();
   for (std::size_t k = 0; k < scene.sensors.size(); ++k) {
     io::Json one = io::Json::object();
-    one["quantity"] = scene.sensors[k].quantity;
+    one["quantity"] = dynamics::quantity_name(scene.sensors[k].quantity);
     one["t"] = io::Json(out_t);
     io::Json vals = io::Json::array();
     for (const auto &v : sensor_values[k]) vals.push_back(vec3_json(v));
@@ -521,12 +368,12 @@ void integrate(const Context &ctx, const io::Case &c, dynamics::Scene &scene,
   }
   s["sensors"] = sensors;
   io::Json bl = io::Json::array();
-  for (std::size_t k = 0; k < c.bodies.size(); ++k) {
+  for (std::size_t k = 0; k < c.scene.bodies.size(); ++k) {
     const dynamics::SceneBody &sb = scene.bodies[k];
     io::Json j = io::Json::object();
-    j["name"] = c.bodies[k].name;
+    j["name"] = c.scene.bodies[k].name;
     io::Json unused = io::Json::array();
-    for (const std::string &key : io::unused_settings(c.bodies[k])) unused.push_back(key);
+    for (const std::string &key : io::unused_settings(c.scene.bodies[k])) unused.push_back(key);
     j["unused_settings"] = unused;
     if (sb.acf >= 0) {
       j["model"] = "acf";
@@ -572,7 +419,7 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
   print0(ctx.comm(), "case %s (%s), analysis: dynamic, %d rank(s)\n", c.name.c_str(),
          c.file.c_str(), ctx.size());
   // A body may carry the settings of every model; say which ones its model leaves unused.
-  for (const io::BodySpec &b : c.bodies) {
+  for (const dynamics::BodyDescription &b : c.scene.bodies) {
     const std::string note = io::unused_settings_note(b);
     if (!note.empty()) print0(ctx.comm(), "note: %s\n", note.c_str());
   }
@@ -583,7 +430,7 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
   Vec x = nullptr; // the design's variables
   dynamics::Scene built;
   if (c.design) {
-    design = adjoint::DynamicProblem::create(ctx.comm(), c, dir);
+    design = adjoint::DynamicProblem::create(ctx.comm(), io::dynamic_settings(c), dir);
     x = design->create_design_vector();
     if (o.design.empty()) {
       design->initial_design(x);
@@ -593,7 +440,7 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
     }
     design->apply_design(x); // the scene below is that of this design
   } else {
-    built = dynamics::build_scene(ctx.comm(), c);
+    built = dynamics::build_scene(ctx.comm(), c.scene);
   }
   integrate(ctx, c, design ? design->scene() : built, design.get(), x, o.gradient, dir, "motion",
             s);

@@ -40,7 +40,7 @@ void complete_triad(const Vec3 &w, Vec3 &u1, Vec3 &u2) {
 
 } // namespace
 
-std::vector<joints::Equation> joint_equations(const std::string &type, const Attachment &A,
+std::vector<joints::Equation> joint_equations(JointType type, const Attachment &A,
                                               const Attachment &B, const Vec3 &axis,
                                               const std::string &owner) {
   std::vector<Equation> out;
@@ -50,7 +50,8 @@ std::vector<joints::Equation> joint_equations(const std::string &type, const Att
     row += e.rows();
     out.push_back(e);
   };
-  const Vec3 w = type == "revolute" || type == "prismatic" ? axis.normalized() : Vec3::UnitZ();
+  const Vec3 w = type == JointType::Revolute || type == JointType::Prismatic ? axis.normalized()
+                                                                             : Vec3::UnitZ();
   Vec3 u1, u2;
   complete_triad(w, u1, u2);
   auto coincide = [&] {
@@ -72,16 +73,16 @@ std::vector<joints::Equation> joint_equations(const std::string &type, const Att
     perpendicular(u1, w);
     perpendicular(u2, w);
   };
-  if (type == "spherical") {
+  if (type == JointType::Spherical) {
     coincide();
-  } else if (type == "revolute") {
+  } else if (type == JointType::Revolute) {
     coincide();
     perpendicular(u1, w);
     perpendicular(u2, w);
-  } else if (type == "fixed") {
+  } else if (type == JointType::Fixed) {
     coincide();
     lock_orientation();
-  } else if (type == "prismatic") {
+  } else {
     lock_orientation();
     for (const Vec3 &u : {u1, u2}) {
       Equation e;
@@ -91,16 +92,13 @@ std::vector<joints::Equation> joint_equations(const std::string &type, const Att
       e.c = u.dot(B.world - A.world); // the interfaces need not lie on one axis line
       add(e);
     }
-  } else {
-    throw Error("joint type '" + type + "' is not one of revolute, spherical, prismatic, fixed",
-                true);
   }
   return out;
 }
 
-joints::Equation driver_equation(const std::string &joint_type, const Attachment &A,
-                                 const Attachment &B, const Vec3 &axis,
-                                 std::shared_ptr<const Expression> f, const std::string &owner) {
+joints::Equation driver_equation(JointType joint_type, const Attachment &A, const Attachment &B,
+                                 const Vec3 &axis, std::shared_ptr<const Expression> f,
+                                 const std::string &owner) {
   const Vec3 w = axis.normalized();
   Vec3 u1, u2;
   complete_triad(w, u1, u2);
@@ -108,24 +106,26 @@ joints::Equation driver_equation(const std::string &joint_type, const Attachment
   e.a = A.body, e.b = B.body;
   e.owner = owner;
   e.driver = std::move(f);
-  if (joint_type == "revolute") {
+  if (joint_type == JointType::Revolute) {
     // angle = atan2(u2_a . u1_b, u1_a . u1_b) = f(t):  (sin f u1_a - cos f u2_a) . u1_b = 0
     e.kind = K::RotationDriver;
     e.ua = A.local(u1), e.ua2 = A.local(u2), e.vb = B.local(u1);
     e.Ua = A.vector_part(e.ua), e.Ua2 = A.vector_part(e.ua2), e.Vb = B.vector_part(e.vb);
-  } else if (joint_type == "prismatic") {
+  } else if (joint_type == JointType::Prismatic) {
     // displacement along the axis from the initial configuration = f(t)
     e.kind = K::TranslationDriver;
     e.ua = A.local(w), e.sa = A.s, e.sb = B.s;
     e.Ua = A.vector_part(e.ua), e.Sa = A.translation, e.Sb = B.translation;
     e.c = w.dot(B.world - A.world);
   } else {
-    throw Error("a driver needs a revolute or prismatic joint, not '" + joint_type + "'", true);
+    throw Error(std::string("a driver needs a revolute or prismatic joint, not '") +
+                    joint_type_name(joint_type) + "'",
+                true);
   }
   return e;
 }
 
-reduce::Field initial_elastic_field(const io::BodySpec &spec, bool rate) {
+reduce::Field initial_elastic_field(const BodyDescription &spec, bool rate) {
   const auto &text = rate ? spec.initial.elastic_velocity : spec.initial.elastic_displacement;
   if (text[0].empty()) return {};
   const auto f = std::make_shared<std::array<PointExpression, 3>>(std::array<PointExpression, 3>{
@@ -147,7 +147,7 @@ Matrix rayleigh(const reduce::FlexibleReduction &r, const std::array<double, 2> 
 /// `initial.elastic_displacement` (`elastic_velocity`) field projected onto the basis with the
 /// reduction's mass (a design body's sum_e w_e M_e; docs/theory.md sections 7.6 and 10.2); empty if
 /// the case gives none. If `report`, logs how much of the field the basis represents.
-bodies::Vector initial_elastic(MPI_Comm comm, const io::BodySpec &spec,
+bodies::Vector initial_elastic(MPI_Comm comm, const BodyDescription &spec,
                                const mesh::DistributedMesh &mesh, double density,
                                const reduce::FlexibleReduction &red, bool rate,
                                bool report = true) {
@@ -174,7 +174,7 @@ bodies::Vector initial_elastic(MPI_Comm comm, const io::BodySpec &spec,
 namespace {
 
 /// An ACF body: its mesh, its co-rotated elements, one interface node per interface.
-void add_acf_body(MPI_Comm comm, const io::BodySpec &spec, const fem::IsotropicMaterial &mat,
+void add_acf_body(MPI_Comm comm, const BodyDescription &spec, const fem::IsotropicMaterial &mat,
                   Scene &scene, SceneBody &sb) {
   Mechanism &mech = scene.mechanism;
   scene.meshes.push_back(mesh::load_body_mesh(comm, spec.mesh));
@@ -218,7 +218,7 @@ void add_acf_body(MPI_Comm comm, const io::BodySpec &spec, const fem::IsotropicM
 }
 
 /// What the FFRF body takes from its reduction.
-bodies::FfrfModel ffrf_model(const reduce::FlexibleReduction &red, const io::BodySpec &spec) {
+bodies::FfrfModel ffrf_model(const reduce::FlexibleReduction &red, const BodyDescription &spec) {
   bodies::FfrfModel model;
   model.invariants = red.invariants;
   model.stiffness = red.K;
@@ -230,7 +230,7 @@ bodies::FfrfModel ffrf_model(const reduce::FlexibleReduction &red, const io::Bod
 
 /// An FFRF body: its mesh reduced (in parallel) to the floating frame and the Craig-Bampton
 /// basis, its initial elastic coordinates projected onto the basis.
-void add_ffrf_body(MPI_Comm comm, const io::BodySpec &spec, const fem::IsotropicMaterial &mat,
+void add_ffrf_body(MPI_Comm comm, const BodyDescription &spec, const fem::IsotropicMaterial &mat,
                    Scene &scene, SceneBody &sb, const InitialDesign *design) {
   if (spec.interfaces.empty())
     throw Error(spec.where.str() + ": body '" + spec.name +
@@ -254,8 +254,9 @@ void add_ffrf_body(MPI_Comm comm, const io::BodySpec &spec, const fem::Isotropic
          "body %s: ffrf, mass %.6g kg, frame %s at interface '%s' (%.6g, %.6g, %.6g), %d "
          "elastic coordinates (%d static + %d fixed-interface modes)%s, reduced in %.2f s\n",
          spec.name.c_str(), body->mass(),
-         spec.reduction.frame == "chord" ? ("chord (axis to '" + spec.interfaces[1] + "')").c_str()
-                                         : "clamped",
+         spec.reduction.frame == reduce::FrameCondition::Chord
+             ? ("chord (axis to '" + spec.interfaces[1] + "')").c_str()
+             : "clamped",
          spec.interfaces.front().c_str(), red->origin.x(), red->origin.y(), red->origin.z(),
          red->size(), red->static_modes, red->fixed_modes,
          spec.reduction.geometric_stiffening ? ", centrifugal geometric stiffening" : "",
@@ -269,7 +270,7 @@ void add_ffrf_body(MPI_Comm comm, const io::BodySpec &spec, const fem::Isotropic
       freq += buf;
     }
     print0(comm, "body %s: reduced frequencies (frame %s) [Hz]: %s%s\n", spec.name.c_str(),
-           spec.reduction.frame.c_str(), freq.c_str(), red->size() > 8 ? ", ..." : "");
+           frame_name(spec.reduction.frame), freq.c_str(), red->size() > 8 ? ", ..." : "");
   }
   sb.reduction = red;
   scene.reduction_seconds.push_back(wall_time() - t0);
@@ -281,7 +282,7 @@ void add_ffrf_body(MPI_Comm comm, const io::BodySpec &spec, const fem::Isotropic
 /// A rigid body: mass properties and interface centroids from the whole mesh on rank 0,
 /// broadcast as one buffer, so that every rank, whatever the rank count, holds the same numbers
 /// to the last bit.
-void add_rigid_body(MPI_Comm comm, const io::BodySpec &spec, const fem::IsotropicMaterial &mat,
+void add_rigid_body(MPI_Comm comm, const BodyDescription &spec, const fem::IsotropicMaterial &mat,
                     Scene &scene, SceneBody &sb) {
   std::vector<double> buf(13 + 3 * spec.interfaces.size(), 0.0);
   scene.meshes.push_back(mesh::load_body_mesh(comm, spec.mesh, [&](const mesh::MeshData &data) {
@@ -313,7 +314,7 @@ void add_rigid_body(MPI_Comm comm, const io::BodySpec &spec, const fem::Isotropi
 }
 
 /// The placed coordinates q0 and velocities v0 of the mechanism at t = 0.
-void place(MPI_Comm comm, const io::Case &c, Scene &scene) {
+void place(MPI_Comm comm, const SceneDescription &c, Scene &scene) {
   const Mechanism &mech = scene.mechanism;
   int total = 0;
   for (const auto &b : mech.bodies) total += b->coordinates();
@@ -365,34 +366,31 @@ void place(MPI_Comm comm, const io::Case &c, Scene &scene) {
 } // namespace
 
 std::shared_ptr<reduce::FlexibleReduction> reduce_ffrf_body(const mesh::DistributedMesh &m,
-                                                            const io::BodySpec &spec,
+                                                            const BodyDescription &spec,
                                                             const fem::IsotropicMaterial &mat,
                                                             const reduce::ElementFactors *design) {
   auto red = std::make_shared<reduce::FlexibleReduction>();
-  reduce::reduce_flexible_body(m, fem::IsotropicMaterial{mat.E, mat.nu, mat.density},
-                               spec.interfaces, spec.reduction.modes,
-                               spec.reduction.geometric_stiffening, *red,
-                               spec.reduction.frame == "chord" ? reduce::FrameCondition::Chord
-                                                               : reduce::FrameCondition::Clamped,
-                               design);
+  reduce::reduce_flexible_body(
+      m, fem::IsotropicMaterial{mat.E, mat.nu, mat.density}, spec.interfaces, spec.reduction.modes,
+      spec.reduction.geometric_stiffening, *red, spec.reduction.frame, design);
   if (design) reduce::check_modal_cut(*red, spec.name, m.comm);
   return red;
 }
 
-Scene load_bodies(MPI_Comm comm, const io::Case &c, const InitialDesign *design) {
+Scene load_bodies(MPI_Comm comm, const SceneDescription &c, const InitialDesign *design) {
   Scene scene;
   const std::size_t nbodies = c.bodies.size();
   scene.meshes.reserve(nbodies); // the ACF bodies refer to their meshes
   scene.bodies.resize(nbodies);
   for (std::size_t b = 0; b < nbodies; ++b) {
-    const io::BodySpec &spec = c.bodies[b];
+    const BodyDescription &spec = c.bodies[b];
     const fem::IsotropicMaterial &mat = spec.material;
     SceneBody &sb = scene.bodies[b];
     sb.mechanism = static_cast<int>(scene.mechanism.bodies.size());
-    const std::string model = io::simulated_model(spec.model);
-    if (model == "acf")
+    const BodyModel model = simulated_model(spec.model);
+    if (model == BodyModel::Acf)
       add_acf_body(comm, spec, mat, scene, sb);
-    else if (model == "ffrf")
+    else if (model == BodyModel::Ffrf)
       add_ffrf_body(comm, spec, mat, scene, sb, design);
     else
       add_rigid_body(comm, spec, mat, scene, sb);
@@ -404,7 +402,7 @@ Scene load_bodies(MPI_Comm comm, const io::Case &c, const InitialDesign *design)
   return scene;
 }
 
-void connect(MPI_Comm comm, const io::Case &c, Scene &scene, bool report) {
+void connect(MPI_Comm comm, const SceneDescription &c, Scene &scene, bool report) {
   Mechanism &mech = scene.mechanism;
   mech.equations.clear();
   mech.forces.clear();
@@ -452,8 +450,8 @@ void connect(MPI_Comm comm, const io::Case &c, Scene &scene, bool report) {
               mech.bodies[b]->name() + " (|p| = 1)";
     mech.equations.push_back(e);
   }
-  std::map<std::string, const io::JointSpec *> joints_by_name;
-  for (const io::JointSpec &j : c.joints) joints_by_name[j.name] = &j;
+  std::map<std::string, const JointDescription *> joints_by_name;
+  for (const JointDescription &j : c.joints) joints_by_name[j.name] = &j;
   // A joint's two attachments. Interface points closer than kMeshGap of the scene's size are
   // taken to meet: a meshed curved surface's centroid (a pin hole's) misses the geometric
   // centre by such an amount, and an over-constrained (planar) mechanism's projection would
@@ -473,13 +471,13 @@ void connect(MPI_Comm comm, const io::Case &c, Scene &scene, bool report) {
     const SceneBody &sb = scene.bodies[body_index.at(body)];
     return static_cast<bool>(sb.u0) || sb.elastic0.size() > 0;
   };
-  auto joint_attachments = [&](const io::JointSpec &j) {
+  auto joint_attachments = [&](const JointDescription &j) {
     const Attachment A = attach(j.a, j.a_interface);
     Attachment B = attach(j.b, j.b_interface);
     const Vec3 d = A.world - B.world;
     const double gap = d.norm();
-    if (j.type != "prismatic" && gap > 0 && gap <= kMeshGap * snap_scale && !elastic_start(j.a) &&
-        !elastic_start(j.b)) {
+    if (j.type != JointType::Prismatic && gap > 0 && gap <= kMeshGap * snap_scale &&
+        !elastic_start(j.a) && !elastic_start(j.b)) {
       B.s += B.body < 0 ? d : Vec3(B.R.transpose() * d);
       B.world = A.world;
       if (gap > max_snap) max_snap = gap, snap_joint = j.name;
@@ -488,8 +486,8 @@ void connect(MPI_Comm comm, const io::Case &c, Scene &scene, bool report) {
   };
   // Drivers come before the joints: when rows are found redundant, joint rows are left out
   // rather than a prescribed motion.
-  for (const io::DriverSpec &d : c.drivers) {
-    const io::JointSpec &j = *joints_by_name.at(d.joint);
+  for (const DriverDescription &d : c.drivers) {
+    const JointDescription &j = *joints_by_name.at(d.joint);
     const auto [A, B] = joint_attachments(j);
     mech.equations.push_back(driver_equation(j.type, A, B, v3(j.axis),
                                              std::make_shared<const Expression>(d.expression),
@@ -498,13 +496,13 @@ void connect(MPI_Comm comm, const io::Case &c, Scene &scene, bool report) {
   double max_gap = 0;
   std::string gap_joint;
   std::map<std::string, int> joint_equation; // a joint's first equation (the coincidence)
-  for (const io::JointSpec &j : c.joints) {
+  for (const JointDescription &j : c.joints) {
     const auto [A, B] = joint_attachments(j);
     joint_equation[j.name] = static_cast<int>(mech.equations.size());
     const double gap = (A.world - B.world).norm();
-    if (gap > max_gap && (j.type != "prismatic")) max_gap = gap, gap_joint = j.name;
-    for (Equation &e :
-         joint_equations(j.type, A, B, v3(j.axis), "joint " + j.name + " (" + j.type + ")"))
+    if (gap > max_gap && (j.type != JointType::Prismatic)) max_gap = gap, gap_joint = j.name;
+    for (Equation &e : joint_equations(j.type, A, B, v3(j.axis),
+                                       "joint " + j.name + " (" + joint_type_name(j.type) + ")"))
       mech.equations.push_back(std::move(e));
   }
   if (report && max_snap > 0)
@@ -520,7 +518,7 @@ void connect(MPI_Comm comm, const io::Case &c, Scene &scene, bool report) {
            "initial conditions move the bodies to close the joints\n",
            gap_joint.c_str(), max_gap);
   if (c.gravity) mech.gravity = v3(*c.gravity);
-  for (const io::ForceSpec &f : c.forces) {
+  for (const ForceDescription &f : c.forces) {
     PointForce pf;
     const Attachment a = attach(f.body, f.interface);
     const std::size_t ub = body_index.at(f.body);
@@ -533,7 +531,7 @@ void connect(MPI_Comm comm, const io::Case &c, Scene &scene, bool report) {
     mech.forces.push_back(pf);
   }
   std::vector<std::pair<std::size_t, int>> reactions; // sensor, joint equation
-  for (const io::SensorSpec &s : c.sensors) {
+  for (const SensorDescription &s : c.sensors) {
     BoundSensor bs;
     bs.name = s.name;
     bs.quantity = s.quantity;
@@ -550,8 +548,9 @@ void connect(MPI_Comm comm, const io::Case &c, Scene &scene, bool report) {
       // The point in the ACF body's mesh; the frame of its first interface node.
       bs.acf_body = static_cast<int>(ub);
       bs.body = sb.nodes.empty() ? -1 : sb.nodes.front();
-      if (bs.body < 0 && (s.quantity == "elastic_displacement" || s.quantity == "rotation_angle"))
-        throw Error(s.where.str() + ": sensor '" + s.name + "': " + s.quantity +
+      if (bs.body < 0 && (s.quantity == SensorQuantity::ElasticDisplacement ||
+                          s.quantity == SensorQuantity::RotationAngle))
+        throw Error(s.where.str() + ": sensor '" + s.name + "': " + quantity_name(s.quantity) +
                         " of an ACF body is measured in the frame of its first interface, and "
                         "body '" +
                         s.body + "' lists no interfaces",
@@ -588,13 +587,13 @@ void connect(MPI_Comm comm, const io::Case &c, Scene &scene, bool report) {
         std::max(scene.length_scale, scene.q0.segment<3>(mech.offset(b)).cwiseAbs().maxCoeff());
 }
 
-Scene build_scene(MPI_Comm comm, const io::Case &c, const InitialDesign *design) {
+Scene build_scene(MPI_Comm comm, const SceneDescription &c, const InitialDesign *design) {
   Scene scene = load_bodies(comm, c, design);
   connect(comm, c, scene, true);
   return scene;
 }
 
-void set_body_model(MPI_Comm comm, const io::Case &c, Scene &scene, std::size_t b,
+void set_body_model(MPI_Comm comm, const SceneDescription &c, Scene &scene, std::size_t b,
                     std::shared_ptr<bodies::Body> body) {
   const int mb = scene.bodies.at(b).mechanism;
   if (mb < 0) throw Error("set_body_model: body '" + c.bodies[b].name + "' is an ACF body", true);
@@ -603,9 +602,9 @@ void set_body_model(MPI_Comm comm, const io::Case &c, Scene &scene, std::size_t 
 }
 
 std::shared_ptr<const reduce::FlexibleReduction>
-set_ffrf_design(MPI_Comm comm, const io::Case &c, Scene &scene, std::size_t b,
+set_ffrf_design(MPI_Comm comm, const SceneDescription &c, Scene &scene, std::size_t b,
                 const reduce::ElementFactors &factors) {
-  const io::BodySpec &spec = c.bodies.at(b);
+  const BodyDescription &spec = c.bodies.at(b);
   SceneBody &sb = scene.bodies.at(b);
   if (!sb.reduction)
     throw Error("set_ffrf_design: body '" + spec.name + "' is not an FFRF body", true);
@@ -667,16 +666,16 @@ InterfaceFrame first_interface_frame(const Scene &scene, const SceneBody &body,
 Vec3 acf_sensor_value(const Scene &scene, const DistributedAlpha &da, const BoundSensor &s,
                       const DistState &state, const State &small) {
   // The first interface node's rotation, as for the body of any other sensor.
-  if (s.quantity == "rotation_angle") return sensor_value(scene, s, small.q);
+  if (s.quantity == SensorQuantity::RotationAngle) return sensor_value(scene, s, small.q);
   const SceneBody &sb = scene.bodies[static_cast<std::size_t>(s.acf_body)];
   const Vec3 x = da.point_position(state, static_cast<std::size_t>(sb.acf), s.location);
-  if (s.quantity == "position") return x;
-  if (s.quantity == "displacement") return x - (sb.position + sb.R * s.point);
+  if (s.quantity == SensorQuantity::Position) return x;
+  if (s.quantity == SensorQuantity::Displacement) return x - (sb.position + sb.R * s.point);
   return first_interface_frame(scene, sb, small).elastic(x, s.point);
 }
 
 Vec3 sensor_value(const Scene &scene, const BoundSensor &s, const State &state) {
-  if (s.quantity != "reaction") return sensor_value(scene, s, state.q);
+  if (s.quantity != SensorQuantity::Reaction) return sensor_value(scene, s, state.q);
   Vec3 f = Vec3::Zero();
   for (int i = 0; i < 3; ++i) {
     const int r = s.lambda_rows[static_cast<std::size_t>(i)];
@@ -688,14 +687,14 @@ Vec3 sensor_value(const Scene &scene, const BoundSensor &s, const State &state) 
 Vec3 sensor_value(const Scene &scene, const BoundSensor &s, const Vector &q) {
   const Mechanism &mech = scene.mechanism;
   const int o = mech.offset(s.body), n = mech.size(s.body);
-  if (s.quantity == "rotation_angle") {
+  if (s.quantity == SensorQuantity::RotationAngle) {
     const Mat3 A = bodies::rotation(q.segment<4>(o + 3).normalized());
     const Mat3 A0 = bodies::rotation(scene.q0.segment<4>(o + 3).normalized());
     return bodies::rotation_vector(A * A0.transpose());
   }
-  if (s.quantity == "elastic_displacement") return s.S * q.segment(o + 7, n - 7);
+  if (s.quantity == SensorQuantity::ElasticDisplacement) return s.S * q.segment(o + 7, n - 7);
   const Vec3 x = joints::anchor_position(q.segment(o, n), s.s, s.S);
-  if (s.quantity == "displacement")
+  if (s.quantity == SensorQuantity::Displacement)
     return x - joints::anchor_position(scene.q0.segment(o, n), s.s, s.S);
   return x;
 }

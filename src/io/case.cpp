@@ -20,28 +20,19 @@ const MaterialSpec &Case::material(const std::string &n) const {
   throw Error("no material '" + n + "' in " + file, true);
 }
 
-const BodySpec &Case::body(const std::string &n) const {
-  for (const auto &b : bodies)
-    if (b.name == n) return b;
-  throw Error("no body '" + n + "' in " + file, true);
-}
-
 const std::vector<ModelSetting> &model_settings() {
+  using dynamics::BodyModel;
   static const std::vector<ModelSetting> settings = {
-      {"reduction", {"ffrf"}},
-      {"damping", {"ffrf", "acf"}},
-      {"initial.elastic_displacement", {"ffrf", "acf"}},
-      {"initial.elastic_velocity", {"ffrf", "acf"}},
+      {"reduction", {BodyModel::Ffrf}},
+      {"damping", {BodyModel::Ffrf, BodyModel::Acf}},
+      {"initial.elastic_displacement", {BodyModel::Ffrf, BodyModel::Acf}},
+      {"initial.elastic_velocity", {BodyModel::Ffrf, BodyModel::Acf}},
   };
   return settings;
 }
 
-std::string simulated_model(const std::string &model) {
-  return model == "auto" ? "rigid" : model;
-}
-
-std::vector<std::string> settings_used_by(const std::string &model) {
-  const std::string simulated = simulated_model(model);
+std::vector<std::string> settings_used_by(dynamics::BodyModel model) {
+  const dynamics::BodyModel simulated = dynamics::simulated_model(model);
   std::vector<std::string> keys;
   for (const ModelSetting &s : model_settings())
     if (std::find(s.models.begin(), s.models.end(), simulated) != s.models.end())
@@ -49,7 +40,7 @@ std::vector<std::string> settings_used_by(const std::string &model) {
   return keys;
 }
 
-std::vector<std::string> unused_settings(const BodySpec &body) {
+std::vector<std::string> unused_settings(const dynamics::BodyDescription &body) {
   const std::vector<std::string> used = settings_used_by(body.model);
   std::vector<std::string> unused;
   for (const ModelSetting &s : model_settings())
@@ -59,23 +50,29 @@ std::vector<std::string> unused_settings(const BodySpec &body) {
   return unused;
 }
 
-std::string unused_settings_note(const BodySpec &body) {
+std::string unused_settings_note(const dynamics::BodyDescription &body) {
   std::string list;
   for (const std::string &key : unused_settings(body)) {
     std::string models;
     for (const ModelSetting &s : model_settings())
       if (s.key == key)
-        for (const std::string &m : s.models) models += (models.empty() ? "" : ", ") + m;
+        for (dynamics::BodyModel m : s.models)
+          models += (models.empty() ? "" : ", ") + std::string(dynamics::model_name(m));
     list += (list.empty() ? "" : ", ") + key + " (" + models + ")";
   }
   if (list.empty()) return "";
-  std::string model = "model: " + body.model;
-  if (simulated_model(body.model) != body.model)
-    model += ", simulated as " + simulated_model(body.model);
+  std::string model = std::string("model: ") + dynamics::model_name(body.model);
+  if (dynamics::simulated_model(body.model) != body.model)
+    model += std::string(", simulated as ") +
+             dynamics::model_name(dynamics::simulated_model(body.model));
   return "body " + body.name + " (" + model + "): settings not used by this model: " + list;
 }
 
 namespace {
+
+using dynamics::BodyModel;
+using dynamics::JointType;
+using dynamics::SensorQuantity;
 
 /// Keys of CASE_FORMAT.md that belong to later stages (dynamic optimization): recognised so that
 /// the message says they are not available yet rather than "unknown".
@@ -282,8 +279,9 @@ std::string join(const std::vector<std::string> &names, const char *none = "none
 
 /// Reads `bodies[].initial` into `b.initial`; the elastic fields (model settings) are recorded
 /// in `b.settings`.
-void read_initial(const Reader &r, const YAML::Node &v, const std::string &path, BodySpec &b) {
-  InitialSpec &s = b.initial;
+void read_initial(const Reader &r, const YAML::Node &v, const std::string &path,
+                  dynamics::BodyDescription &b) {
+  dynamics::InitialPlacement &s = b.initial;
   r.require_map(v, path);
   r.check_keys(v, path,
                {"position", "rotation", "velocity", "angular_velocity", "elastic_displacement",
@@ -309,7 +307,7 @@ void read_initial(const Reader &r, const YAML::Node &v, const std::string &path,
 }
 
 void read_bodies(const Reader &r, const YAML::Node &node, const fs::path &dir, Case &c) {
-  const bool dynamic = c.analysis == "dynamic";
+  const bool dynamic = c.dynamic();
   r.require_sequence(node, "bodies");
   if (node.size() == 0) r.fail(node, "bodies: at least one body is required");
   for (std::size_t i = 0; i < node.size(); ++i) {
@@ -319,18 +317,21 @@ void read_bodies(const Reader &r, const YAML::Node &node, const fs::path &dir, C
     r.check_keys(v, path,
                  {"name", "model", "geometry", "mesh", "material", "interfaces", "reduction",
                   "damping", "initial"});
-    BodySpec b;
+    dynamics::BodyDescription b;
     b.where = r.where(v);
     b.name = r.string(r.require(v, "name", path), path + ".name");
     if (b.name == "ground")
       r.fail(v["name"], path + ".name: 'ground' is reserved for the fixed frame (joints name it as "
                                "a or b); choose another body name");
-    for (const auto &other : c.bodies)
+    for (const auto &other : c.scene.bodies)
       if (other.name == b.name)
         r.fail(v["name"], path + ".name: duplicate body name '" + b.name + "'");
-    if (v["model"]) {
-      b.model = r.choice(v["model"], path + ".model", {"rigid", "ffrf", "acf", "auto"});
-    }
+    if (v["model"])
+      b.model = r.enumerated(v["model"], path + ".model",
+                             {std::pair{"rigid", BodyModel::Rigid},
+                              {"ffrf", BodyModel::Ffrf},
+                              {"acf", BodyModel::Acf},
+                              {"auto", BodyModel::Auto}});
     // The settings of every model are read and checked whatever `model` is (a body may carry
     // them all; `model` picks the ones used, and unused_settings() reports the others).
     if (v["reduction"]) {
@@ -349,9 +350,11 @@ void read_bodies(const Reader &r, const YAML::Node &node, const fs::path &dir, C
         b.reduction.geometric_stiffening =
             r.boolean(m["geometric_stiffening"], mp + ".geometric_stiffening");
       if (m["frame"]) {
-        b.reduction.frame = r.choice(m["frame"], mp + ".frame", {"clamped", "chord"});
+        b.reduction.frame = r.enumerated(m["frame"], mp + ".frame",
+                                         {std::pair{"clamped", reduce::FrameCondition::Clamped},
+                                          {"chord", reduce::FrameCondition::Chord}});
         b.reduction.frame_given = true;
-        if (b.reduction.frame == "chord" && b.reduction.geometric_stiffening)
+        if (b.reduction.frame == reduce::FrameCondition::Chord && b.reduction.geometric_stiffening)
           r.fail(m["frame"], mp + ".frame: chord does not combine with geometric_stiffening (the "
                                   "centrifugal preload is the stress of the body clamped at its "
                                   "first interface)");
@@ -372,7 +375,7 @@ void read_bodies(const Reader &r, const YAML::Node &node, const fs::path &dir, C
           r.fail(ray[k], mp + ".rayleigh[" + std::to_string(k) + "]: must not be negative");
       }
       // Only where acf uses it: the same [a, b] serves an ffrf body.
-      if (simulated_model(b.model) == "acf" && b.rayleigh[0] != 0)
+      if (dynamics::simulated_model(b.model) == BodyModel::Acf && b.rayleigh[0] != 0)
         r.fail(ray[0], mp + ".rayleigh[0]: an acf body takes stiffness-proportional damping "
                             "only, [0, b]: mass-proportional damping of its absolute velocities "
                             "would brake its rigid motion (docs/theory.md section 8.1; an ffrf "
@@ -428,9 +431,10 @@ void read_bodies(const Reader &r, const YAML::Node &node, const fs::path &dir, C
     }
     // The default frame: the chord for a link between joints (docs/case-format.md).
     if (!b.reduction.frame_given)
-      b.reduction.frame =
-          b.interfaces.size() >= 2 && !b.reduction.geometric_stiffening ? "chord" : "clamped";
-    if (b.reduction.frame == "chord" && b.interfaces.size() < 2)
+      b.reduction.frame = b.interfaces.size() >= 2 && !b.reduction.geometric_stiffening
+                              ? reduce::FrameCondition::Chord
+                              : reduce::FrameCondition::Clamped;
+    if (b.reduction.frame == reduce::FrameCondition::Chord && b.interfaces.size() < 2)
       r.fail(v["reduction"]["frame"], path + ".reduction.frame: chord needs two interfaces (the "
                                              "frame axis runs from the first to the second)");
     if (v["initial"]) {
@@ -440,13 +444,13 @@ void read_bodies(const Reader &r, const YAML::Node &node, const fs::path &dir, C
                       "move bodies)");
       read_initial(r, v["initial"], path + ".initial", b);
     }
-    c.bodies.push_back(b);
+    c.scene.bodies.push_back(b);
   }
 }
 
 bool has_body(const Case &c, const std::string &name) {
-  return std::any_of(c.bodies.begin(), c.bodies.end(),
-                     [&](const BodySpec &b) { return b.name == name; });
+  return std::any_of(c.scene.bodies.begin(), c.scene.bodies.end(),
+                     [&](const dynamics::BodyDescription &b) { return b.name == name; });
 }
 
 void read_supports(const Reader &r, const YAML::Node &node, Case &c) {
@@ -514,29 +518,30 @@ void read_ground(const Reader &r, const YAML::Node &node, Case &c) {
   const YAML::Node &l = r.require(node, "interfaces", "ground");
   r.require_map(l, "ground.interfaces");
   for (const auto &kv : l) {
-    GroundInterfaceSpec g;
+    dynamics::GroundInterface g;
     g.name = r.string(kv.first, "ground.interfaces");
     g.where = r.where(kv.first);
     const std::string path = "ground.interfaces." + g.name;
-    for (const auto &other : c.ground)
+    for (const auto &other : c.scene.ground)
       if (other.name == g.name) r.fail(kv.first, path + ": duplicate ground interface name");
     g.origin = r.vector3(kv.second, path);
-    c.ground.push_back(g);
+    c.scene.ground.push_back(g);
   }
-  if (c.ground.empty()) r.fail(l, "ground.interfaces: name at least one point (NAME: [x, y, z])");
+  if (c.scene.ground.empty())
+    r.fail(l, "ground.interfaces: name at least one point (NAME: [x, y, z])");
 }
 
 /// Checks that `side` ("a" or "b") of a joint names ground or a body, and that its interface
 /// is one of that body's `interfaces:` (or a ground interface).
 void check_joint_side(const Reader &r, const YAML::Node &v, const std::string &path,
-                      const JointSpec &j, const char *side, const Case &c) {
+                      const dynamics::JointDescription &j, const char *side, const Case &c) {
   const std::string &who = side[0] == 'a' ? j.a : j.b;
   const std::string &iface = side[0] == 'a' ? j.a_interface : j.b_interface;
   const std::string ikey = std::string(side) + "_interface";
   const std::string head = "joint '" + j.name + "': ";
   if (who == "ground") {
     std::vector<std::string> names;
-    for (const auto &g : c.ground) names.push_back(g.name);
+    for (const auto &g : c.scene.ground) names.push_back(g.name);
     if (std::find(names.begin(), names.end(), iface) != names.end()) return;
     if (names.empty())
       r.fail(v[ikey], path + "." + ikey + ": " + head + "ground has no interface '" + iface +
@@ -545,9 +550,9 @@ void check_joint_side(const Reader &r, const YAML::Node &v, const std::string &p
     r.fail(v[ikey], path + "." + ikey + ": " + head + "ground has no interface '" + iface +
                         "' (ground interfaces: " + join(names) + ")");
   }
-  const BodySpec *body = nullptr;
+  const dynamics::BodyDescription *body = nullptr;
   std::vector<std::string> bodies;
-  for (const auto &b : c.bodies) {
+  for (const auto &b : c.scene.bodies) {
     bodies.push_back(b.name);
     if (b.name == who) body = &b;
   }
@@ -571,14 +576,18 @@ void read_joints(const Reader &r, const YAML::Node &node, Case &c) {
     const std::string path = "joints[" + std::to_string(i) + "]";
     r.require_map(v, path);
     r.check_keys(v, path, {"name", "type", "a", "a_interface", "b", "b_interface", "axis"});
-    JointSpec j;
+    dynamics::JointDescription j;
     j.where = r.where(v);
     j.name = r.string(r.require(v, "name", path), path + ".name");
-    for (const auto &other : c.joints)
+    for (const auto &other : c.scene.joints)
       if (other.name == j.name)
         r.fail(v["name"], path + ".name: duplicate joint name '" + j.name + "'");
-    j.type = r.choice(r.require(v, "type", path), path + ".type",
-                      {"revolute", "spherical", "prismatic", "fixed"});
+    j.type = r.enumerated(r.require(v, "type", path), path + ".type",
+                          {std::pair{"revolute", JointType::Revolute},
+                           {"spherical", JointType::Spherical},
+                           {"prismatic", JointType::Prismatic},
+                           {"fixed", JointType::Fixed}});
+    const std::string type = dynamics::joint_type_name(j.type);
     j.a = r.string(r.require(v, "a", path), path + ".a");
     j.a_interface = r.string(r.require(v, "a_interface", path), path + ".a_interface");
     j.b = r.string(r.require(v, "b", path), path + ".b");
@@ -590,16 +599,16 @@ void read_joints(const Reader &r, const YAML::Node &node, Case &c) {
     if (j.a == j.b)
       r.fail(v["b"], path + ".b: joint '" + j.name + "': a and b are the same body '" + j.a +
                          "' (a joint connects two bodies, or a body and ground)");
-    const bool has_axis = j.type == "revolute" || j.type == "prismatic";
+    const bool has_axis = j.type == JointType::Revolute || j.type == JointType::Prismatic;
     if (has_axis) {
       if (!v["axis"])
-        r.fail(v, path + ": joint '" + j.name + "': a " + j.type +
+        r.fail(v, path + ": joint '" + j.name + "': a " + type +
                       " joint needs axis: [x, y, z] (world frame, t = 0)");
       j.axis = r.direction(v["axis"], path + ".axis");
     } else if (v["axis"]) {
-      r.fail(v["axis"], path + ".axis: a " + j.type + " joint has no axis");
+      r.fail(v["axis"], path + ".axis: a " + type + " joint has no axis");
     }
-    c.joints.push_back(j);
+    c.scene.joints.push_back(j);
   }
 }
 
@@ -610,28 +619,29 @@ void read_drivers(const Reader &r, const YAML::Node &node, Case &c) {
     const std::string path = "drivers[" + std::to_string(i) + "]";
     r.require_map(v, path);
     r.check_keys(v, path, {"joint", "value"});
-    DriverSpec d;
+    dynamics::DriverDescription d;
     d.where = r.where(v);
     d.joint = r.string(r.require(v, "joint", path), path + ".joint");
-    const JointSpec *joint = nullptr;
+    const dynamics::JointDescription *joint = nullptr;
     std::vector<std::string> names;
-    for (const auto &j : c.joints) {
+    for (const auto &j : c.scene.joints) {
       names.push_back(j.name);
       if (j.name == d.joint) joint = &j;
     }
     if (!joint)
       r.fail(v["joint"],
              path + ".joint: no joint named '" + d.joint + "' (joints: " + join(names) + ")");
-    if (joint->type != "revolute" && joint->type != "prismatic")
-      r.fail(v["joint"], path + ".joint: joint '" + d.joint + "' is " + joint->type +
+    if (joint->type != JointType::Revolute && joint->type != JointType::Prismatic)
+      r.fail(v["joint"], path + ".joint: joint '" + d.joint + "' is " +
+                             dynamics::joint_type_name(joint->type) +
                              "; a driver prescribes the coordinate of a revolute or prismatic "
                              "joint");
-    for (std::size_t k = 0; k < c.drivers.size(); ++k)
-      if (c.drivers[k].joint == d.joint)
+    for (std::size_t k = 0; k < c.scene.drivers.size(); ++k)
+      if (c.scene.drivers[k].joint == d.joint)
         r.fail(v["joint"], path + ".joint: joint '" + d.joint + "' already has a driver (drivers[" +
                                std::to_string(k) + "])");
     d.expression = r.expression(r.require(v, "value", path), path + ".value");
-    c.drivers.push_back(d);
+    c.scene.drivers.push_back(d);
   }
 }
 
@@ -643,13 +653,13 @@ void read_forces(const Reader &r, const YAML::Node &node, Case &c) {
     const std::string path = key + "[" + std::to_string(i) + "]";
     r.require_map(v, path);
     r.check_keys(v, path, {"body", "interface", "value"});
-    ForceSpec f;
+    dynamics::ForceDescription f;
     f.where = r.where(v);
     f.body = r.string(r.require(v, "body", path), path + ".body");
     if (f.body == "ground")
       r.fail(v["body"], path + ".body: the ground is fixed; a force acts on a body");
     if (!has_body(c, f.body)) r.fail(v["body"], path + ".body: no body named '" + f.body + "'");
-    const BodySpec &b = c.body(f.body);
+    const dynamics::BodyDescription &b = c.scene.body(f.body);
     f.interface = r.string(r.require(v, "interface", path), path + ".interface");
     if (std::find(b.interfaces.begin(), b.interfaces.end(), f.interface) == b.interfaces.end())
       r.fail(v["interface"], path + ".interface: body '" + f.body + "' has no interface '" +
@@ -660,7 +670,7 @@ void read_forces(const Reader &r, const YAML::Node &node, Case &c) {
                          "expression in t");
     for (std::size_t k = 0; k < 3; ++k)
       f.value[k] = r.expression(val[k], path + ".value[" + std::to_string(k) + "]");
-    c.forces.push_back(f);
+    c.scene.forces.push_back(f);
   }
 }
 
@@ -668,7 +678,7 @@ void read_time(const Reader &r, const YAML::Node &v, Case &c) {
   const std::string path = "time";
   r.require_map(v, path);
   r.check_keys(v, path, {"end", "step", "rho_inf", "newton_reuse"});
-  TimeSpec &t = c.time;
+  dynamics::TimeSettings &t = c.time;
   t.where = r.where(v);
   t.end = r.number(r.require(v, "end", path), path + ".end");
   if (!(t.end > 0)) r.fail(v["end"], path + ".end: must be positive");
@@ -719,10 +729,10 @@ void read_sensors(const Reader &r, const YAML::Node &node, Case &c) {
     const std::string path = "sensors[" + std::to_string(i) + "]";
     r.require_map(v, path);
     r.check_keys(v, path, {"name", "body", "point", "quantity", "joint"});
-    SensorSpec s;
+    dynamics::SensorDescription s;
     s.where = r.where(v);
     s.name = r.string(r.require(v, "name", path), path + ".name");
-    for (const auto &other : c.sensors)
+    for (const auto &other : c.scene.sensors)
       if (other.name == s.name)
         r.fail(v["name"], path + ".name: duplicate sensor name '" + s.name + "'");
     if (v["joint"]) {
@@ -734,17 +744,17 @@ void read_sensors(const Reader &r, const YAML::Node &node, Case &c) {
                            "takes no " +
                            k);
       s.joint = r.string(v["joint"], path + ".joint");
-      const JointSpec *joint = nullptr;
-      for (const auto &j : c.joints)
+      const dynamics::JointDescription *joint = nullptr;
+      for (const auto &j : c.scene.joints)
         if (j.name == s.joint) joint = &j;
       if (!joint) r.fail(v["joint"], path + ".joint: no joint named '" + s.joint + "'");
-      if (joint->type == "prismatic")
+      if (joint->type == JointType::Prismatic)
         r.fail(v["joint"], path + ".joint: joint '" + s.joint +
                                "' is prismatic; reaction sensors measure the force at the "
                                "coincident point of a revolute, spherical or fixed joint");
-      s.quantity = "reaction";
+      s.quantity = SensorQuantity::Reaction;
       if (v["quantity"]) r.choice(v["quantity"], path + ".quantity", {"reaction"});
-      c.sensors.push_back(s);
+      c.scene.sensors.push_back(s);
       continue;
     }
     s.body = r.string(r.require(v, "body", path), path + ".body");
@@ -752,14 +762,18 @@ void read_sensors(const Reader &r, const YAML::Node &node, Case &c) {
     s.point = r.vector3(r.require(v, "point", path), path + ".point");
     if (v["quantity"]) {
       const YAML::Node &q = v["quantity"];
-      s.quantity = r.choice(q, path + ".quantity",
-                            {"displacement", "position", "elastic_displacement", "rotation_angle"});
+      s.quantity = r.enumerated(q, path + ".quantity",
+                                {std::pair{"displacement", SensorQuantity::Displacement},
+                                 {"position", SensorQuantity::Position},
+                                 {"elastic_displacement", SensorQuantity::ElasticDisplacement},
+                                 {"rotation_angle", SensorQuantity::RotationAngle}});
       // ("reaction" belongs to joint sensors: `joint:` instead of `body:` and `point:`.)
-      if (c.analysis == "static" && s.quantity != "displacement" && s.quantity != "position")
-        r.fail(q, path + ".quantity: '" + s.quantity +
+      if (!c.dynamic() && s.quantity != SensorQuantity::Displacement &&
+          s.quantity != SensorQuantity::Position)
+        r.fail(q, path + ".quantity: '" + std::string(dynamics::quantity_name(s.quantity)) +
                       "' needs a dynamic analysis; a static one has displacement and position");
     }
-    c.sensors.push_back(s);
+    c.scene.sensors.push_back(s);
   }
 }
 
@@ -780,13 +794,13 @@ void read_design(const Reader &r, const YAML::Node &v, Case &c) {
   // The mass interpolation's default: a flexible design body in a dynamic analysis gets the one
   // that keeps its lowest modes global (docs/theory.md 9.1, "Local modes"); a rigid one has no
   // modes, and its mass is best exactly the densities'.
-  for (const BodySpec &b : c.bodies)
-    if (b.name == d.body && c.analysis == "dynamic" && simulated_model(b.model) != "rigid")
+  for (const dynamics::BodyDescription &b : c.scene.bodies)
+    if (b.name == d.body && c.dynamic() && dynamics::simulated_model(b.model) != BodyModel::Rigid)
       d.mass = optimize::MassInterpolation::Pedersen;
   // A static design under body forces (self-weight, inertia): a void element's load w(rho) f_e
   // must vanish faster than its SIMP stiffness, or it deforms without bound (docs/theory.md
   // section 5); the Du-Olhoff form (rho^6 below 0.1) does, a linear mass does not.
-  if (c.analysis == "static" && (c.loads.gravity || c.loads.inertia))
+  if (!c.dynamic() && (c.loads.gravity || c.loads.inertia))
     d.mass = optimize::MassInterpolation::Pedersen;
   if (v["interpolation"]) {
     const YAML::Node &i = v["interpolation"];
@@ -854,7 +868,7 @@ optimize::ResponseSettings read_response(const Reader &r, const YAML::Node &v,
       {"type", "sensor", "direction", "body", "target", "component", "measure", "ks", "max"});
   optimize::ResponseSettings s;
   s.where = r.where(v);
-  const bool dynamic = c.analysis == "dynamic";
+  const bool dynamic = c.dynamic();
   s.type = r.enumerated(r.require(v, "type", path), path + ".type",
                         {std::pair{"compliance", ResponseType::Compliance},
                          {"volume_fraction", ResponseType::VolumeFraction},
@@ -885,11 +899,12 @@ optimize::ResponseSettings read_response(const Reader &r, const YAML::Node &v,
       r.fail(v[k], path + "." + k + ": a '" + type + "' response does not take it");
   auto find_sensor = [&]() {
     s.sensor = r.string(r.require(v, "sensor", path), path + ".sensor");
-    for (const auto &sensor : c.sensors)
+    for (const auto &sensor : c.scene.sensors)
       if (sensor.name == s.sensor) {
-        if (dynamic && (sensor.quantity == "rotation_angle" || sensor.quantity == "reaction"))
+        if (dynamic && (sensor.quantity == SensorQuantity::RotationAngle ||
+                        sensor.quantity == SensorQuantity::Reaction))
           r.fail(v["sensor"], path + ".sensor: sensor '" + s.sensor + "' measures " +
-                                  sensor.quantity +
+                                  dynamics::quantity_name(sensor.quantity) +
                                   ", which a response cannot use yet (position, displacement, "
                                   "elastic_displacement)");
         s.point = sensor.point;
@@ -966,7 +981,7 @@ void read_adjoint(const Reader &r, const YAML::Node &v, Case &c) {
   const std::string path = "adjoint";
   r.require_map(v, path);
   r.check_keys(v, path, {"checkpoints", "storage", "basis"});
-  AdjointSpec &a = c.adjoint;
+  adjoint::CheckpointSettings &a = c.adjoint;
   a.where = r.where(v);
   if (v["checkpoints"]) {
     const YAML::Node &n = v["checkpoints"];
@@ -977,14 +992,20 @@ void read_adjoint(const Reader &r, const YAML::Node &v, Case &c) {
                       n.Scalar() + ")");
     }
   }
-  if (v["storage"]) a.storage = r.choice(v["storage"], path + ".storage", {"memory", "disk"});
-  if (v["basis"]) a.basis = r.choice(v["basis"], path + ".basis", {"exact", "fixed"});
+  if (v["storage"])
+    a.storage = r.enumerated(v["storage"], path + ".storage",
+                             {std::pair{"memory", adjoint::CheckpointStorage::Memory},
+                              {"disk", adjoint::CheckpointStorage::Disk}});
+  if (v["basis"])
+    a.basis = r.enumerated(v["basis"], path + ".basis",
+                           {std::pair{"exact", reduce::BasisDerivative::Exact},
+                            {"fixed", reduce::BasisDerivative::Fixed}});
 }
 
 } // namespace
 
 fem::StaticSettings static_settings(const Case &c) {
-  const BodySpec &body = c.bodies.front();
+  const dynamics::BodyDescription &body = c.scene.bodies.front();
   return fem::StaticSettings{body.mesh, body.material, c.loads, c.file};
 }
 
@@ -992,6 +1013,24 @@ optimize::TopologySettings topology_settings(const Case &c) {
   if (!c.design || !c.objective)
     throw Error(c.file + ": topology optimization needs design: and objective: sections", true);
   return optimize::TopologySettings{static_settings(c), *c.design, *c.objective, c.constraints};
+}
+
+adjoint::DynamicSettings dynamic_settings(const Case &c) {
+  if (!c.design || !c.objective)
+    throw Error(c.file + ": an optimization needs design: and objective: sections", true);
+  return adjoint::DynamicSettings{c.scene,      c.time,        *c.design,
+                                  *c.objective, c.constraints, c.adjoint};
+}
+
+plan::PlanSettings plan_settings(const Case &c) {
+  plan::PlanSettings s{c.scene, c.time, c.accuracy, c.design ? c.design->body : "", {}};
+  std::vector<const optimize::ResponseSettings *> responses;
+  if (c.objective) responses.push_back(&*c.objective);
+  for (const optimize::ResponseSettings &r : c.constraints) responses.push_back(&r);
+  for (const optimize::ResponseSettings *r : responses)
+    if (!r->sensor.empty())
+      s.sensor_responses.emplace_back(optimize::response_type_name(r->type), r->sensor);
+  return s;
 }
 
 Case load_case(const std::string &directory) {
@@ -1032,8 +1071,11 @@ Case load_case(const std::string &directory) {
                 "supports", "tractions", "line_loads",  "time",      "sensors", "output",  "solver",
                 "design",   "objective", "constraints", "optimizer", "adjoint", "accuracy"});
 
-  c.analysis = r.choice(r.require(root, "analysis", ""), "analysis", {"static", "dynamic"});
-  const bool dynamic = c.analysis == "dynamic";
+  c.analysis =
+      r.enumerated(r.require(root, "analysis", ""), "analysis",
+                   {std::pair{"static", Analysis::Static}, {"dynamic", Analysis::Dynamic}});
+  c.scene.file = c.file;
+  const bool dynamic = c.dynamic();
   for (const char *key : kDynamicOnly)
     if (!dynamic && root[key])
       r.fail(r.key_node(root, key),
@@ -1053,7 +1095,7 @@ Case load_case(const std::string &directory) {
     r.check_keys(l, "loads", {"gravity", "forces", "inertia"});
     if (l["gravity"]) {
       const std::array<double, 3> g = r.vector3(l["gravity"], "loads.gravity");
-      (dynamic ? c.gravity : c.loads.gravity) = g;
+      (dynamic ? c.scene.gravity : c.loads.gravity) = g;
     }
     if (l["inertia"]) {
       const YAML::Node &n = l["inertia"];
@@ -1143,9 +1185,9 @@ Case load_case(const std::string &directory) {
   for (const optimize::ResponseSettings &con : c.constraints) c.optimizer.bounds.push_back(con.max);
   c.optimizer.output_every = dynamic ? 1 : std::max(c.output.every, 1);
 
-  if (c.analysis == "static" && c.bodies.size() != 1)
+  if (!dynamic && c.scene.bodies.size() != 1)
     r.fail(root["bodies"], "bodies: a static analysis takes exactly one body (got " +
-                               std::to_string(c.bodies.size()) + ")");
+                               std::to_string(c.scene.bodies.size()) + ")");
   if (dynamic && !c.time.given)
     r.fail(root["analysis"], "analysis: a dynamic analysis needs time: {end: T, step: h}");
   return c;

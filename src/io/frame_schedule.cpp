@@ -6,7 +6,7 @@
 
 namespace flexopt::io {
 
-FrameSchedule::FrameSchedule(const OutputSpec &output, long long steps, double h)
+FrameSchedule::FrameSchedule(const OutputSettings &output, long long steps, double h)
     : steps_(std::max(steps, 0LL)), output_(output) {
   if (output.every > 0) {
     stride_ = output.every;

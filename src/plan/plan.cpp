@@ -3,7 +3,7 @@
 #include "flexopt/bodies/quaternion.hpp"
 #include "flexopt/core/context.hpp"
 #include "flexopt/core/error.hpp"
-#include "flexopt/dynamics/generalized_alpha.hpp"
+#include "flexopt/dynamics/integrator.hpp"
 #include "flexopt/dynamics/scene.hpp"
 #include "flexopt/fem/assembly.hpp"
 #include "flexopt/mesh/load.hpp"
@@ -143,42 +143,36 @@ double max_nodal_norm(const Eigen::MatrixXd &U, const Eigen::VectorXd &z, MPI_Co
 
 } // namespace
 
-Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
+Plan make_plan(MPI_Comm comm, const PlanSettings &c, const PlanOptions &o) {
+  using dynamics::BodyModel;
   const double t_plan = wall_time();
-  if (c.analysis != "dynamic")
-    throw Error(c.file + ": plan: models are chosen for dynamic analyses (this case is " +
-                    c.analysis + ")",
-                true);
   Plan plan;
   plan.accuracy = c.accuracy;
   const double eps = c.accuracy;
 
-  // The pre-run's case: every body that is not rigid by the user's choice is an FFRF body with
-  // the plan's reduction and no initial elastic state; no design.
-  io::Case pre = c;
-  pre.design.reset();
-  pre.objective.reset();
-  pre.constraints.clear();
+  // The pre-run's scene: every body that is not rigid by the user's choice is an FFRF body with
+  // the plan's reduction and no initial elastic state.
+  dynamics::SceneDescription pre = c.scene;
   std::vector<std::size_t> estimated;
   for (std::size_t b = 0; b < pre.bodies.size(); ++b) {
-    io::BodySpec &body = pre.bodies[b];
+    dynamics::BodyDescription &body = pre.bodies[b];
     BodyPlan bp;
     bp.body = body.name;
-    bp.given = c.bodies[b].model;
+    bp.given = c.scene.bodies[b].model;
     bp.model = bp.given;
-    if (body.model == "rigid" || body.interfaces.empty()) {
-      bp.recommended = "rigid";
-      if (body.model != "rigid") {
-        bp.model = bp.given == "auto" ? "rigid" : bp.given;
+    if (body.model == BodyModel::Rigid || body.interfaces.empty()) {
+      bp.recommended = BodyModel::Rigid;
+      if (body.model != BodyModel::Rigid) {
+        bp.model = bp.given == BodyModel::Auto ? BodyModel::Rigid : bp.given;
         bp.reasons.push_back("no interfaces: a flexible model needs one as its frame; estimated "
                              "as rigid");
       }
-      body.model = "rigid";
+      body.model = BodyModel::Rigid;
       plan.bodies.push_back(bp);
       continue;
     }
     const int interfaces = static_cast<int>(body.interfaces.size());
-    body.model = "ffrf";
+    body.model = BodyModel::Ffrf;
     body.reduction.modes =
         std::min(o.max_modes, bodies::kMaxBodyCoordinates - 7 - 6 * (interfaces - 1));
     body.reduction.geometric_stiffening = false;
@@ -215,7 +209,7 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
       e.kind = joints::Equation::Kind::ElasticCoordinate;
       e.a = cd.mech;
       e.coordinate = k;
-      e.owner = c.bodies[b].name + " (held rigid)";
+      e.owner = c.scene.bodies[b].name + " (held rigid)";
       e.row_in_owner = k;
       holds.push_back(e);
     }
@@ -235,7 +229,7 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
       for (int k = 0; k < cd.n; ++k, ++e) {
         const int row = mech.enforced_index(mech.first_row(static_cast<int>(e)));
         if (row < 0)
-          throw Error("plan: body " + c.bodies[cd.body].name +
+          throw Error("plan: body " + c.scene.bodies[cd.body].name +
                           ": a hold row was found redundant (an internal error)",
                       true);
         cd.lambda.push_back(row);
@@ -248,9 +242,10 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
   std::vector<std::size_t> track_of;
   for (std::size_t i = 0; i < scene.sensors.size(); ++i) {
     const dynamics::BoundSensor &s = scene.sensors[i];
-    if (s.quantity == "position" || s.quantity == "displacement") {
+    if (s.quantity == dynamics::SensorQuantity::Position ||
+        s.quantity == dynamics::SensorQuantity::Displacement) {
       dynamics::BoundSensor p = s;
-      p.quantity = "position";
+      p.quantity = dynamics::SensorQuantity::Position;
       track.push_back(p);
       track_of.push_back(i);
     }
@@ -272,38 +267,36 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
   // rho_inf at most 0.5: the multipliers' start-up oscillation of the index-3 scheme decays as
   // rho_inf^n (section 6.4), and the forcing is the multipliers; the rigid motion is second-order
   // accurate for any rho_inf.
-  const auto par = dynamics::AlphaParameters::from_rho_inf(std::min(c.time.rho_inf, 0.5));
-  dynamics::NewtonSettings newton;
-  newton.reuse_contraction = c.time.newton_reuse;
-  const dynamics::GeneralizedAlpha ga(mech, par, newton);
+  dynamics::IntegratorSettings settings = dynamics::IntegratorSettings::from(c.time);
+  settings.alpha = dynamics::AlphaParameters::from_rho_inf(std::min(c.time.rho_inf, 0.5));
+  settings.step = h;
+  settings.steps = steps;
+  dynamics::Integrator integrator(scene, settings);
   const double t0 = wall_time();
-  dynamics::State state = ga.initial_state(scene.q0, scene.v0, 0.0), next;
+  integrator.start();
+  const dynamics::State *state = nullptr;
   auto record = [&](long long n) {
     for (Candidate &cd : cand) {
       for (int k = 0; k < cd.n; ++k)
-        cd.Q(n, k) = state.lambda(cd.lambda[static_cast<std::size_t>(k)]);
+        cd.Q(n, k) = state->lambda(cd.lambda[static_cast<std::size_t>(k)]);
       const int rigid = mech.offset(cd.mech);
-      const bodies::Vec4 p = state.q.segment<4>(rigid + 3), pd = state.v.segment<4>(rigid + 3);
+      const bodies::Vec4 p = state->q.segment<4>(rigid + 3), pd = state->v.segment<4>(rigid + 3);
       cd.omega.row(n) = (2.0 * bodies::gbar_matrix(p) * pd).transpose();
       cd.spin = std::max(cd.spin, cd.omega.row(n).norm());
     }
     for (std::size_t i = 0; i < track.size(); ++i) {
-      const bodies::Vec3 x = dynamics::sensor_value(scene, track[i], state.q);
+      const bodies::Vec3 x = dynamics::sensor_value(scene, track[i], state->q);
       if (n == 0) start[i] = x;
       scale[i] = std::max(scale[i], (x - start[i]).norm());
     }
   };
-  record(0);
-  for (long long n = 0; n < steps; ++n) {
-    dynamics::StepInfo info;
-    const double t1 = static_cast<double>(n + 1) * h;
-    if (!ga.advance(state, h, next, info))
-      throw Error("plan: the rigid pre-run: " + dynamics::newton_failure_message(
-                                                    n + 1, state.t, t1, info, newton.max_halvings),
-                  true);
-    next.t = t1;
-    state = next;
-    record(n + 1);
+  try {
+    integrator.run([&](const dynamics::StepView &v) {
+      state = v.dense;
+      record(v.step);
+    });
+  } catch (const Error &e) {
+    throw Error(std::string("plan: the rigid pre-run: ") + e.what(), true);
   }
   plan.prerun_s = wall_time() - t0;
   if (o.report)
@@ -354,10 +347,11 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
       m.name = "sensor " + s.name;
       m.S = s.S;
       m.deflection = max_norm(s.S, Z);
-      if (s.quantity == "elastic_displacement") {
+      if (s.quantity == dynamics::SensorQuantity::ElasticDisplacement) {
         m.elastic_sensor = true;
         m.scale = m.deflection;
-      } else if (s.quantity == "position" || s.quantity == "displacement") {
+      } else if (s.quantity == dynamics::SensorQuantity::Position ||
+                 s.quantity == dynamics::SensorQuantity::Displacement) {
         for (std::size_t j = 0; j < track.size(); ++j)
           if (track_of[j] == i) m.scale = scale[j];
       } else {
@@ -373,7 +367,7 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
         const Eigen::Vector3d d = red.centroids[I] - red.centroids[0];
         const Eigen::Matrix3Xd S = red.translation[I] + bodies::skew(d) * red.rotation[0];
         if (S.cwiseAbs().maxCoeff() > 0)
-          measures.push_back({"interface " + c.bodies[cd.body].interfaces[I], S, other_scale,
+          measures.push_back({"interface " + c.scene.bodies[cd.body].interfaces[I], S, other_scale,
                               max_norm(S, Z), false});
       }
 
@@ -420,7 +414,7 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
     // state (then in its quasi-static state, as the modes' test): the ringing of a body released
     // undeformed under load is physical, and its phase is what a stiffness change shifts.
     const Start start = [&]() {
-      const io::InitialSpec &init = c.bodies[cd.body].initial;
+      const dynamics::InitialPlacement &init = c.scene.bodies[cd.body].initial;
       auto none = [](const std::array<std::string, 3> &f) {
         return f[0].empty() && f[1].empty() && f[2].empty();
       };
@@ -496,7 +490,7 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
         dirs.push_back(
             reduce::basis_combination(red.basis, svd.matrixV().col(i).cwiseQuotient(root)));
       }
-      const fem::IsotropicMaterial &mat = c.bodies[cd.body].material;
+      const fem::IsotropicMaterial &mat = c.scene.bodies[cd.body].material;
       const std::vector<Eigen::MatrixXd> G =
           r ? reduce::reduced_geometric_stiffness(
                   mesh, fem::IsotropicMaterial{mat.E, mat.nu, mat.density}, red.basis, dirs, {},
@@ -536,7 +530,7 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
     }
 
     // The rules (section 12.3).
-    const bool flexible_design = c.design && c.design->body == bp.body;
+    const bool flexible_design = !c.design_body.empty() && c.design_body == bp.body;
     // Why ACF (the first reason that holds), and what keeps a body from it: a response of the
     // case (objective, constraint) on an elastic_displacement sensor of the body.
     // The loads' stress, which FFRF leaves out, changes what the measures see by e_sigma; half
@@ -559,33 +553,27 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
                  est.stress_stiffening, est.stress_error_at.c_str(), est.stress_error, eps);
     };
     std::string acf_blocker;
-    {
-      std::vector<const optimize::ResponseSettings *> responses;
-      if (c.objective) responses.push_back(&*c.objective);
-      for (const optimize::ResponseSettings &r : c.constraints) responses.push_back(&r);
-      for (const optimize::ResponseSettings *r : responses)
-        for (const io::SensorSpec &sensor : c.sensors)
-          if (!r->sensor.empty() && sensor.name == r->sensor && sensor.body == bp.body &&
-              sensor.quantity == "elastic_displacement" && acf_blocker.empty())
-            acf_blocker = std::string("the ") + optimize::response_type_name(r->type) +
-                          " response uses sensor '" + sensor.name +
-                          "', this body's elastic displacement";
-    }
+    for (const auto &[type, name] : c.sensor_responses)
+      for (const dynamics::SensorDescription &sensor : c.scene.sensors)
+        if (sensor.name == name && sensor.body == bp.body &&
+            sensor.quantity == dynamics::SensorQuantity::ElasticDisplacement && acf_blocker.empty())
+          acf_blocker = "the " + type + " response uses sensor '" + sensor.name +
+                        "', this body's elastic displacement";
     bp.modes = chosen;
     if (!elastic_sensor && !flexible_design && est.rigid_error <= eps) {
-      bp.recommended = "rigid";
+      bp.recommended = BodyModel::Rigid;
       bp.reasons.push_back(fmt("rigid: the elastic deflection changes %s by %.2g of its scale, "
                                "within the accuracy %g",
                                est.rigid_error_at.c_str(), est.rigid_error, eps));
     } else if ((est.rotation * est.rotation > eps || stressed) && acf_blocker.empty()) {
-      bp.recommended = "acf";
+      bp.recommended = BodyModel::Acf;
       bp.reasons.push_back(acf_reason());
     } else {
       if (!acf_blocker.empty() && (est.rotation * est.rotation > eps || stressed))
         bp.warnings.push_back(acf_reason() + "; but " + acf_blocker +
                               ", which a response of an ACF body cannot use yet: FFRF, with "
                               "that error");
-      bp.recommended = "ffrf";
+      bp.recommended = BodyModel::Ffrf;
       if (elastic_sensor)
         bp.reasons.push_back("flexible: a sensor measures this body's elastic displacement");
       else if (flexible_design)
@@ -624,15 +612,15 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
     // whose frequencies, put into the KED response in place of the case mesh's, change the
     // measures by at most eps / 4.
     std::optional<mesh::DistributedMesh> acf_mesh;
-    const io::BodySpec &spec = pre.bodies[cd.body];
-    if (bp.recommended == "acf" && bp.given == "auto" && !flexible_design && spec.mesh.size > 0 &&
-        mesh::meshed_from_geo(spec.mesh)) {
+    const dynamics::BodyDescription &spec = pre.bodies[cd.body];
+    if (bp.recommended == BodyModel::Acf && bp.given == BodyModel::Auto && !flexible_design &&
+        spec.mesh.size > 0 && mesh::meshed_from_geo(spec.mesh)) {
       const fem::IsotropicMaterial &mat = spec.material;
       const Eigen::MatrixXd F = cd.Q * full.E;
       const Eigen::MatrixXd Zf = modal_response(full.w2, F, h, start) * full.E.transpose();
       std::string trials;
       for (double factor : {4.0, 3.0, 2.0, 1.5}) {
-        io::BodySpec trial = spec;
+        dynamics::BodyDescription trial = spec;
         trial.mesh.size = factor * spec.mesh.size;
         std::optional<mesh::DistributedMesh> tm;
         std::shared_ptr<reduce::FlexibleReduction> tr;
@@ -672,9 +660,9 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
     // Linear tetrahedra lock in bending (section 12.5): a flexible body meshed from a .geo with
     // Tet4 (up to kLockingCheckNodes nodes) is reduced again on the same mesh at order 2, and a
     // first frequency more than eps above that one is reported.
-    if (bp.recommended != "rigid" && mesh.type == fem::ElementType::Tet4 &&
+    if (bp.recommended != BodyModel::Rigid && mesh.type == fem::ElementType::Tet4 &&
         mesh::meshed_from_geo(spec.mesh) && mesh.global_nodes <= kLockingCheckNodes) {
-      io::BodySpec quadratic = spec;
+      dynamics::BodyDescription quadratic = spec;
       quadratic.mesh.order = 2;
       try {
         const mesh::DistributedMesh qm = mesh::load_body_mesh(comm, quadratic.mesh);
@@ -693,21 +681,21 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
     }
 
     // What runs, and where a given model disagrees.
-    if (bp.given == "auto") {
+    if (bp.given == BodyModel::Auto) {
       bp.model = bp.recommended;
     } else {
       bp.model = bp.given;
-      const io::ReductionSpec &r = c.bodies[cd.body].reduction;
-      if (bp.given == "ffrf" && !r.geometric_stiffening && spin_ratio >= 1)
+      const dynamics::ReductionSettings &r = c.scene.bodies[cd.body].reduction;
+      if (bp.given == BodyModel::Ffrf && !r.geometric_stiffening && spin_ratio >= 1)
         bp.warnings.push_back(fmt("linear FFRF will diverge at this spin rate: %.3g rad/s is "
                                   "%.3g times the first frequency %.4g rad/s (give reduction: "
                                   "{geometric_stiffening: true})",
                                   est.spin, spin_ratio, w1));
-      else if (bp.given == "ffrf" && !r.geometric_stiffening && bp.geometric_stiffening)
+      else if (bp.given == BodyModel::Ffrf && !r.geometric_stiffening && bp.geometric_stiffening)
         bp.warnings.push_back(fmt("the spin changes the first frequency by about (spin/w1)^2 = "
                                   "%.2g > %g; reduction: {geometric_stiffening: true} takes it in",
                                   spin_ratio * spin_ratio, eps));
-      if (bp.given == "ffrf" && bp.recommended == "acf")
+      if (bp.given == BodyModel::Ffrf && bp.recommended == BodyModel::Acf)
         bp.warnings.push_back(
             est.rotation * est.rotation > eps
                 ? fmt("FFRF's small-deformation assumption: the elastic rotation reaches %.3g "
@@ -716,25 +704,26 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
                 : fmt("FFRF's linear elasticity: the loads' stress changes the stiffness by "
                       "%.2g and the measures by %.2g (> %g / 2); model: acf",
                       est.stress_stiffening, est.stress_error, eps));
-      if (bp.given == "ffrf" && bp.recommended == "ffrf" && r.modes < chosen)
+      if (bp.given == BodyModel::Ffrf && bp.recommended == BodyModel::Ffrf && r.modes < chosen)
         bp.warnings.push_back(
             fmt("%d modes leave %.2g of the sensors' scale (the estimates "
                 "need %d for %g)",
                 r.modes, est.mode_errors[static_cast<std::size_t>(std::min(r.modes, fixed))],
                 chosen, eps));
-      if (bp.given == "rigid" && bp.recommended != "rigid")
+      if (bp.given == BodyModel::Rigid && bp.recommended != BodyModel::Rigid)
         bp.warnings.push_back(fmt("a rigid model misses %.2g of %s's scale (> %g)", est.rigid_error,
                                   est.rigid_error_at.c_str(), eps));
-      if (bp.given == "acf" && bp.recommended != "acf")
-        bp.warnings.push_back("the estimates find " + bp.recommended +
+      if (bp.given == BodyModel::Acf && bp.recommended != BodyModel::Acf)
+        bp.warnings.push_back(std::string("the estimates find ") +
+                              dynamics::model_name(bp.recommended) +
                               " enough for the accuracy, at a fraction of ACF's cost");
     }
     // ACF at rho_inf = 1: nothing damps the mesh's highest frequencies, which the step does
     // not resolve (h w_max >> 1); on the co-rotated elements they can stall Newton
     // (docs/benchmarks.md "Where each method fails").
-    if (bp.model == "acf") {
+    if (bp.model == BodyModel::Acf) {
       const double w_max =
-          highest_frequency(acf_mesh ? *acf_mesh : mesh, c.bodies[cd.body].material);
+          highest_frequency(acf_mesh ? *acf_mesh : mesh, c.scene.bodies[cd.body].material);
       est.highest_frequency = w_max / (2 * kPi);
       if (c.time.rho_inf > 0.99 && c.time.step * w_max > 2)
         bp.warnings.push_back(fmt(
@@ -744,10 +733,10 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
             c.time.rho_inf, est.highest_frequency, c.time.step * w_max));
     }
     // Predicted cost of the body in the run.
-    if (bp.model == "ffrf")
+    if (bp.model == BodyModel::Ffrf)
       bp.predicted_cost_s = est.reduction_s + plan.prerun_s * static_cast<double>(case_steps) /
                                                   static_cast<double>(steps);
-    else if (bp.model == "acf")
+    else if (bp.model == BodyModel::Acf)
       bp.predicted_cost_s = static_cast<double>(case_steps) * kAcfIterationsPerStep *
                             (est.acf_dofs ? est.acf_dofs : est.dofs) * kAcfSecondsPerDofIteration /
                             size;
@@ -761,16 +750,17 @@ Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &o) {
 void print_plan(MPI_Comm comm, const Plan &plan) {
   print0(comm, "plan: accuracy %g (relative error of the sensors)\n", plan.accuracy);
   for (const BodyPlan &bp : plan.bodies) {
-    std::string what = bp.model;
-    if (bp.model == "ffrf")
+    std::string what = dynamics::model_name(bp.model);
+    if (bp.model == dynamics::BodyModel::Ffrf)
       what +=
           fmt(", %d modes%s", bp.modes, bp.geometric_stiffening ? ", geometric stiffening" : "");
-    if (bp.model == "acf" && bp.mesh_size > 0) what += fmt(", mesh size %g m", bp.mesh_size);
-    if (bp.given != "auto") what += " (given)";
+    if (bp.model == dynamics::BodyModel::Acf && bp.mesh_size > 0)
+      what += fmt(", mesh size %g m", bp.mesh_size);
+    if (bp.given != dynamics::BodyModel::Auto) what += " (given)";
     print0(comm, "plan: body %s (%s): %s; predicted cost %.3g s\n", bp.body.c_str(),
-           bp.given.c_str(), what.c_str(), bp.predicted_cost_s);
-    if (bp.given != "auto" && bp.estimated && bp.recommended != bp.model)
-      print0(comm, "      the estimates recommend %s\n", bp.recommended.c_str());
+           dynamics::model_name(bp.given), what.c_str(), bp.predicted_cost_s);
+    if (bp.given != dynamics::BodyModel::Auto && bp.estimated && bp.recommended != bp.model)
+      print0(comm, "      the estimates recommend %s\n", dynamics::model_name(bp.recommended));
     for (const std::string &r : bp.reasons) print0(comm, "      %s\n", r.c_str());
     for (const std::string &w : bp.warnings) print0(comm, "      warning: %s\n", w.c_str());
   }
@@ -781,9 +771,9 @@ io::Json plan_json(const Plan &plan) {
   for (const BodyPlan &bp : plan.bodies) {
     io::Json j = io::Json::object();
     j["body"] = bp.body;
-    j["model"] = bp.model;
-    j["given"] = bp.given;
-    j["recommended"] = bp.recommended;
+    j["model"] = dynamics::model_name(bp.model);
+    j["given"] = dynamics::model_name(bp.given);
+    j["recommended"] = dynamics::model_name(bp.recommended);
     j["modes"] = bp.modes;
     j["geometric_stiffening"] = bp.geometric_stiffening;
     if (bp.mesh_size > 0) j["mesh_size"] = bp.mesh_size;
@@ -823,24 +813,24 @@ io::Json plan_json(const Plan &plan) {
   return a;
 }
 
-io::Case apply_plan(const io::Case &c, const Plan &plan) {
-  io::Case out = c;
-  for (std::size_t b = 0; b < out.bodies.size(); ++b) {
-    io::BodySpec &body = out.bodies[b];
-    if (body.model != "auto") continue;
+void apply_plan(dynamics::SceneDescription &scene, const Plan &plan) {
+  using dynamics::BodyModel;
+  for (std::size_t b = 0; b < scene.bodies.size(); ++b) {
+    dynamics::BodyDescription &body = scene.bodies[b];
+    if (body.model != BodyModel::Auto) continue;
     const BodyPlan &bp = plan.bodies.at(b);
     body.model = bp.model;
-    if (bp.model == "acf" && bp.mesh_size > 0) body.mesh.size = bp.mesh_size;
-    if (bp.model == "ffrf") {
+    if (bp.model == BodyModel::Acf && bp.mesh_size > 0) body.mesh.size = bp.mesh_size;
+    if (bp.model == BodyModel::Ffrf) {
       body.reduction.modes = bp.modes;
       body.reduction.geometric_stiffening = bp.geometric_stiffening;
       // The chord frame does not take geometric stiffening (case-format "reduction").
       if (!body.reduction.frame_given)
-        body.reduction.frame =
-            body.interfaces.size() >= 2 && !bp.geometric_stiffening ? "chord" : "clamped";
+        body.reduction.frame = body.interfaces.size() >= 2 && !bp.geometric_stiffening
+                                   ? reduce::FrameCondition::Chord
+                                   : reduce::FrameCondition::Clamped;
     }
   }
-  return out;
 }
 
 } // namespace flexopt::plan

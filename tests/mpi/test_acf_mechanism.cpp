@@ -62,10 +62,10 @@ void add_joints(dynamics::Mechanism &mech, int at_clamp, int at_tip, int block_b
     a.s = body < 0 ? world : Vec3(world - mech.body(body).origin());
     return a;
   };
-  for (auto &e : dynamics::joint_equations("revolute", attach(-1, kClamp), attach(at_clamp, kClamp),
-                                           Vec3::UnitZ(), "hinge"))
+  for (auto &e : dynamics::joint_equations(dynamics::JointType::Revolute, attach(-1, kClamp),
+                                           attach(at_clamp, kClamp), Vec3::UnitZ(), "hinge"))
     mech.equations.push_back(e);
-  for (auto &e : dynamics::joint_equations("spherical", attach(at_tip, kTip),
+  for (auto &e : dynamics::joint_equations(dynamics::JointType::Spherical, attach(at_tip, kTip),
                                            attach(block_body, kTip), Vec3::UnitZ(), "tip"))
     mech.equations.push_back(e);
   mech.gravity = kGravity;

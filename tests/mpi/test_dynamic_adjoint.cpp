@@ -40,7 +40,7 @@ const io::Case &pendulum() {
 } // namespace
 
 TEST(DynamicAdjoint, RigidPendulumIsScaleInvariant) {
-  auto p = adjoint::DynamicProblem::create(PETSC_COMM_WORLD, pendulum(), ".");
+  auto p = adjoint::DynamicProblem::create(PETSC_COMM_WORLD, io::dynamic_settings(pendulum()), ".");
   Vec x = p->create_design_vector(), xc, xg;
   random_design(*p, x);
   VecDuplicate(x, &xc);
@@ -92,7 +92,7 @@ TEST(DynamicAdjoint, AcfPendulumIsScaleInvariant) {
   io::Case c = io::load_case(FLEXOPT_SOURCE_DIR "/tests/gradient/acf_pendulum");
   c.design->penalty = 1;
   c.design->min_stiffness = 1e-12;
-  auto p = adjoint::DynamicProblem::create(PETSC_COMM_WORLD, c, ".");
+  auto p = adjoint::DynamicProblem::create(PETSC_COMM_WORLD, io::dynamic_settings(c), ".");
   Vec x = p->create_design_vector(), xg;
   random_design(*p, x);
   VecDuplicate(x, &xg);
@@ -124,8 +124,10 @@ TEST(DynamicAdjoint, AcfPendulumIsScaleInvariant) {
 }
 
 TEST(DynamicAdjoint, GradientDoesNotDependOnTheRankCount) {
-  auto world = adjoint::DynamicProblem::create(PETSC_COMM_WORLD, pendulum(), ".");
-  auto one = adjoint::DynamicProblem::create(PETSC_COMM_SELF, pendulum(), ".");
+  auto world =
+      adjoint::DynamicProblem::create(PETSC_COMM_WORLD, io::dynamic_settings(pendulum()), ".");
+  auto one =
+      adjoint::DynamicProblem::create(PETSC_COMM_SELF, io::dynamic_settings(pendulum()), ".");
   Vec xw = world->create_design_vector(), x1 = one->create_design_vector();
   random_design(*world, xw);
   random_design(*one, x1);
@@ -163,8 +165,9 @@ void check_checkpoints(const std::string &name) {
   const std::string scratch = ::testing::TempDir();
   auto gradient = [&](int checkpoints, const std::string &storage, long long *recomputed) {
     c.adjoint.checkpoints = checkpoints;
-    c.adjoint.storage = storage;
-    auto p = adjoint::DynamicProblem::create(PETSC_COMM_WORLD, c, scratch);
+    c.adjoint.storage =
+        storage == "disk" ? adjoint::CheckpointStorage::Disk : adjoint::CheckpointStorage::Memory;
+    auto p = adjoint::DynamicProblem::create(PETSC_COMM_WORLD, io::dynamic_settings(c), scratch);
     Vec x = p->create_design_vector();
     random_design(*p, x);
     optimize::Evaluation e;

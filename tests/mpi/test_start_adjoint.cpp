@@ -25,7 +25,7 @@ struct StartCheck {
 
 StartCheck check_start(bool elastic_only, bool velocities) {
   const io::Case c = io::load_case(FLEXOPT_SOURCE_DIR "/tests/gradient/ffrf_slider_crank_initial");
-  const dynamics::Scene scene = dynamics::build_scene(PETSC_COMM_WORLD, c);
+  const dynamics::Scene scene = dynamics::build_scene(PETSC_COMM_WORLD, c.scene);
   const dynamics::Mechanism &mech = scene.mechanism;
   const dynamics::GeneralizedAlpha ga(mech, dynamics::AlphaParameters::from_rho_inf(0.8));
   const int n = mech.coordinates(), m = mech.constraints();

@@ -12,6 +12,7 @@ namespace fs = std::filesystem;
 using flexopt::Error;
 using flexopt::io::load_case;
 namespace optimize = flexopt::optimize;
+namespace dynamics = flexopt::dynamics;
 
 namespace {
 
@@ -66,10 +67,10 @@ solver: "-ksp_type preonly -pc_type lu"
 TEST_F(CaseFiles, ValidCaseParses) {
   write(kValid);
   auto c = load_case(dir_.string());
-  EXPECT_EQ(c.analysis, "static");
-  ASSERT_EQ(c.bodies.size(), 1u);
-  EXPECT_EQ(c.bodies[0].mesh.order, 2);
-  EXPECT_DOUBLE_EQ(c.bodies[0].mesh.size, 0.02);
+  EXPECT_STREQ(c.analysis_name(), "static");
+  ASSERT_EQ(c.scene.bodies.size(), 1u);
+  EXPECT_EQ(c.scene.bodies[0].mesh.order, 2);
+  EXPECT_DOUBLE_EQ(c.scene.bodies[0].mesh.size, 0.02);
   EXPECT_DOUBLE_EQ(c.material("steel").E, 2.1e11);
   ASSERT_EQ(c.loads.supports.size(), 1u);
   EXPECT_TRUE(c.loads.supports[0].fix[0] && c.loads.supports[0].fix[1] &&
@@ -77,7 +78,7 @@ TEST_F(CaseFiles, ValidCaseParses) {
   EXPECT_DOUBLE_EQ(c.loads.tractions[0].value[1], -1.0e6);
   ASSERT_TRUE(c.loads.gravity.has_value());
   EXPECT_DOUBLE_EQ((*c.loads.gravity)[1], -9.81);
-  EXPECT_EQ(c.sensors[0].quantity, "displacement");
+  EXPECT_STREQ(dynamics::quantity_name(c.scene.sensors[0].quantity), "displacement");
   EXPECT_EQ(c.solver, "-ksp_type preonly -pc_type lu");
 }
 
@@ -293,36 +294,36 @@ std::string dynamic_with(const std::string &from, const std::string &to) {
 TEST_F(CaseFiles, DynamicCaseParsesFieldByField) {
   write(kDynamic);
   const auto c = load_case(dir_.string());
-  EXPECT_EQ(c.analysis, "dynamic");
-  ASSERT_EQ(c.bodies.size(), 3u);
-  EXPECT_EQ(c.bodies[0].model, "rigid");
-  EXPECT_EQ(c.bodies[1].model, "auto"); // default
-  EXPECT_EQ(c.bodies[2].model, "auto");
-  EXPECT_EQ(c.bodies[0].interfaces, (std::vector<std::string>{"hub", "pin"}));
+  EXPECT_STREQ(c.analysis_name(), "dynamic");
+  ASSERT_EQ(c.scene.bodies.size(), 3u);
+  EXPECT_STREQ(dynamics::model_name(c.scene.bodies[0].model), "rigid");
+  EXPECT_STREQ(dynamics::model_name(c.scene.bodies[1].model), "auto"); // default
+  EXPECT_STREQ(dynamics::model_name(c.scene.bodies[2].model), "auto");
+  EXPECT_EQ(c.scene.bodies[0].interfaces, (std::vector<std::string>{"hub", "pin"}));
   // crank: no initial: identity placement at rest
-  const auto &i0 = c.bodies[0].initial;
+  const auto &i0 = c.scene.bodies[0].initial;
   EXPECT_EQ(i0.position, (std::array<double, 3>{0, 0, 0}));
   EXPECT_EQ(i0.axis, (std::array<double, 3>{0, 0, 1}));
   EXPECT_EQ(i0.angle, 0.0);
   EXPECT_EQ(i0.velocity, (std::array<double, 3>{0, 0, 0}));
   EXPECT_EQ(i0.angular_velocity, (std::array<double, 3>{0, 0, 0}));
-  const auto &i1 = c.bodies[1].initial;
+  const auto &i1 = c.scene.bodies[1].initial;
   EXPECT_EQ(i1.position, (std::array<double, 3>{0.1, 0.2, 0.3}));
   EXPECT_EQ(i1.axis, (std::array<double, 3>{0, 0, 1})); // normalized from [0, 0, 2]
   EXPECT_DOUBLE_EQ(i1.angle, 0.5);
   EXPECT_EQ(i1.velocity, (std::array<double, 3>{1, 2, 3}));
   EXPECT_EQ(i1.angular_velocity, (std::array<double, 3>{0, 0, -3}));
 
-  ASSERT_EQ(c.ground.size(), 2u);
-  EXPECT_EQ(c.ground[0].name, "origin"); // order as written
-  EXPECT_EQ(c.ground[1].name, "rail");
-  EXPECT_EQ(c.ground[1].origin, (std::array<double, 3>{0.4, 0, 0}));
-  EXPECT_EQ(c.ground[1].where.line, 24);
+  ASSERT_EQ(c.scene.ground.size(), 2u);
+  EXPECT_EQ(c.scene.ground[0].name, "origin"); // order as written
+  EXPECT_EQ(c.scene.ground[1].name, "rail");
+  EXPECT_EQ(c.scene.ground[1].origin, (std::array<double, 3>{0.4, 0, 0}));
+  EXPECT_EQ(c.scene.ground[1].where.line, 24);
 
-  ASSERT_EQ(c.joints.size(), 4u);
-  const auto &j0 = c.joints[0];
+  ASSERT_EQ(c.scene.joints.size(), 4u);
+  const auto &j0 = c.scene.joints[0];
   EXPECT_EQ(j0.name, "j0");
-  EXPECT_EQ(j0.type, "revolute");
+  EXPECT_STREQ(dynamics::joint_type_name(j0.type), "revolute");
   EXPECT_EQ(j0.a, "ground");
   EXPECT_EQ(j0.a_interface, "origin");
   EXPECT_EQ(j0.b, "crank");
@@ -330,29 +331,30 @@ TEST_F(CaseFiles, DynamicCaseParsesFieldByField) {
   EXPECT_EQ(j0.axis, (std::array<double, 3>{0, 0, 1}));
   EXPECT_EQ(j0.where.line, 26);
   EXPECT_EQ(j0.where.column, 5);
-  EXPECT_EQ(c.joints[1].a, "crank");
-  EXPECT_EQ(c.joints[1].b_interface, "pin_a");
-  EXPECT_EQ(c.joints[2].type, "spherical");
-  EXPECT_EQ(c.joints[2].axis, (std::array<double, 3>{0, 0, 0})); // none
-  EXPECT_EQ(c.joints[3].type, "prismatic");
-  EXPECT_DOUBLE_EQ(c.joints[3].axis[0], 0.6); // normalized from [3, 4, 0]
-  EXPECT_DOUBLE_EQ(c.joints[3].axis[1], 0.8);
-  EXPECT_DOUBLE_EQ(c.joints[3].axis[2], 0.0);
+  EXPECT_EQ(c.scene.joints[1].a, "crank");
+  EXPECT_EQ(c.scene.joints[1].b_interface, "pin_a");
+  EXPECT_STREQ(dynamics::joint_type_name(c.scene.joints[2].type), "spherical");
+  EXPECT_EQ(c.scene.joints[2].axis, (std::array<double, 3>{0, 0, 0})); // none
+  EXPECT_STREQ(dynamics::joint_type_name(c.scene.joints[3].type), "prismatic");
+  EXPECT_DOUBLE_EQ(c.scene.joints[3].axis[0], 0.6); // normalized from [3, 4, 0]
+  EXPECT_DOUBLE_EQ(c.scene.joints[3].axis[1], 0.8);
+  EXPECT_DOUBLE_EQ(c.scene.joints[3].axis[2], 0.0);
 
-  ASSERT_EQ(c.drivers.size(), 2u);
-  EXPECT_EQ(c.drivers[0].joint, "j0");
-  EXPECT_EQ(c.drivers[0].expression, "t < 1 ? _pi*t^2 : 2*_pi*t - _pi");
-  EXPECT_EQ(c.drivers[0].where.line, 31);
-  EXPECT_EQ(c.drivers[1].joint, "j3");
-  EXPECT_EQ(c.drivers[1].expression, "0.25");
+  ASSERT_EQ(c.scene.drivers.size(), 2u);
+  EXPECT_EQ(c.scene.drivers[0].joint, "j0");
+  EXPECT_EQ(c.scene.drivers[0].expression, "t < 1 ? _pi*t^2 : 2*_pi*t - _pi");
+  EXPECT_EQ(c.scene.drivers[0].where.line, 31);
+  EXPECT_EQ(c.scene.drivers[1].joint, "j3");
+  EXPECT_EQ(c.scene.drivers[1].expression, "0.25");
 
-  ASSERT_TRUE(c.gravity.has_value());
-  EXPECT_DOUBLE_EQ((*c.gravity)[1], -9.81);
-  ASSERT_EQ(c.forces.size(), 1u);
-  EXPECT_EQ(c.forces[0].body, "slider");
-  EXPECT_EQ(c.forces[0].interface, "guide");
-  EXPECT_EQ(c.forces[0].value, (std::array<std::string, 3>{"-100", "10*sin(2*_pi*t)", "1.5e-3"}));
-  EXPECT_EQ(c.forces[0].where.line, 36);
+  ASSERT_TRUE(c.scene.gravity.has_value());
+  EXPECT_DOUBLE_EQ((*c.scene.gravity)[1], -9.81);
+  ASSERT_EQ(c.scene.forces.size(), 1u);
+  EXPECT_EQ(c.scene.forces[0].body, "slider");
+  EXPECT_EQ(c.scene.forces[0].interface, "guide");
+  EXPECT_EQ(c.scene.forces[0].value,
+            (std::array<std::string, 3>{"-100", "10*sin(2*_pi*t)", "1.5e-3"}));
+  EXPECT_EQ(c.scene.forces[0].where.line, 36);
 
   EXPECT_TRUE(c.time.given);
   EXPECT_DOUBLE_EQ(c.time.end, 2.0);
@@ -361,10 +363,10 @@ TEST_F(CaseFiles, DynamicCaseParsesFieldByField) {
   EXPECT_DOUBLE_EQ(c.time.newton_reuse, 0.1); // the default
   EXPECT_EQ(c.time.where.line, 37);
 
-  ASSERT_EQ(c.sensors.size(), 3u);
-  EXPECT_EQ(c.sensors[0].quantity, "position");
-  EXPECT_EQ(c.sensors[1].quantity, "rotation_angle");
-  EXPECT_EQ(c.sensors[2].quantity, "displacement");
+  ASSERT_EQ(c.scene.sensors.size(), 3u);
+  EXPECT_STREQ(dynamics::quantity_name(c.scene.sensors[0].quantity), "position");
+  EXPECT_STREQ(dynamics::quantity_name(c.scene.sensors[1].quantity), "rotation_angle");
+  EXPECT_STREQ(dynamics::quantity_name(c.scene.sensors[2].quantity), "displacement");
   EXPECT_EQ(c.output.every, 10);
   EXPECT_EQ(c.output.interval, 0.0);
   EXPECT_TRUE(c.loads.supports.empty());
@@ -417,9 +419,10 @@ bodies:
 time: {end: 0.5, step: 0.01}
 )");
   const auto c = load_case(dir_.string());
-  EXPECT_TRUE(c.joints.empty() && c.drivers.empty() && c.forces.empty() && c.ground.empty());
+  EXPECT_TRUE(c.scene.joints.empty() && c.scene.drivers.empty() && c.scene.forces.empty() &&
+              c.scene.ground.empty());
   EXPECT_TRUE(c.time.given);
-  EXPECT_FALSE(c.gravity.has_value());
+  EXPECT_FALSE(c.scene.gravity.has_value());
 }
 
 // bodies[].initial, model, name
@@ -462,17 +465,17 @@ TEST_F(CaseFiles, FfrfReductionAndDamping) {
                      ffrf + "    reduction: {modes: 8, geometric_stiffening: true}\n"
                             "    damping: {rayleigh: [0.5, 1.0e-4]}\n"));
   const flexopt::io::Case c = load_case(dir_.string());
-  EXPECT_EQ(c.bodies[1].model, "ffrf");
-  EXPECT_EQ(c.bodies[1].reduction.modes, 8);
-  EXPECT_TRUE(c.bodies[1].reduction.geometric_stiffening);
-  EXPECT_DOUBLE_EQ(c.bodies[1].rayleigh[0], 0.5);
-  EXPECT_DOUBLE_EQ(c.bodies[1].rayleigh[1], 1.0e-4);
+  EXPECT_STREQ(dynamics::model_name(c.scene.bodies[1].model), "ffrf");
+  EXPECT_EQ(c.scene.bodies[1].reduction.modes, 8);
+  EXPECT_TRUE(c.scene.bodies[1].reduction.geometric_stiffening);
+  EXPECT_DOUBLE_EQ(c.scene.bodies[1].rayleigh[0], 0.5);
+  EXPECT_DOUBLE_EQ(c.scene.bodies[1].rayleigh[1], 1.0e-4);
   // Defaults: 4 fixed-interface modes, no stiffening, no damping.
   write(dynamic_with("    interfaces: [pin_a, pin_b]\n", ffrf));
   const flexopt::io::Case d = load_case(dir_.string());
-  EXPECT_EQ(d.bodies[1].reduction.modes, 4);
-  EXPECT_FALSE(d.bodies[1].reduction.geometric_stiffening);
-  EXPECT_EQ(d.bodies[1].rayleigh[1], 0.0);
+  EXPECT_EQ(d.scene.bodies[1].reduction.modes, 4);
+  EXPECT_FALSE(d.scene.bodies[1].reduction.geometric_stiffening);
+  EXPECT_EQ(d.scene.bodies[1].rayleigh[1], 0.0);
 }
 
 TEST_F(CaseFiles, ReductionAndDampingErrors) {
@@ -505,18 +508,22 @@ TEST_F(CaseFiles, ReductionAndDampingErrors) {
 TEST_F(CaseFiles, ReductionFrame) {
   const std::string ffrf = "    interfaces: [pin_a, pin_b]\n    model: ffrf\n";
   write(dynamic_with("    interfaces: [pin_a, pin_b]\n", ffrf + "    reduction: {frame: chord}\n"));
-  EXPECT_EQ(load_case(dir_.string()).bodies[1].reduction.frame, "chord");
+  EXPECT_STREQ(dynamics::frame_name(load_case(dir_.string()).scene.bodies[1].reduction.frame),
+               "chord");
   // The default: the chord for a link with two interfaces, clamped with geometric stiffening
   // (or one interface: the FFRF test scenes with one interface run in the clamped frame);
   // clamped when written.
   write(dynamic_with("    interfaces: [pin_a, pin_b]\n", ffrf));
-  EXPECT_EQ(load_case(dir_.string()).bodies[1].reduction.frame, "chord");
+  EXPECT_STREQ(dynamics::frame_name(load_case(dir_.string()).scene.bodies[1].reduction.frame),
+               "chord");
   write(dynamic_with("    interfaces: [pin_a, pin_b]\n",
                      ffrf + "    reduction: {geometric_stiffening: true}\n"));
-  EXPECT_EQ(load_case(dir_.string()).bodies[1].reduction.frame, "clamped");
+  EXPECT_STREQ(dynamics::frame_name(load_case(dir_.string()).scene.bodies[1].reduction.frame),
+               "clamped");
   write(
       dynamic_with("    interfaces: [pin_a, pin_b]\n", ffrf + "    reduction: {frame: clamped}\n"));
-  EXPECT_EQ(load_case(dir_.string()).bodies[1].reduction.frame, "clamped");
+  EXPECT_STREQ(dynamics::frame_name(load_case(dir_.string()).scene.bodies[1].reduction.frame),
+               "clamped");
 }
 
 TEST_F(CaseFiles, FfrfInitialElasticFields) {
@@ -528,10 +535,10 @@ TEST_F(CaseFiles, FfrfInitialElasticFields) {
   y.replace(y.find("    interfaces: [pin_a, pin_b]\n"), 31, ffrf);
   write(y);
   const flexopt::io::Case c = load_case(dir_.string());
-  EXPECT_EQ(c.bodies[1].initial.elastic_displacement[0], "1e-3*x^2");
-  EXPECT_EQ(c.bodies[1].initial.elastic_velocity[1], "0.4*sin(_pi*x/0.3)");
-  EXPECT_EQ(c.bodies[1].initial.elastic_velocity[2], "0");
-  EXPECT_TRUE(c.bodies[0].initial.elastic_displacement[0].empty()); // none given: zero
+  EXPECT_EQ(c.scene.bodies[1].initial.elastic_displacement[0], "1e-3*x^2");
+  EXPECT_EQ(c.scene.bodies[1].initial.elastic_velocity[1], "0.4*sin(_pi*x/0.3)");
+  EXPECT_EQ(c.scene.bodies[1].initial.elastic_velocity[2], "0");
+  EXPECT_TRUE(c.scene.bodies[0].initial.elastic_displacement[0].empty()); // none given: zero
 }
 
 TEST_F(CaseFiles, InitialElasticFieldErrors) {
@@ -554,7 +561,7 @@ TEST_F(CaseFiles, AcfBodiesTakeStiffnessDampingOnly) {
       dynamic_with("model: rigid", "model: acf\n    damping: {rayleigh: [0.5, 1.0e-4]}"),
       "case.yaml:7:", "bodies[0].damping.rayleigh[0]: an acf body takes stiffness-proportional");
   write(dynamic_with("model: rigid", "model: acf\n    damping: {rayleigh: [0, 1.0e-4]}"));
-  EXPECT_DOUBLE_EQ(load_case(dir_.string()).bodies[0].rayleigh[1], 1.0e-4);
+  EXPECT_DOUBLE_EQ(load_case(dir_.string()).scene.bodies[0].rayleigh[1], 1.0e-4);
 }
 
 // A body carries the settings of every model; `model:` picks the ones used.
@@ -562,13 +569,16 @@ TEST_F(CaseFiles, AcfBodiesTakeStiffnessDampingOnly) {
 TEST(ModelSettings, WhichModelUsesWhat) {
   using flexopt::io::settings_used_by;
   using V = std::vector<std::string>;
-  EXPECT_EQ(settings_used_by("rigid"), V{});
-  EXPECT_EQ(settings_used_by("ffrf"), (V{"reduction", "damping", "initial.elastic_displacement",
-                                         "initial.elastic_velocity"}));
-  EXPECT_EQ(settings_used_by("acf"),
+  EXPECT_EQ(settings_used_by(dynamics::BodyModel::Rigid), V{});
+  EXPECT_EQ(
+      settings_used_by(dynamics::BodyModel::Ffrf),
+      (V{"reduction", "damping", "initial.elastic_displacement", "initial.elastic_velocity"}));
+  EXPECT_EQ(settings_used_by(dynamics::BodyModel::Acf),
             (V{"damping", "initial.elastic_displacement", "initial.elastic_velocity"}));
-  EXPECT_EQ(flexopt::io::simulated_model("auto"), "rigid"); // this version
-  EXPECT_EQ(settings_used_by("auto"), settings_used_by("rigid"));
+  EXPECT_EQ(dynamics::simulated_model(dynamics::BodyModel::Auto),
+            dynamics::BodyModel::Rigid); // this version
+  EXPECT_EQ(settings_used_by(dynamics::BodyModel::Auto),
+            settings_used_by(dynamics::BodyModel::Rigid));
 }
 
 namespace {
@@ -599,28 +609,28 @@ TEST_F(CaseFiles, OneWordSwitchesTheModel) {
     SCOPED_TRACE("model: " + model);
     write(rod_with_every_setting(model, "{modes: 8, frame: chord}", "{rayleigh: [0, 2.0e-4]}"));
     const flexopt::io::Case c = load_case(dir_.string());
-    const auto &rod = c.bodies[1];
-    EXPECT_EQ(rod.model, model);
+    const auto &rod = c.scene.bodies[1];
+    EXPECT_EQ(dynamics::model_name(rod.model), model);
     // Every setting is parsed whatever the model, so that switching back uses it.
     EXPECT_EQ(rod.reduction.modes, 8);
-    EXPECT_EQ(rod.reduction.frame, "chord");
+    EXPECT_STREQ(dynamics::frame_name(rod.reduction.frame), "chord");
     EXPECT_DOUBLE_EQ(rod.rayleigh[1], 2.0e-4);
     EXPECT_EQ(rod.initial.elastic_velocity[1], "0.4*sin(_pi*x/0.3)");
     EXPECT_EQ(rod.settings, (V{"reduction", "damping", "initial.elastic_velocity"}));
     EXPECT_EQ(flexopt::io::unused_settings(rod), expected);
     // The other bodies carry no model settings.
-    EXPECT_TRUE(flexopt::io::unused_settings(c.bodies[0]).empty());
-    EXPECT_EQ(flexopt::io::unused_settings_note(c.bodies[0]), "");
+    EXPECT_TRUE(flexopt::io::unused_settings(c.scene.bodies[0]).empty());
+    EXPECT_EQ(flexopt::io::unused_settings_note(c.scene.bodies[0]), "");
   }
   write(rod_with_every_setting("acf", "{modes: 8}", "{rayleigh: [0, 2.0e-4]}"));
-  EXPECT_EQ(flexopt::io::unused_settings_note(load_case(dir_.string()).bodies[1]),
+  EXPECT_EQ(flexopt::io::unused_settings_note(load_case(dir_.string()).scene.bodies[1]),
             "body rod (model: acf): settings not used by this model: reduction (ffrf)");
   write(rod_with_every_setting("rigid", "{modes: 8}", "{rayleigh: [0, 2.0e-4]}"));
-  EXPECT_EQ(flexopt::io::unused_settings_note(load_case(dir_.string()).bodies[1]),
+  EXPECT_EQ(flexopt::io::unused_settings_note(load_case(dir_.string()).scene.bodies[1]),
             "body rod (model: rigid): settings not used by this model: reduction (ffrf), damping "
             "(ffrf, acf), initial.elastic_velocity (ffrf, acf)");
   write(rod_with_every_setting("auto", "{modes: 8}", "{rayleigh: [0, 2.0e-4]}"));
-  EXPECT_EQ(flexopt::io::unused_settings_note(load_case(dir_.string()).bodies[1]),
+  EXPECT_EQ(flexopt::io::unused_settings_note(load_case(dir_.string()).scene.bodies[1]),
             "body rod (model: auto, simulated as rigid): settings not used by this model: "
             "reduction (ffrf), damping (ffrf, acf), initial.elastic_velocity (ffrf, acf)");
 }
@@ -659,9 +669,9 @@ TEST_F(CaseFiles, MassProportionalDampingIsAnErrorOnlyWhereAcfWouldUseIt) {
   EXPECT_CASE_ERROR(rod_with_every_setting("acf", "{modes: 4}", damping), "case.yaml:16:",
                     "bodies[1].damping.rayleigh[0]: an acf body takes stiffness-proportional");
   write(rod_with_every_setting("ffrf", "{modes: 4}", damping));
-  EXPECT_DOUBLE_EQ(load_case(dir_.string()).bodies[1].rayleigh[0], 0.5); // used by ffrf
+  EXPECT_DOUBLE_EQ(load_case(dir_.string()).scene.bodies[1].rayleigh[0], 0.5); // used by ffrf
   write(rod_with_every_setting("rigid", "{modes: 4}", damping));
-  const auto rigid = load_case(dir_.string()).bodies[1];
+  const auto rigid = load_case(dir_.string()).scene.bodies[1];
   EXPECT_DOUBLE_EQ(rigid.rayleigh[0], 0.5); // carried, unused
   EXPECT_EQ(flexopt::io::unused_settings(rigid).at(1), "damping");
 }
@@ -670,7 +680,7 @@ TEST_F(CaseFiles, StaticAnalysisIgnoresModel) {
   std::string y = kValid;
   y.replace(y.find("    geometry: beam.geo"), 22, "    model: ffrf\n    geometry: beam.geo");
   write(y);
-  EXPECT_EQ(load_case(dir_.string()).bodies[0].model, "ffrf");
+  EXPECT_STREQ(dynamics::model_name(load_case(dir_.string()).scene.bodies[0].model), "ffrf");
 }
 
 TEST_F(CaseFiles, BodyNamedGroundRejected) {
@@ -850,7 +860,8 @@ TEST_F(CaseFiles, DynamicAnalysisNeedsTime) {
 
 TEST_F(CaseFiles, SensorQuantitiesPerAnalysis) {
   write(dynamic_with("quantity: rotation_angle", "quantity: elastic_displacement"));
-  EXPECT_EQ(load_case(dir_.string()).sensors[1].quantity, "elastic_displacement");
+  EXPECT_STREQ(dynamics::quantity_name(load_case(dir_.string()).scene.sensors[1].quantity),
+               "elastic_displacement");
   std::string y = kValid;
   y.replace(y.find("point: [1, 0, 0]"), 16, "point: [1, 0, 0], quantity: rotation_angle");
   EXPECT_CASE_ERROR(y, "case.yaml:16:57:",
@@ -859,7 +870,8 @@ TEST_F(CaseFiles, SensorQuantitiesPerAnalysis) {
   y = kValid;
   y.replace(y.find("point: [1, 0, 0]"), 16, "point: [1, 0, 0], quantity: position");
   write(y);
-  EXPECT_EQ(load_case(dir_.string()).sensors[0].quantity, "position");
+  EXPECT_STREQ(dynamics::quantity_name(load_case(dir_.string()).scene.sensors[0].quantity),
+               "position");
 }
 
 // analysis cross-checks
@@ -915,7 +927,7 @@ adjoint: {checkpoints: 32, storage: disk}
   EXPECT_EQ(c.constraints[2].body, "rod");
   EXPECT_EQ(c.constraints[3].type, optimize::ResponseType::Mass);
   EXPECT_EQ(c.adjoint.checkpoints, 32);
-  EXPECT_EQ(c.adjoint.storage, "disk");
+  EXPECT_EQ(c.adjoint.storage, flexopt::adjoint::CheckpointStorage::Disk);
   write(std::string(kDynamic) +
         "design: {body: rod, filter: {radius: 0.1}}\nobjective: {type: volume_fraction}\n"
         "adjoint: {checkpoints: all}\n");

@@ -13,6 +13,7 @@
 #include <gtest/gtest.h>
 #include <memory>
 #include <random>
+#include <stdexcept>
 
 using namespace flexopt;
 using bodies::Mat3;
@@ -22,6 +23,15 @@ using dynamics::Matrix;
 using dynamics::Vector;
 
 namespace {
+
+/// The joint type named as in case.yaml.
+dynamics::JointType joint_type(const std::string &name) {
+  using dynamics::JointType;
+  for (JointType t :
+       {JointType::Revolute, JointType::Spherical, JointType::Prismatic, JointType::Fixed})
+    if (name == dynamics::joint_type_name(t)) return t;
+  throw std::invalid_argument("no joint type " + name);
+}
 
 constexpr double kStep = 1e-6, kTol = 1e-7;
 
@@ -550,7 +560,8 @@ TEST(Joints, EveryTypeAsBuilt) {
     const Vec3 x = random3();
     const RandomPair pair(x, type == "prismatic" ? Vec3(x + 0.3 * random3()) : x);
     const Vector &q = pair.q;
-    const auto eqs = rigid_layout(dynamics::joint_equations(type, pair.A, pair.B, axis, "joint"));
+    const auto eqs =
+        rigid_layout(dynamics::joint_equations(joint_type(type), pair.A, pair.B, axis, "joint"));
     int rows = 0;
     for (const auto &e : eqs) rows += e.rows();
     const int expected = type == "spherical" ? 3 : type == "fixed" ? 6 : 5;
@@ -620,7 +631,8 @@ TEST(Joints, DriversPrescribeTheJointCoordinate) {
   const Mat3 *R = pair.R;
   const double t = 0.9, value = 0.8 * t + 0.3 * t * t;
   for (const std::string type : {"revolute", "prismatic"}) {
-    const auto e = rigid_layout(dynamics::driver_equation(type, A, B, axis, f, "driver"));
+    const auto e =
+        rigid_layout(dynamics::driver_equation(joint_type(type), A, B, axis, f, "driver"));
     double phi0 = 1, phit = 1;
     e.value(q, 0.0, &phi0);
     EXPECT_LT(std::abs(phi0), 1e-14) << type;

@@ -8,7 +8,7 @@
 #include <vector>
 
 using flexopt::io::FrameSchedule;
-using flexopt::io::OutputSpec;
+using flexopt::io::OutputSettings;
 
 namespace {
 
@@ -20,14 +20,14 @@ std::vector<long long> frame_steps(const FrameSchedule &s, long long steps) {
   return out;
 }
 
-OutputSpec every(int n) {
-  OutputSpec o;
+OutputSettings every(int n) {
+  OutputSettings o;
   o.every = n;
   return o;
 }
 
-OutputSpec interval(double t) {
-  OutputSpec o;
+OutputSettings interval(double t) {
+  OutputSettings o;
   o.interval = t;
   return o;
 }
@@ -35,7 +35,7 @@ OutputSpec interval(double t) {
 } // namespace
 
 TEST(FrameSchedule, DefaultKeepsShortRunsWhole) {
-  const FrameSchedule s(OutputSpec{}, 200, 1e-3);
+  const FrameSchedule s(OutputSettings{}, 200, 1e-3);
   EXPECT_EQ(s.stride(), 1);
   EXPECT_EQ(s.frames(), 201);
   EXPECT_EQ(frame_steps(s, 200).size(), 201u);
@@ -43,7 +43,7 @@ TEST(FrameSchedule, DefaultKeepsShortRunsWhole) {
 
 TEST(FrameSchedule, DefaultBoundsLongRuns) {
   // 10,000 steps: every 50 steps, 201 frames with the first and the last state.
-  const FrameSchedule s(OutputSpec{}, 10000, 1e-5);
+  const FrameSchedule s(OutputSettings{}, 10000, 1e-5);
   EXPECT_EQ(s.stride(), 50);
   const auto f = frame_steps(s, 10000);
   ASSERT_EQ(static_cast<long long>(f.size()), s.frames());
@@ -52,12 +52,12 @@ TEST(FrameSchedule, DefaultBoundsLongRuns) {
   EXPECT_EQ(f.back(), 10000);
   // Any length: between 101 and 202 frames once the run is longer than 200 steps.
   for (long long steps : {201LL, 299LL, 401LL, 12345LL, 1000000LL, 9999999LL}) {
-    const FrameSchedule d(OutputSpec{}, steps, 1e-5);
+    const FrameSchedule d(OutputSettings{}, steps, 1e-5);
     EXPECT_GE(d.frames(), 101) << steps;
     EXPECT_LE(d.frames(), 202) << steps;
     EXPECT_TRUE(d.is_frame(0) && d.is_frame(steps)) << steps;
   }
-  const FrameSchedule odd(OutputSpec{}, 12345, 1e-5); // stride 62: 12345 = 199 * 62 + 7
+  const FrameSchedule odd(OutputSettings{}, 12345, 1e-5); // stride 62: 12345 = 199 * 62 + 7
   const auto g = frame_steps(odd, 12345);
   EXPECT_EQ(static_cast<long long>(g.size()), odd.frames());
   EXPECT_EQ(g[g.size() - 2], 199 * 62);

@@ -4,6 +4,7 @@
 /// that holds them, in memory or in an HDF5 file.
 #include "flexopt/dynamics/distributed_alpha.hpp"
 #include "flexopt/dynamics/generalized_alpha.hpp"
+#include "flexopt/dynamics/integrator.hpp"
 
 #include <functional>
 #include <map>
@@ -41,13 +42,9 @@ private:
   std::vector<std::vector<long long>> cost_, split_; ///< [c][l]
 };
 
-/// One main step's end state and, if Newton halved it, its substeps (end states and sizes; the
-/// last is the end state): on the dense backend (StepRecord) and on the distributed one
-/// (DistRecord, each rank holding its part of the vectors).
-template <class State> struct Record {
-  State state;
-  std::vector<std::pair<State, double>> substeps;
-};
+/// One main step's end state and its substeps (dynamics::Record): on the dense backend
+/// (StepRecord) and on the distributed one (DistRecord).
+template <class State> using Record = dynamics::Record<State>;
 using StepRecord = Record<dynamics::State>;
 using DistRecord = Record<dynamics::DistState>;
 

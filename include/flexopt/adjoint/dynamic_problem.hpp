@@ -9,9 +9,12 @@
 #include "flexopt/adjoint/step_adjoint.hpp"
 #include "flexopt/bodies/ffrf_body.hpp"
 #include "flexopt/bodies/rigid_body.hpp"
+#include "flexopt/dynamics/integrator.hpp"
 #include "flexopt/dynamics/scene.hpp"
-#include "flexopt/io/case.hpp"
+#include "flexopt/dynamics/scene_description.hpp"
+#include "flexopt/optimize/design_field.hpp"
 #include "flexopt/optimize/design_problem.hpp"
+#include "flexopt/optimize/response.hpp"
 #include "flexopt/reduce/reduction_adjoint.hpp"
 
 #include <functional>
@@ -73,16 +76,38 @@ Matrix sensor_jacobian(const dynamics::Scene &scene, const dynamics::BoundSensor
 /// ends, 1/N between (1 for N = 0).
 double trapezoid_weight(std::size_t n, std::size_t N);
 
+/// Where the backward sweep's checkpoints are kept (`adjoint.storage`).
+enum class CheckpointStorage { Memory, Disk };
+
+/// `adjoint:` of a dynamic optimization (section 9.4).
+struct CheckpointSettings {
+  int checkpoints = 0; ///< stored states; 0: all (`checkpoints: all`)
+  CheckpointStorage storage = CheckpointStorage::Memory; ///< disk: an HDF5 file per rank
+  /// FFRF design bodies: the exact derivative of the basis, or the basis held fixed
+  reduce::BasisDerivative basis = reduce::BasisDerivative::Exact;
+  io::Location where;
+};
+
+/// What a dynamic design problem reads: the scene and its time grid, the design field, the
+/// responses and the checkpointing of the backward sweep.
+struct DynamicSettings {
+  dynamics::SceneDescription scene;
+  dynamics::TimeSettings time;
+  optimize::DesignSettings design;
+  optimize::ResponseSettings objective;
+  std::vector<optimize::ResponseSettings> constraints;
+  CheckpointSettings adjoint;
+};
+
 class DynamicProblem : public optimize::DesignProblem {
 public:
-  /// Builds the scene (meshes, joints, sensors) and the design field of `c` (analysis:
-  /// dynamic, with design: and objective:). `scratch` is the directory of the checkpoint file
-  /// of `adjoint: {storage: disk}` (the command's output directory). Collective; throws
-  /// collective flexopt::Errors with case.yaml:line:col for a design body whose model has no
-  /// design partials yet, responses on missing or unsuitable bodies and sensors.
-  /// `refuse_interfaces` (optimize): a design region that touches an interface of its FFRF or
-  /// ACF body is an error, else a warning (checked before the reduction).
-  static std::unique_ptr<DynamicProblem> create(MPI_Comm comm, const io::Case &c,
+  /// Builds the scene (meshes, joints, sensors) and the design field of `settings`. `scratch` is
+  /// the directory of the checkpoint file of `adjoint: {storage: disk}` (the command's output
+  /// directory). Collective; throws collective flexopt::Errors with case.yaml:line:col for a design
+  /// body whose model has no design partials yet, responses on missing or unsuitable bodies and
+  /// sensors. `refuse_interfaces` (optimize): a design region that touches an interface of its FFRF
+  /// or ACF body is an error, else a warning (checked before the reduction).
+  static std::unique_ptr<DynamicProblem> create(MPI_Comm comm, const DynamicSettings &settings,
                                                 const std::string &scratch,
                                                 bool refuse_interfaces = false);
   ~DynamicProblem() override;
@@ -132,7 +157,7 @@ public:
   /// their tolerance at a point that depends on when the matrix was renewed, which leaves about
   /// 1e-10 relative noise in the responses of a 2,000-step run (docs/theory.md section 9.5),
   /// above what a finite difference of a single element resolves.
-  void set_newton_reuse(double reuse) { newton_.reuse_contraction = reuse; }
+  void set_newton_reuse(double reuse) { integration_.newton.reuse_contraction = reuse; }
   /// Newton's method proper (set_newton_reuse(0)) and the filter's solves to round-off; names
   /// the user's options that loosen the filter or the FFRF reduction's eigen solve (-eps_tol).
   std::vector<std::string> solve_to_round_off() override;
@@ -156,6 +181,9 @@ private:
   /// A scene with ACF bodies on the distributed backend (sections 9.6, 9.7), its design body
   /// ACF or rigid, the same outputs.
   void evaluate_distributed(bool gradients, optimize::Evaluation &out);
+  /// The responses' names, sensors, strain-energy bodies and the sensors on the design body;
+  /// refuses responses the design body's `model` cannot serve (collective errors).
+  void bind_responses(dynamics::BodyModel model);
   /// The rigid design body's mass parameters theta from the mass factors, the body replaced.
   void set_rigid_design();
   /// element_gradient_ += dPsi/dw_e = G . theta_e (and the design body's own mass) times dw_e,
@@ -187,7 +215,7 @@ private:
   /// trajectory response).
   double response_value(std::size_t i) const;
 
-  io::Case case_;
+  DynamicSettings settings_;
   dynamics::Scene scene_;
   StepObserver observer_;
   std::unique_ptr<optimize::DesignField> field_;
@@ -224,8 +252,7 @@ private:
   std::vector<const optimize::ResponseSettings *> specs_;
   std::vector<int> sensor_of_; ///< per response: index in scene_.sensors (-1: none)
   std::vector<std::string> names_;
-  dynamics::AlphaParameters par_;
-  dynamics::NewtonSettings newton_;
+  dynamics::IntegratorSettings integration_; ///< the forward runs' (IntegratorSettings::from)
   /// (dPsi/ds)^T at main step j with state `state` (empty if zero), one column per response.
   Matrix state_partials(long long j, const dynamics::State &state) const;
   /// Main step j recomputed from the record of step j - 1 with the forward run's substeps.

@@ -6,8 +6,8 @@
 #include "flexopt/bodies/acf_body.hpp"
 #include "flexopt/dynamics/distributed_alpha.hpp"
 #include "flexopt/dynamics/mechanism.hpp"
+#include "flexopt/dynamics/scene_description.hpp"
 #include "flexopt/fem/probe.hpp"
-#include "flexopt/io/case.hpp"
 #include "flexopt/mesh/distributed_mesh.hpp"
 #include "flexopt/reduce/field_projection.hpp"
 
@@ -33,8 +33,7 @@ namespace flexopt::dynamics {
 /// body's mesh.
 struct BoundSensor {
   std::string name;
-  /// position | displacement | elastic_displacement | rotation_angle | reaction
-  std::string quantity;
+  SensorQuantity quantity = SensorQuantity::Displacement;
   int body = 0;
   /// reaction: the joint's coincident-point rows in lambda (-1: a row dropped as redundant).
   std::array<int, 3> lambda_rows{-1, -1, -1};
@@ -110,14 +109,14 @@ struct Attachment {
 /// prismatic 5, fixed 6, with vectors fixed from the initial placement and the world `axis`
 /// (revolute, prismatic). Satisfied at the initial placement when the interface points
 /// coincide (prismatic: for any interface points).
-std::vector<joints::Equation> joint_equations(const std::string &type, const Attachment &a,
+std::vector<joints::Equation> joint_equations(JointType type, const Attachment &a,
                                               const Attachment &b, const Vec3 &axis,
                                               const std::string &owner);
 /// The equation of a driver f(t) on a revolute joint (angle from the initial placement) or a
 /// prismatic joint (displacement along the axis from the initial placement).
-joints::Equation driver_equation(const std::string &joint_type, const Attachment &a,
-                                 const Attachment &b, const Vec3 &axis,
-                                 std::shared_ptr<const Expression> f, const std::string &owner);
+joints::Equation driver_equation(JointType joint_type, const Attachment &a, const Attachment &b,
+                                 const Vec3 &axis, std::shared_ptr<const Expression> f,
+                                 const std::string &owner);
 
 /// A scene is built in two phases (docs/architecture.md, "Scenes"):
 ///
@@ -138,13 +137,13 @@ struct InitialDesign {
   std::string body;
   std::function<reduce::ElementFactors(const mesh::DistributedMesh &)> factors;
 };
-Scene load_bodies(MPI_Comm comm, const io::Case &c, const InitialDesign *design = nullptr);
-void connect(MPI_Comm comm, const io::Case &c, Scene &scene, bool report);
+Scene load_bodies(MPI_Comm comm, const SceneDescription &d, const InitialDesign *design = nullptr);
+void connect(MPI_Comm comm, const SceneDescription &d, Scene &scene, bool report);
 /// Both phases: the scene of a dynamic case.
-Scene build_scene(MPI_Comm comm, const io::Case &c, const InitialDesign *design = nullptr);
+Scene build_scene(MPI_Comm comm, const SceneDescription &d, const InitialDesign *design = nullptr);
 /// Per design: case body b (rigid or FFRF) takes the model `body` (a design's mass
 /// properties, say) and the scene is connected again; no mesh is touched. Collective.
-void set_body_model(MPI_Comm comm, const io::Case &c, Scene &scene, std::size_t b,
+void set_body_model(MPI_Comm comm, const SceneDescription &d, Scene &scene, std::size_t b,
                     std::shared_ptr<bodies::Body> body);
 
 /// Reduces the FFRF body b again with a design body's element factors (its stiffness and mass
@@ -154,18 +153,18 @@ void set_body_model(MPI_Comm comm, const io::Case &c, Scene &scene, std::size_t 
 /// mass (section 10.2). Returns the new reduction. Collective; throws a collective
 /// flexopt::Error if the modes count splits a repeated eigenvalue (reduce::check_modal_cut).
 std::shared_ptr<const reduce::FlexibleReduction>
-set_ffrf_design(MPI_Comm comm, const io::Case &c, Scene &scene, std::size_t b,
+set_ffrf_design(MPI_Comm comm, const SceneDescription &d, Scene &scene, std::size_t b,
                 const reduce::ElementFactors &factors);
 
 /// The field `initial.elastic_displacement` (or `elastic_velocity`, if `rate`) of a body as a
 /// function of the mesh coordinates; empty if the case gives none.
-reduce::Field initial_elastic_field(const io::BodySpec &spec, bool rate);
+reduce::Field initial_elastic_field(const BodyDescription &spec, bool rate);
 
 /// The reduction of the FFRF body `spec` meshed as `m` (its interfaces, modes, stiffening and
 /// frame; with a design body's element factors, if given, and then its modal-cut check).
 /// Collective.
 std::shared_ptr<reduce::FlexibleReduction> reduce_ffrf_body(const mesh::DistributedMesh &m,
-                                                            const io::BodySpec &spec,
+                                                            const BodyDescription &spec,
                                                             const fem::IsotropicMaterial &mat,
                                                             const reduce::ElementFactors *design);
 

@@ -10,11 +10,20 @@
 ///  - no `output:`: every N = ceil(steps / 200) steps (kDefaultFrames): runs of up to 200 steps
 ///    write every step, longer ones 101 to 201 frames plus the last state when N does not divide
 ///    the step count.
-#include "flexopt/io/case.hpp"
 
 #include <string>
 
 namespace flexopt::io {
+
+/// `output:`: which time steps of a dynamic run are written to motion.xdmf (and, when given, at
+/// which steps energy and sensors are sampled), or which design iterations of `optimize` are
+/// written to design.xdmf. At most one of `every` and `interval`; neither: the defaults of
+/// FrameSchedule (dynamic) and every iteration (optimize).
+struct OutputSettings {
+  int every = 0;       ///< output.every, >= 1; 0: not given
+  double interval = 0; ///< output.interval [s] of simulated time, > 0 (dynamic only); 0: not given
+  bool given() const { return every > 0 || interval > 0; }
+};
 
 class FrameSchedule {
 public:
@@ -22,7 +31,7 @@ public:
   static constexpr long long kDefaultFrames = 200;
 
   /// The schedule for `output` (Case::output) over `steps` steps of `h` seconds.
-  FrameSchedule(const OutputSpec &output, long long steps, double h);
+  FrameSchedule(const OutputSettings &output, long long steps, double h);
 
   /// True if the state after step n (n = 0: the initial state; 0 <= n <= steps) is a frame.
   bool is_frame(long long n) const;
@@ -42,7 +51,7 @@ private:
   long long interval_step(long long k) const;
 
   long long steps_;
-  OutputSpec output_;
+  OutputSettings output_;
   long long stride_ = 1;       ///< every-N rule (default, every, and intervals below the step)
   double steps_per_frame_ = 0; ///< interval rule: T / h (> 1); 0 for the every-N rule
   bool interval_below_step_ = false;

@@ -3,7 +3,7 @@
 /// a rigid pre-run of the scene with every flexible candidate reduced and held rigid, the
 /// kineto-elastodynamic (KED) response of each candidate to the forcing of that motion, and the
 /// rules that turn the estimates into rigid, FFRF (modes, geometric stiffening) or ACF.
-#include "flexopt/io/case.hpp"
+#include "flexopt/dynamics/scene_description.hpp"
 #include "flexopt/io/json.hpp"
 
 #include <mpi.h>
@@ -41,12 +41,13 @@ struct Estimates {
 
 struct BodyPlan {
   std::string body;
-  std::string given;       ///< the case's model: rigid | ffrf | acf | auto
-  std::string recommended; ///< what the estimates choose: rigid | ffrf | acf
-  int modes = 0;           ///< ffrf: fixed-interface modes
+  dynamics::BodyModel given = dynamics::BodyModel::Auto;        ///< the case's model
+  dynamics::BodyModel recommended = dynamics::BodyModel::Rigid; ///< what the estimates choose
+  int modes = 0;                                                ///< ffrf: fixed-interface modes
   bool geometric_stiffening = false;
   double mesh_size = 0; ///< acf: the element size the plan chose [m] (0: the case's mesh)
-  std::string model;    ///< what runs: the given model, or the recommendation for auto
+  /// what runs: the given model, or the recommendation for auto
+  dynamics::BodyModel model = dynamics::BodyModel::Rigid;
   std::vector<std::string> reasons;  ///< why (with numbers)
   std::vector<std::string> warnings; ///< where a given model disagrees with the estimates
   double predicted_cost_s = 0;       ///< predicted wall time of the body in the run
@@ -62,6 +63,18 @@ struct Plan {
   double seconds = 0; ///< the whole plan [s]
 };
 
+/// What the plan of a dynamic case reads: its scene and time grid, the accuracy the user
+/// accepts, and what its optimization needs of the models.
+struct PlanSettings {
+  dynamics::SceneDescription scene;
+  dynamics::TimeSettings time;
+  double accuracy = 1e-2;  ///< `accuracy`: the relative error of the sensors the user accepts
+  std::string design_body; ///< the design body (empty: none); a flexible one stays flexible
+  /// Every response that reads a sensor: (its type, e.g. "sensor", the sensor's name). An ACF
+  /// body cannot yet serve a response on its elastic displacement (section 12.3).
+  std::vector<std::pair<std::string, std::string>> sensor_responses;
+};
+
 struct PlanOptions {
   int max_modes =
       40; ///< fixed-interface modes of the plan's reduction (fewer if the body has fewer)
@@ -70,7 +83,7 @@ struct PlanOptions {
 
 /// The plan of a dynamic case: every body that is not `model: rigid` is estimated. Collective;
 /// throws collective flexopt::Errors (a failed pre-run names the step).
-Plan make_plan(MPI_Comm comm, const io::Case &c, const PlanOptions &options = {});
+Plan make_plan(MPI_Comm comm, const PlanSettings &settings, const PlanOptions &options = {});
 
 /// Prints one block per body (choice, reasons, numbers, warnings) on rank 0.
 void print_plan(MPI_Comm comm, const Plan &plan);
@@ -79,8 +92,8 @@ void print_plan(MPI_Comm comm, const Plan &plan);
 /// reasons, warnings, predicted_cost_s, estimates}].
 io::Json plan_json(const Plan &plan);
 
-/// The case with every `model: auto` body set to its plan (model, reduction modes, geometric
-/// stiffening).
-io::Case apply_plan(const io::Case &c, const Plan &plan);
+/// Sets every `model: auto` body of `scene` to its plan (model, reduction modes, geometric
+/// stiffening, ACF's mesh size).
+void apply_plan(dynamics::SceneDescription &scene, const Plan &plan);
 
 } // namespace flexopt::plan
