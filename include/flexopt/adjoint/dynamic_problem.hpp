@@ -25,6 +25,11 @@
 
 namespace flexopt::adjoint {
 
+namespace detail {
+class DensePass;
+class DistPass;
+} // namespace detail
+
 /// d r / d theta contracted with weights: G = (d r/d theta)^T W at the mechanism state (q, v, a)
 /// (r the dynamics residual of Mechanism::dynamics, with or without gravity; theta the design
 /// parameters; W has one column per response). The adjoint of the initial state calls it for
@@ -174,108 +179,116 @@ public:
   long long recomputed_steps() const { return recomputed_; }
 
 private:
+  friend class detail::DensePass;
+  friend class detail::DistPass;
   DynamicProblem() = default;
-  /// The rigid design body on the dense backend (sections 9.1-9.5): responses into `out`,
-  /// with gradients dPsi/d(physical density) into element_gradient_.
-  void evaluate_rigid(bool gradients, optimize::Evaluation &out);
-  /// A scene with ACF bodies on the distributed backend (sections 9.6, 9.7), its design body
-  /// ACF or rigid, the same outputs.
-  void evaluate_distributed(bool gradients, optimize::Evaluation &out);
   /// The responses' names, sensors, strain-energy bodies and the sensors on the design body;
   /// refuses responses the design body's `model` cannot serve (collective errors).
   void bind_responses(dynamics::BodyModel model);
   /// The rigid design body's mass parameters theta from the mass factors, the body replaced.
   void set_rigid_design();
-  /// element_gradient_ += dPsi/dw_e = G . theta_e (and the design body's own mass) times dw_e,
+  /// After a forward run of `seconds`: the run's figures and the response values into `out`
+  /// (section 9.3).
+  void finish_forward(double seconds, bool gradients, optimize::Evaluation &out);
+  /// The gradients dPsi/d(physical density) of the last evaluation pulled back through the
+  /// projection and the filter to the design variables (sections 4 and 5), into `out`; warns
+  /// once of a response that the densities cannot move.
+  void pull_back(optimize::Evaluation &out);
+  /// element_gradient += dPsi/dw_e = G . theta_e (and the design body's own mass) times dw_e,
   /// from G = dPsi/dtheta (10 x responses).
   void add_rigid_element_gradients(const Matrix &G);
-  /// The FFRF design body (section 10): element_gradient_ += ds_e s_hat_e + dw_e w_hat_e from
+  /// The FFRF design body (section 10): element_gradient += ds_e s_hat_e + dw_e w_hat_e from
   /// G = (d r/d model)^T mu summed over the steps (packed FfrfModel cotangents, one column per
   /// response), the damping's Rayleigh split, the mass response and the sensors' bases.
   /// `start`: the start's sensitivities to the placed state (section 9.2 item 6), used when the
   /// design body has initial elastic fields (section 10.2).
   void add_ffrf_element_gradients(const Matrix &G, const StartAdjoint &start);
+  /// dPsi/dS of response i's sensor on the FFRF design body (its basis at the point, S =
+  /// Psi(X_s)) as basis cotangents added to c (n vectors, kept in `owned`); false if zero.
+  bool add_sensor_cotangent(std::size_t i, int n, reduce::ReductionCotangent &c,
+                            std::vector<Vec> &owned) const;
+  /// The initial elastic fields' part of response i's cotangent (section 10.2): the start's
+  /// sensitivities to the placed elastic coordinates and rates, the positions' metric, and the
+  /// projections' element terms into `projection_w`.
+  void add_initial_field_cotangent(std::size_t i, int n, const StartAdjoint &start,
+                                   reduce::ReductionCotangent &c, std::vector<Vec> &owned,
+                                   std::vector<double> &projection_w) const;
   /// Rows of the design partials: 10 mass parameters (rigid) or the packed FfrfModel.
   int design_parameters() const;
+  /// (d r/d theta)^T W for the design body's block of W (ResidualPartials).
+  Matrix design_partials(const Vector &q, const Vector &v, const Vector &a, bool gravity,
+                         const Matrix &W) const;
   /// Which main steps the forward run stores (all, or step 0, the binomial schedule's first
   /// descent and the last step, with the schedule).
   std::vector<char> plan_checkpoints(std::unique_ptr<BinomialSchedule> &schedule) const;
   /// This rank's checkpoint file of `storage: disk`.
   std::string checkpoint_file() const;
-  /// Main step j recomputed on the distributed backend from the record of step j - 1.
-  DistRecord recompute_dist(const dynamics::DistributedAlpha &da, const DistRecord &previous,
-                            long long j) const;
-  /// After a forward run started at wall time t_forward: its time, the response values into
-  /// `out`; returns `gradients` (whether the backward sweep follows).
-  bool finish_forward(double t_forward, bool gradients, optimize::Evaluation &out);
-  /// (d r/d theta)^T W for the design body's block of W (ResidualPartials).
-  Matrix design_partials(const Vector &q, const Vector &v, const Vector &a, bool gravity,
-                         const Matrix &W) const;
-  /// dPsi/dq of the sensor samples' weights at one state (n coordinates, one column per
-  /// trajectory response).
+  /// The value of response i at the last evaluation.
   double response_value(std::size_t i) const;
 
+  // What lasts the whole run (create).
   DynamicSettings settings_;
+  dynamics::IntegratorSettings integration_; ///< the forward runs' (IntegratorSettings::from)
+  long long steps_ = 0;                      ///< main steps of a run
+  std::string scratch_;                      ///< the directory of the checkpoint file
   dynamics::Scene scene_;
-  StepObserver observer_;
   std::unique_ptr<optimize::DesignField> field_;
-  int design_body_ = -1;    ///< case body index
-  int mechanism_body_ = -1; ///< its index in the mechanism
-  bodies::Vec3 reference_{0, 0, 0};
+  Vec grad_physical_ = nullptr; ///< work vector: a gradient on the physical densities
+  StepObserver observer_;
+  int design_body_ = -1;            ///< case body index
+  int mechanism_body_ = -1;         ///< its index in the mechanism
+  int acf_design_ = -1;             ///< the design body's index in scene_.acf (-1: rigid)
+  bool ffrf_design_ = false;        ///< the design body is an FFRF body
+  bodies::Vec3 reference_{0, 0, 0}; ///< the rigid design body's reference point (section 9.1)
   std::vector<bodies::MassParameters> element_theta_; ///< per local element of the design body
-  std::vector<double> w_, dw_;                        ///< mass factors, per local element
-  std::vector<double> s_, ds_;  ///< SIMP modulus factors (ACF design body), per local element
-  int acf_design_ = -1;         ///< the design body's index in scene_.acf (-1: rigid)
-  bool ffrf_design_ = false;    ///< the design body is an FFRF body
-  bool filter_limited_ = false; ///< the user's options loosen the filter's solves
-  /// The FFRF design body's reduction at the last design (with its adjoint data).
+  /// The FFRF design body's reduction at the last design (with its adjoint data), and the
+  /// element factors it was made with (a new design with the same factors, the first one in
+  /// particular, reuses it).
   std::shared_ptr<const reduce::FlexibleReduction> reduction_;
-  /// The element factors reduction_ was made with (a new design with the same factors, the
-  /// first one in particular, reuses it).
   reduce::ElementFactors reduced_factors_;
   reduce::BasisDerivative basis_ = reduce::BasisDerivative::Exact;
+  // The responses: objective, then constraints.
+  std::vector<const optimize::ResponseSettings *> specs_;
+  std::vector<std::string> names_;
+  std::vector<int> sensor_of_; ///< per response: index in scene_.sensors (-1: none)
   /// Per response: whether its sensor reads the FFRF design body's basis (its BoundSensor holds
-  /// the point's location), and per main step the sensor's frame rotation A_n and elastic
-  /// coordinates zeta_n, for dPsi/dS = sum_n A_n^T dPsi/dy_n zeta_n^T.
+  /// the point's location).
   std::vector<char> sensor_on_design_;
-  std::vector<std::vector<std::pair<bodies::Mat3, Vector>>> sensor_frames_;
-  /// Per response: the FFRF body (mechanism index) whose strain energy it integrates, or -1;
-  /// for the design body, sum_n w_n 1/2 zeta_n zeta_n^T of the last forward run (dPsi/dK_r).
+  /// Per response: the FFRF body (mechanism index) whose strain energy it integrates, or -1.
   std::vector<int> strain_body_;
-  std::vector<Matrix> strain_kbar_;
+  bool filter_limited_ = false;       ///< the user's options loosen the filter's solves
+  bool zero_gradient_warned_ = false; ///< the warning of a design-independent response, once
+  // Figures over the run (describe, timings).
+  long long evaluations_ = 0;
+  /// Wall times of the last evaluation with gradients (forward, backward sweep), of all
+  /// forward runs, and of the last reduction and its adjoint.
+  double forward_s_ = 0, adjoint_s_ = 0, forward_total_s_ = 0;
   double reduction_s_ = 0, reduction_adjoint_s_ = 0;
   int reduction_cg_iterations_ = 0;
-  /// Per response: dPsi/d(physical density) of every local element (the volume fraction's
-  /// from the design field).
-  std::vector<std::vector<double>> element_gradient_;
-  bodies::MassParameters theta_ = bodies::MassParameters::Zero();
-  std::vector<const optimize::ResponseSettings *> specs_;
-  std::vector<int> sensor_of_; ///< per response: index in scene_.sensors (-1: none)
-  std::vector<std::string> names_;
-  dynamics::IntegratorSettings integration_; ///< the forward runs' (IntegratorSettings::from)
-  /// (dPsi/ds)^T at main step j with state `state` (empty if zero), one column per response.
-  Matrix state_partials(long long j, const dynamics::State &state) const;
-  /// Main step j recomputed from the record of step j - 1 with the forward run's substeps.
-  StepRecord recompute(const dynamics::GeneralizedAlpha &ga, const StepRecord &previous,
-                       long long j) const;
+  /// The last backward sweep's recomputed main steps, checkpoint bytes (peak, all ranks) and
+  /// factorizations.
+  long long recomputed_ = 0, checkpoint_bytes_ = 0, adjoint_factorizations_ = 0;
 
-  std::string scratch_;
-  // The last evaluation.
-  std::vector<std::vector<double>> substep_sizes_; ///< per main step: the halved step's sizes
-  std::vector<std::vector<Vec3>> samples_;         ///< per response: y_n (trajectory responses)
-  std::vector<SampledResponse> sampled_;
-  long long recomputed_ = 0, checkpoint_bytes_ = 0;
-  long long adjoint_factorizations_ = 0; ///< of the backward sweep
-  Vec grad_physical_ = nullptr;
-  /// Wall times of the last evaluation with gradients (forward, backward sweep) and of all
-  /// forward runs.
-  double forward_s_ = 0, adjoint_s_ = 0, forward_total_s_ = 0;
-  /// The parts of the last evaluation's wall time (timings()).
-  struct {
-    double reduction = 0, forward = 0, adjoint = 0, reduction_adjoint = 0;
-  } last_;
-  long long steps_ = 0, evaluations_ = 0;
-  bool zero_gradient_warned_ = false; ///< the warning of a design-independent response, once
+  /// What one evaluation computes (the last one's; evaluate starts it anew).
+  struct Evaluated {
+    /// Mass factors w and SIMP modulus factors s of the design, per local element, and their
+    /// derivatives; the rigid design body's mass parameters.
+    std::vector<double> w, dw, s, ds;
+    bodies::MassParameters theta = bodies::MassParameters::Zero();
+    std::vector<std::vector<double>> substep_sizes; ///< per main step: the halved step's sizes
+    std::vector<std::vector<Vec3>> samples;         ///< per response: y_n (trajectory responses)
+    std::vector<SampledResponse> sampled;
+    /// Per response on the FFRF design body: per main step the sensor's frame rotation A_n and
+    /// elastic coordinates zeta_n, for dPsi/dS = sum_n A_n^T dPsi/dy_n zeta_n^T.
+    std::vector<std::vector<std::pair<bodies::Mat3, Vector>>> sensor_frames;
+    /// Per response on the FFRF design body's strain energy: sum_n w_n 1/2 zeta_n zeta_n^T.
+    std::vector<Matrix> strain_kbar;
+    /// Per response: dPsi/d(physical density) of every local element (the volume fraction's
+    /// from the design field).
+    std::vector<std::vector<double>> element_gradient;
+    /// The parts of the evaluation's wall time (timings()).
+    double reduction_s = 0, forward_s = 0, adjoint_s = 0, reduction_adjoint_s = 0;
+  } ev_;
 };
 
 } // namespace flexopt::adjoint

@@ -1,0 +1,158 @@
+// One evaluation on the dense backend (docs/theory.md sections 9.1-9.5 and 10): a rigid or FFRF
+// design body in a scene of rigid and FFRF bodies, integrated on the replicated mechanism.
+#include "flexopt/core/context.hpp"
+#include "passes.hpp"
+
+namespace flexopt::adjoint::detail {
+
+DensePass::DensePass(DynamicProblem &p, bool gradients)
+    : p_(p), gradients_(gradients), integrator_(p.scene_, p.integration_) {}
+
+void DensePass::sample(const dynamics::State &s) {
+  const dynamics::Mechanism &mech = p_.scene_.mechanism;
+  const std::size_t nr = p_.specs_.size();
+  const int od = mech.offset(p_.mechanism_body_), nd = mech.size(p_.mechanism_body_);
+  // FFRF strain energies U_n = 1/2 zeta^T K_r zeta, summed with the trapezoid weights as the
+  // steps come (their number is known), and sum_n w_n 1/2 zeta_n zeta_n^T for the design body.
+  const double w = trapezoid_weight(static_cast<std::size_t>(sampled_steps_++),
+                                    static_cast<std::size_t>(p_.steps_));
+  for (std::size_t i = 0; i < nr; ++i) {
+    if (p_.strain_body_[i] < 0) continue;
+    const auto &body = dynamic_cast<const bodies::FfrfBody &>(mech.body(p_.strain_body_[i]));
+    const Vector z = s.q.segment(mech.offset(p_.strain_body_[i]) + 7, body.coordinates() - 7);
+    strain_value_[i] += w * 0.5 * z.dot(body.data().stiffness * z);
+    if (p_.strain_body_[i] == p_.mechanism_body_ && p_.ffrf_design_) {
+      if (p_.ev_.strain_kbar[i].size() == 0) p_.ev_.strain_kbar[i].setZero(z.size(), z.size());
+      p_.ev_.strain_kbar[i] += w * 0.5 * z * z.transpose();
+    }
+  }
+  for (std::size_t i = 0; i < nr; ++i) {
+    if (p_.sensor_of_[i] < 0) continue;
+    const dynamics::BoundSensor &bs = p_.scene_.sensors[static_cast<std::size_t>(p_.sensor_of_[i])];
+    p_.ev_.samples[i].push_back(dynamics::sensor_value(p_.scene_, bs, s.q));
+    if (p_.sensor_on_design_[i])
+      p_.ev_.sensor_frames[i].emplace_back(bs.quantity ==
+                                                   dynamics::SensorQuantity::ElasticDisplacement
+                                               ? bodies::Mat3::Identity()
+                                               : bodies::rotation(s.q.segment<4>(od + 3)),
+                                           s.q.segment(od + 7, nd - 7));
+  }
+}
+
+void DensePass::forward() {
+  // The records the backward sweep needs go to the store, all of them or those of the binomial
+  // schedule's first descent; every main step's sensor samples.
+  const dynamics::GeneralizedAlpha &ga = integrator_.dense();
+  record_ = StepRecord{ga.initial_state(p_.scene_.q0, p_.scene_.v0, 0.0, nullptr, &trace_), {}};
+  s0_ = record_.state;
+  if (gradients_) {
+    keep_ = p_.plan_checkpoints(schedule_);
+    store_ = p_.settings_.adjoint.storage == CheckpointStorage::Disk
+                 ? disk_store(p_.checkpoint_file())
+                 : memory_store();
+    store_->put(0, record_);
+  }
+  const std::size_t nr = p_.specs_.size();
+  p_.ev_.samples.assign(nr, {});
+  p_.ev_.sensor_frames.assign(nr, {});
+  p_.ev_.strain_kbar.assign(nr, Matrix());
+  strain_value_.assign(nr, 0.0);
+  sample(record_.state);
+  if (p_.observer_) p_.observer_(0, dynamics::StepInfo{}, &record_.state, nullptr);
+  const double h = p_.settings_.time.step;
+  dynamics::run_steps(ga, p_.steps_, h, record_, &p_.ev_.substep_sizes,
+                      [&](long long j, const dynamics::StepInfo &info) {
+                        sample(record_.state);
+                        if (gradients_ && keep_[static_cast<std::size_t>(j)])
+                          store_->put(j, record_);
+                        if (p_.observer_) p_.observer_(j, info, &record_.state, nullptr);
+                      });
+  // The responses on the time grid.
+  p_.ev_.sampled.assign(nr, SampledResponse{});
+  for (std::size_t i = 0; i < nr; ++i) {
+    if (p_.sensor_of_[i] >= 0)
+      p_.ev_.sampled[i] = sampled_response(*p_.specs_[i], p_.ev_.samples[i], h);
+    if (p_.strain_body_[i] >= 0) p_.ev_.sampled[i].value = strain_value_[i];
+  }
+}
+
+void DensePass::backward() {
+  // All responses at once (one column each), main step by main step.
+  const double t_adjoint = wall_time();
+  const dynamics::GeneralizedAlpha &ga = integrator_.dense();
+  const int n = p_.scene_.mechanism.coordinates();
+  const int cols = static_cast<int>(p_.specs_.size());
+  const double h = p_.settings_.time.step;
+  BackwardSweep sweep(ga, cols);
+  Matrix G = Matrix::Zero(p_.design_parameters(), cols); // dPsi/dtheta
+  auto backward = [&](const dynamics::State &s, double dt, const Matrix &dpsi) {
+    const Matrix mu = sweep.step(s, dt, dpsi);
+    G += p_.design_partials(s.q, s.v, s.acc, true, mu.middleRows(3 * n, n));
+  };
+  auto visit = [&](long long j, const StepRecord &r) {
+    if (r.substeps.empty()) {
+      backward(r.state, h, state_partials(j, r.state));
+      return;
+    }
+    // A halved step: its substeps backwards, the responses only at its end (section 9.3).
+    for (std::size_t k = r.substeps.size(); k-- > 0;)
+      backward(k + 1 == r.substeps.size() ? r.state : r.substeps[k].first, r.substeps[k].second,
+               k + 1 == r.substeps.size() ? state_partials(j, r.state) : Matrix());
+  };
+  p_.recomputed_ = reverse_steps<StepRecord>(
+      schedule_.get(), *store_, p_.steps_,
+      [&](const StepRecord &previous, long long j) { return recompute(previous, j); }, visit);
+  p_.checkpoint_bytes_ = store_->peak_bytes();
+  p_.adjoint_factorizations_ = sweep.factorizations();
+  const Matrix mu0 = sweep.finish(state_partials(0, s0_));
+  // The placed state depends on the design when the FFRF design body has initial elastic fields
+  // (section 10.2): then the start returns its sensitivities to it too.
+  const dynamics::SceneBody &dsb = p_.scene_.bodies[static_cast<std::size_t>(p_.design_body_)];
+  const bool given = p_.ffrf_design_ && (dsb.elastic0.size() > 0 || dsb.elastic_rate0.size() > 0);
+  const StartAdjoint start = initial_state_adjoint(
+      ga, s0_, trace_, -mu0,
+      [&](const Vector &q, const Vector &v, const Vector &a, bool gravity, const Matrix &W) {
+        return p_.design_partials(q, v, a, gravity, W);
+      },
+      given);
+  G += start.design;
+  p_.adjoint_s_ = wall_time() - t_adjoint;
+  if (p_.ffrf_design_)
+    p_.add_ffrf_element_gradients(G, start);
+  else
+    p_.add_rigid_element_gradients(G);
+}
+
+Matrix DensePass::state_partials(long long j, const dynamics::State &state) const {
+  const dynamics::Scene &scene = p_.scene_;
+  const int n = scene.mechanism.coordinates(), m = scene.mechanism.constraints();
+  Matrix P;
+  for (std::size_t i = 0; i < p_.specs_.size(); ++i) {
+    if (p_.strain_body_[i] >= 0) {
+      // d/dzeta of w_j 1/2 zeta^T K_r zeta.
+      const dynamics::Mechanism &mech = scene.mechanism;
+      const auto &body = dynamic_cast<const bodies::FfrfBody &>(mech.body(p_.strain_body_[i]));
+      const int o = mech.offset(p_.strain_body_[i]) + 7, ne = body.coordinates() - 7;
+      if (P.size() == 0) P.setZero(4 * n + m, static_cast<Eigen::Index>(p_.specs_.size()));
+      P.col(static_cast<Eigen::Index>(i)).segment(o, ne) =
+          trapezoid_weight(static_cast<std::size_t>(j), static_cast<std::size_t>(p_.steps_)) *
+          (body.data().stiffness * state.q.segment(o, ne));
+      continue;
+    }
+    if (p_.ev_.sampled[i].dy.empty()) continue;
+    const Vec3 &dy = p_.ev_.sampled[i].dy[static_cast<std::size_t>(j)];
+    if (dy.isZero(0)) continue;
+    if (P.size() == 0) P.setZero(4 * n + m, static_cast<Eigen::Index>(p_.specs_.size()));
+    const dynamics::BoundSensor &s = scene.sensors[static_cast<std::size_t>(p_.sensor_of_[i])];
+    P.col(static_cast<Eigen::Index>(i)).head(n) =
+        sensor_jacobian(scene, s, state.q).transpose() * dy;
+  }
+  return P;
+}
+
+StepRecord DensePass::recompute(const StepRecord &previous, long long j) const {
+  return dynamics::recompute_step(integrator_.dense(), previous, j, p_.settings_.time.step,
+                                  p_.ev_.substep_sizes[static_cast<std::size_t>(j)]);
+}
+
+} // namespace flexopt::adjoint::detail

@@ -1,0 +1,374 @@
+// One evaluation on the distributed backend (docs/theory.md sections 9.6 and 9.7), for a scene
+// with ACF bodies whose design body is ACF (element partials) or rigid (mass-parameter partials
+// on the small part): the forward run with the states kept or checkpointed, the responses, the
+// backward sweep with the design partials, and the adjoint of the consistent start (9.2).
+#include "flexopt/core/context.hpp"
+#include "flexopt/core/error.hpp"
+#include "flexopt/fem/assembly.hpp"
+#include "passes.hpp"
+
+#include <algorithm>
+
+namespace flexopt::adjoint::detail {
+
+std::unique_ptr<Pass> make_pass(DynamicProblem &p, bool gradients) {
+  if (p.scene().acf.empty()) return std::make_unique<DensePass>(p, gradients);
+  return std::make_unique<DistPass>(p, gradients);
+}
+
+DistPass::DistPass(DynamicProblem &p, bool gradients)
+    : p_(p), gradients_(gradients), integrator_(p.scene_, p.integration_), da_(integrator_.dist()),
+      acf_(p.acf_design_ >= 0), design_(static_cast<std::size_t>(acf_ ? p.acf_design_ : 0)) {
+  body_ = acf_ ? p_.scene_.acf[design_].get() : nullptr;
+  G_ = Matrix::Zero(10, static_cast<Eigen::Index>(p_.specs_.size()));
+}
+
+DistPass::~DistPass() = default;
+
+std::vector<double> DistPass::displacement(const dynamics::DistState &s, std::size_t b) const {
+  std::vector<double> u;
+  da_.local_values(s.q, b, u);
+  const mesh::DistributedMesh &mb = p_.scene_.acf[b]->mesh();
+  for (std::size_t k = 0; k < u.size(); ++k) u[k] -= mb.coordinates[k];
+  return u;
+}
+
+void DistPass::sample(const dynamics::DistState &s) {
+  const dynamics::State small = da_.small_state(s);
+  for (std::size_t i = 0; i < p_.specs_.size(); ++i) {
+    if (p_.sensor_of_[i] >= 0) {
+      const dynamics::BoundSensor &bs =
+          p_.scene_.sensors[static_cast<std::size_t>(p_.sensor_of_[i])];
+      p_.ev_.samples[i].push_back(bs.acf_body >= 0
+                                      ? dynamics::acf_sensor_value(p_.scene_, da_, bs, s, small)
+                                      : dynamics::sensor_value(p_.scene_, bs, small.q));
+    }
+    if (strain_body_[i] >= 0) {
+      const auto b = static_cast<std::size_t>(strain_body_[i]);
+      const std::vector<double> u = displacement(s, b);
+      const std::vector<double> Ue = p_.scene_.acf[b]->element_energies(u.data());
+      double local = 0;
+      for (double x : Ue) local += x;
+      double total = 0;
+      MPI_Allreduce(&local, &total, 1, MPI_DOUBLE, MPI_SUM, p_.mesh().comm);
+      energy_[i].push_back(total);
+      if (acf_ && b == design_) {
+        // Kept per step: the direct partial sum_n w_n U_e / s_e needs the weights (N known).
+        energy_steps_.insert(energy_steps_.end(), Ue.begin(), Ue.end());
+      }
+    }
+  }
+}
+
+void DistPass::forward() {
+  const std::size_t nr = p_.specs_.size();
+  const double h = p_.settings_.time.step;
+  record_.state = dynamics::acf_initial_state(p_.scene_, da_, nullptr, &trace_);
+  // Which ACF body each strain energy response measures.
+  strain_body_.assign(nr, -1);
+  for (std::size_t i = 0; i < nr; ++i)
+    if (p_.specs_[i]->type == optimize::ResponseType::StrainEnergyIntegral)
+      for (std::size_t b = 0; b < p_.settings_.scene.bodies.size(); ++b)
+        if (p_.settings_.scene.bodies[b].name == p_.specs_[i]->body)
+          strain_body_[i] = p_.scene_.bodies[b].acf;
+  p_.ev_.samples.assign(nr, {});
+  energy_.assign(nr, {});
+  if (gradients_) {
+    keep_ = p_.plan_checkpoints(schedule_);
+    store_ = p_.settings_.adjoint.storage == CheckpointStorage::Disk
+                 ? dist_disk_store(p_.checkpoint_file(), da_)
+                 : dist_memory_store();
+  }
+  sample(record_.state);
+  s0_ = record_.state;
+  if (gradients_) store_->put(0, record_);
+  if (p_.observer_) p_.observer_(0, dynamics::StepInfo{}, nullptr, &record_.state);
+  dynamics::run_steps(da_, p_.steps_, h, record_, &p_.ev_.substep_sizes,
+                      [&](long long j, const dynamics::StepInfo &info) {
+                        sample(record_.state);
+                        if (gradients_ && keep_[static_cast<std::size_t>(j)])
+                          store_->put(j, record_);
+                        if (p_.observer_) p_.observer_(j, info, nullptr, &record_.state);
+                      });
+  const auto N = static_cast<std::size_t>(p_.steps_);
+  p_.ev_.sampled.assign(nr, SampledResponse{});
+  for (std::size_t i = 0; i < nr; ++i) {
+    if (p_.sensor_of_[i] >= 0)
+      p_.ev_.sampled[i] = sampled_response(*p_.specs_[i], p_.ev_.samples[i], h);
+    if (strain_body_[i] >= 0)
+      for (std::size_t n = 0; n <= N; ++n)
+        p_.ev_.sampled[i].value += trapezoid_weight(n, N) * energy_[i][n];
+  }
+}
+
+void DistPass::direct_partials() {
+  // Direct partials of an ACF design body: the strain energy's sum_n w_n U_e / s_e, the mass's
+  // rho V_e (a rigid design body's mass: add_rigid_element_gradients).
+  const mesh::DistributedMesh &m = p_.mesh();
+  const auto ne = static_cast<std::size_t>(m.local_elements());
+  const auto N = static_cast<std::size_t>(p_.steps_);
+  const std::vector<double> volume = fem::element_volumes(m);
+  for (std::size_t i = 0; i < p_.specs_.size() && acf_; ++i) {
+    if (strain_body_[i] == p_.acf_design_) {
+      std::size_t column = 0; // energy_steps_ holds ne values per step for each such response
+      for (std::size_t k = 0; k < i; ++k) column += strain_body_[k] == p_.acf_design_ ? 1 : 0;
+      const std::size_t per_step =
+          ne * static_cast<std::size_t>(
+                   std::count(strain_body_.begin(), strain_body_.end(), p_.acf_design_));
+      for (std::size_t n = 0; n <= N; ++n)
+        for (std::size_t e = 0; e < ne; ++e)
+          p_.ev_.element_gradient[i][e] += trapezoid_weight(n, N) * p_.ev_.ds[e] / p_.ev_.s[e] *
+                                           energy_steps_[n * per_step + column * ne + e];
+    }
+    if (p_.specs_[i]->type == optimize::ResponseType::Mass &&
+        p_.specs_[i]->body == p_.settings_.design.body)
+      for (std::size_t e = 0; e < ne; ++e)
+        p_.ev_.element_gradient[i][e] += p_.ev_.dw[e] * body_->material().density * volume[e];
+  }
+}
+
+std::vector<const dynamics::DistState *> DistPass::state_partials(std::size_t j,
+                                                                  const dynamics::DistState &s) {
+  const std::size_t na = active_.size();
+  const auto N = static_cast<std::size_t>(p_.steps_);
+  std::vector<const dynamics::DistState *> ptr(na, nullptr);
+  const dynamics::State small = da_.small_state(s);
+  std::vector<double> force;
+  for (std::size_t a = 0; a < na; ++a) {
+    const std::size_t i = active_[a];
+    dynamics::DistState &P = partials_[a];
+    FX_PETSC(VecZeroEntries(P.q));
+    bool any = false;
+    if (p_.sensor_of_[i] >= 0 && !p_.ev_.sampled[i].dy[j].isZero(0)) {
+      const dynamics::BoundSensor &bs =
+          p_.scene_.sensors[static_cast<std::size_t>(p_.sensor_of_[i])];
+      const Vec3 &dy = p_.ev_.sampled[i].dy[j];
+      if (bs.acf_body >= 0) {
+        const auto b =
+            static_cast<std::size_t>(p_.scene_.bodies[static_cast<std::size_t>(bs.acf_body)].acf);
+        da_.add_point_weights(P.q, b, bs.location, dy);
+      } else {
+        da_.add_small(P.q, sensor_jacobian(p_.scene_, bs, small.q).transpose() * dy);
+      }
+      any = true;
+    }
+    if (strain_body_[i] >= 0) {
+      const auto b = static_cast<std::size_t>(strain_body_[i]);
+      const std::vector<double> u = displacement(s, b);
+      force.assign(u.size(), 0.0);
+      p_.scene_.acf[b]->element_energies(u.data(), force.data());
+      // Each element's force went to its local nodes; ghosts are added on their owners.
+      for (double &f : force) f *= trapezoid_weight(j, N);
+      da_.add_local_values(P.q, b, force);
+      any = true;
+    }
+    FX_PETSC(VecAssemblyBegin(P.q));
+    FX_PETSC(VecAssemblyEnd(P.q));
+    if (any) ptr[a] = &P;
+  }
+  return ptr;
+}
+
+void DistPass::add_partials(const dynamics::DistState &s,
+                            const std::vector<dynamics::DistState> &mu, double sign) {
+  // An ACF design body's G_e += ds mu . dR/ds_e + dw mu . dR/dw_e in one element loop; a rigid
+  // one's dPsi/dtheta += (dr/dtheta)^T mu_d on the small part.
+  const std::size_t na = active_.size();
+  if (na == 0) return;
+  if (!acf_) {
+    const dynamics::State sm = da_.small_state(s);
+    Matrix W(sm.q.size(), static_cast<Eigen::Index>(na));
+    for (std::size_t a = 0; a < na; ++a)
+      W.col(static_cast<Eigen::Index>(a)) = da_.small_values(mu[a].acc);
+    const Matrix P = p_.design_partials(sm.q, sm.v, sm.acc, true, W);
+    for (std::size_t a = 0; a < na; ++a)
+      G_.col(static_cast<Eigen::Index>(active_[a])) += sign * P.col(static_cast<Eigen::Index>(a));
+    return;
+  }
+  const auto ne = static_cast<std::size_t>(p_.mesh().local_elements());
+  std::vector<const double *> mu_ptr(na);
+  u_ = displacement(s, design_);
+  da_.local_values(s.v, design_, v_);
+  da_.local_values(s.acc, design_, acc_);
+  for (std::size_t a = 0; a < na; ++a) {
+    da_.local_values(mu[a].acc, design_, mu_d_[a]);
+    mu_ptr[a] = mu_d_[a].data();
+  }
+  body_->design_partials(u_.data(), v_.data(), acc_.data(), mu_ptr, p_.scene_.mechanism.gravity,
+                         d_modulus_, d_mass_);
+  for (std::size_t a = 0; a < na; ++a)
+    for (std::size_t e = 0; e < ne; ++e)
+      p_.ev_.element_gradient[active_[a]][e] +=
+          sign * (p_.ev_.ds[e] * d_modulus_[a][e] + p_.ev_.dw[e] * d_mass_[a][e]);
+}
+
+std::vector<dynamics::DistState> DistPass::sweep() {
+  const std::size_t na = active_.size();
+  const double h = p_.settings_.time.step;
+  DistBackwardSweep sweep(da_, static_cast<int>(na));
+  partials_.clear();
+  for (std::size_t a = 0; a < na; ++a) partials_.push_back(da_.zero_state());
+  mu_d_.assign(na, {});
+  auto visit = [&](long long jj, const DistRecord &r) {
+    const auto j = static_cast<std::size_t>(jj);
+    if (r.substeps.empty()) {
+      add_partials(r.state, sweep.step(r.state, h, state_partials(j, r.state)), 1.0);
+      return;
+    }
+    // A halved step: its substeps backwards, the responses only at its end (section 9.3).
+    for (std::size_t k = r.substeps.size(); k-- > 0;) {
+      const bool end = k + 1 == r.substeps.size();
+      const dynamics::DistState &s = end ? r.state : r.substeps[k].first;
+      add_partials(s,
+                   sweep.step(s, r.substeps[k].second,
+                              end ? state_partials(j, r.state)
+                                  : std::vector<const dynamics::DistState *>(na, nullptr)),
+                   1.0);
+    }
+  };
+  p_.recomputed_ = reverse_steps<DistRecord>(
+      schedule_.get(), *store_, p_.steps_,
+      [&](const DistRecord &previous, long long j) {
+        return dynamics::recompute_step(da_, previous, j, h,
+                                        p_.ev_.substep_sizes[static_cast<std::size_t>(j)]);
+      },
+      visit);
+  p_.adjoint_factorizations_ = sweep.steps() + 1; // one per backward step, one at the start
+  return sweep.finish(state_partials(0, s0_));
+}
+
+void DistPass::add_mass_terms(const std::vector<std::vector<double>> &mus,
+                              const std::vector<double> &velocity) {
+  // Per element -dw_e mu_e^T M0_e u_e of an ACF design body.
+  const std::size_t na = active_.size();
+  const auto ne = static_cast<std::size_t>(p_.mesh().local_elements());
+  std::vector<const double *> ptr(na);
+  for (std::size_t a = 0; a < na; ++a) ptr[a] = mus[a].data();
+  const std::vector<double> u0 = displacement(s0_, design_);
+  body_->design_partials(u0.data(), nullptr, velocity.data(), ptr, Vec3::Zero(), d_modulus_,
+                         d_mass_);
+  for (std::size_t a = 0; a < na; ++a)
+    for (std::size_t e = 0; e < ne; ++e)
+      p_.ev_.element_gradient[active_[a]][e] -= p_.ev_.dw[e] * d_mass_[a][e];
+}
+
+void DistPass::add_small_mass_terms(const Matrix &mus, const Vector &velocity) {
+  // -(dM/dtheta u)^T mu of a rigid design body.
+  const dynamics::State sm = da_.small_state(s0_);
+  const Matrix P = p_.design_partials(sm.q, Vector::Zero(sm.q.size()), velocity, false, mus);
+  for (std::size_t a = 0; a < active_.size(); ++a)
+    G_.col(static_cast<Eigen::Index>(active_[a])) -= P.col(static_cast<Eigen::Index>(a));
+}
+
+void DistPass::start_adjoint(std::vector<dynamics::DistState> &gbar) {
+  // gbar = -mu_0 = dPsi/ds_0; the initial accelerations [M Phi_q^T; Phi_q 0] [acc; lambda] =
+  // [Q; gamma] (section 9.2, stage 2): nu from the transposed system, then -nu_acc . dr/dtheta.
+  // Stages 3 and 4 (the velocities) only if the start changed them: gv = dPsi/dv_0 through the
+  // accelerations, then the elastic fallback v_0 = v_r + dv (nu_f = A^-T [gv; 0], -nu_f^T dM dv,
+  // gv -= Phi_q^T nu_f,lambda) and the rigid-body correction v_r = v_given + T y (z = Pi T^T gv,
+  // -(T z)^T dM (T y) on the design body's rigid velocity field).
+  const dynamics::DistributedAlpha &da = da_;
+  const dynamics::DistStartTrace &trace = trace_;
+  const std::size_t na = active_.size();
+  const int coordinates = p_.scene_.mechanism.coordinates();
+  const bool fallback = trace.fallback != nullptr;
+  const bool corrected = trace.rigid.T.size() > 0 && trace.rigid.y.size() > 0 &&
+                         trace.rigid.y.cwiseAbs().maxCoeff() > 0;
+  Vec cmask = da.create_vector(), lmask = da.create_vector(), rhs = da.create_vector(),
+      nu = da.create_vector(), gv = da.create_vector(), w = da.create_vector();
+  da.coordinate_mask(cmask);
+  FX_PETSC(VecSet(lmask, 1.0));
+  FX_PETSC(VecAXPY(lmask, -1.0, cmask));
+  std::vector<dynamics::DistState> minus_nu;
+  // Per active response: the fallback's multiplier nu_f and the rigid correction's z, at the
+  // design body's local nodes (ACF) or on the small part (rigid).
+  std::vector<std::vector<double>> fallback_mu(na), field_mu(na);
+  Matrix fallback_small(coordinates, static_cast<Eigen::Index>(na)),
+      field_small(coordinates, static_cast<Eigen::Index>(na));
+  const Eigen::Index field0 =
+      corrected ? trace.rigid.T.cols() - 6 * static_cast<Eigen::Index>(trace.fields.size()) : 0;
+  const Vec3 centre = corrected && acf_ ? trace.fields[design_].centre : Vec3::Zero();
+  // A rigid velocity field (du, dw) at the ACF design body's local nodes.
+  auto field_values = [&](const dynamics::Vector6 &p, std::vector<double> &out) {
+    FX_PETSC(VecZeroEntries(w));
+    da.add_rigid_field(s0_, design_, p, centre, w);
+    da.local_values(w, design_, out);
+  };
+  Mat A = da.acceleration_matrix(s0_);
+  for (std::size_t a = 0; a < na; ++a) {
+    const auto col = static_cast<Eigen::Index>(a);
+    dynamics::DistState &g = gbar[a];
+    for (Vec x : {g.q, g.v, g.a, g.acc, g.lambda}) FX_PETSC(VecScale(x, -1.0));
+    FX_PETSC(VecWAXPY(rhs, 1.0, g.acc, g.a));
+    FX_PETSC(VecAXPY(rhs, 1.0, g.lambda));
+    da.solve_transpose(rhs, nu);
+    dynamics::DistState mu0 = da.zero_state();
+    FX_PETSC(VecPointwiseMult(mu0.acc, nu, cmask));
+    minus_nu.push_back(mu0);
+    if (!fallback && !corrected) continue;
+    FX_PETSC(VecPointwiseMult(gv, g.v, cmask));
+    da.start_velocity_transpose(s0_, nu, gv);
+    if (fallback) {
+      da.solve_transpose(gv, nu); // gv is zero on the multiplier entries
+      FX_PETSC(VecPointwiseMult(w, nu, cmask));
+      if (acf_)
+        da.local_values(w, design_, fallback_mu[a]);
+      else
+        fallback_small.col(col) = da.small_values(w);
+      FX_PETSC(VecPointwiseMult(w, nu, lmask));
+      FX_PETSC(MatMultTranspose(A, w, rhs)); // [Phi_q^T nu_lambda; 0]
+      FX_PETSC(VecAXPY(gv, -1.0, rhs));
+    }
+    if (corrected) {
+      const Vector z = trace.rigid.Pi * da.rigid_parameters_transpose(s0_, trace, gv);
+      if (acf_)
+        field_values(z.segment<6>(field0 + 6 * static_cast<Eigen::Index>(design_)), field_mu[a]);
+      else
+        field_small.col(col) = trace.rigid.T * z;
+    }
+  }
+  add_partials(s0_, minus_nu, -1.0);
+  if (fallback) {
+    if (acf_) {
+      std::vector<double> dv;
+      da.local_values(trace.fallback, design_, dv);
+      add_mass_terms(fallback_mu, dv);
+    } else {
+      add_small_mass_terms(fallback_small, da.small_values(trace.fallback));
+    }
+  }
+  if (corrected) {
+    if (acf_) {
+      std::vector<double> uy;
+      field_values(trace.rigid.field[design_], uy);
+      add_mass_terms(field_mu, uy);
+    } else {
+      add_small_mass_terms(field_small, trace.rigid.T * trace.rigid.y);
+    }
+  }
+  for (Vec *x : {&cmask, &lmask, &rhs, &nu, &gv, &w}) VecDestroy(x);
+}
+
+void DistPass::backward() {
+  direct_partials();
+  const double t_adjoint = wall_time();
+  // The backward sweep over every kept state (section 9.7), the element partials at each, for
+  // the responses that depend on the state (the volume fraction and the mass do not: their
+  // multipliers are zero).
+  for (std::size_t i = 0; i < p_.specs_.size(); ++i)
+    if (p_.sensor_of_[i] >= 0 || strain_body_[i] >= 0) active_.push_back(i);
+  if (active_.empty()) { // no backward sweep: every gradient is the direct partial
+    p_.recomputed_ = 0;
+    p_.adjoint_factorizations_ = 0;
+  } else {
+    std::vector<dynamics::DistState> gbar = sweep();
+    start_adjoint(gbar);
+  }
+  p_.adjoint_s_ = wall_time() - t_adjoint;
+  long long bytes = store_->peak_bytes();
+  MPI_Allreduce(MPI_IN_PLACE, &bytes, 1, MPI_LONG_LONG, MPI_SUM, p_.mesh().comm);
+  p_.checkpoint_bytes_ = bytes;
+  if (!acf_) p_.add_rigid_element_gradients(G_);
+}
+
+} // namespace flexopt::adjoint::detail

@@ -1,0 +1,117 @@
+#pragma once
+/// \file One evaluation's runs of a dynamic design problem (private to src/adjoint;
+/// docs/theory.md section 9): the forward run with its samples and checkpoints, then the
+/// backward sweep with the design partials and the adjoint of the consistent start. A pass lives
+/// for one evaluation; what lasts the whole run is the DynamicProblem's. The two backends differ
+/// in their states and step adjoints: DensePass for scenes of rigid and FFRF bodies (the
+/// replicated mechanism, sections 9.1-9.5 and 10), DistPass for scenes with ACF bodies (the
+/// distributed system, sections 9.6 and 9.7).
+#include "flexopt/adjoint/dist_sweep.hpp"
+#include "flexopt/adjoint/dynamic_problem.hpp"
+
+#include <memory>
+#include <vector>
+
+namespace flexopt::adjoint::detail {
+
+class Pass {
+public:
+  virtual ~Pass() = default;
+  /// The forward run (section 9.4) from the consistent start: every main step's samples of the
+  /// responses into the problem's evaluation (section 9.3) and, when gradients follow, the
+  /// records the backward sweep needs (all, or the binomial schedule's).
+  virtual void forward() = 0;
+  /// The backward sweep over the stored or recomputed states with the design partials at every
+  /// step (sections 9.5, 9.7), the adjoint of the consistent start (section 9.2), and dPsi/dtheta
+  /// taken to the design body's elements (sections 9.1, 9.6, 10).
+  virtual void backward() = 0;
+};
+
+/// The pass of the scene of `p` on its backend. Collective.
+std::unique_ptr<Pass> make_pass(DynamicProblem &p, bool gradients);
+
+class DensePass : public Pass {
+public:
+  DensePass(DynamicProblem &p, bool gradients);
+  void forward() override;
+  void backward() override;
+
+private:
+  /// The responses' samples at state s (sensor values, the FFRF strain energies' trapezoidal
+  /// sums and, for the design body, sum_n w_n 1/2 zeta_n zeta_n^T; the sensor frames on it).
+  void sample(const dynamics::State &s);
+  /// (dPsi/ds)^T at main step j with state `state` (empty if zero), one column per response.
+  Matrix state_partials(long long j, const dynamics::State &state) const;
+  /// Main step j recomputed from the record of step j - 1 along the forward run's substeps.
+  StepRecord recompute(const StepRecord &previous, long long j) const;
+
+  DynamicProblem &p_;
+  const bool gradients_;
+  const dynamics::Integrator integrator_;
+  dynamics::StartTrace trace_; ///< what the start did to the velocities (section 9.2)
+  StepRecord record_;
+  dynamics::State s0_;
+  std::unique_ptr<BinomialSchedule> schedule_;
+  std::vector<char> keep_;
+  std::unique_ptr<CheckpointStore> store_;
+  std::vector<double> strain_value_; ///< per response: its strain energy integral
+  long long sampled_steps_ = 0;
+};
+
+class DistPass : public Pass {
+public:
+  DistPass(DynamicProblem &p, bool gradients);
+  ~DistPass() override;
+  void forward() override;
+  void backward() override;
+
+private:
+  /// Local displacements of ACF body b at a state (mesh numbering, owned and ghosts).
+  std::vector<double> displacement(const dynamics::DistState &s, std::size_t b) const;
+  /// The responses' samples at state s (sensor values, ACF strain energies).
+  void sample(const dynamics::DistState &s);
+  /// The direct partials of an ACF design body: the strain energy's sum_n w_n U_e / s_e, the
+  /// mass's rho V_e.
+  void direct_partials();
+  /// (dPsi/ds)^T at main step j, state s: the sensors' and strain energies' q blocks, per
+  /// active response (null: zero).
+  std::vector<const dynamics::DistState *> state_partials(std::size_t j,
+                                                          const dynamics::DistState &s);
+  /// The design partials mu . dR/dx at state s for the multipliers mu (one per active
+  /// response), times `sign`.
+  void add_partials(const dynamics::DistState &s, const std::vector<dynamics::DistState> &mu,
+                    double sign);
+  /// The backward sweep (section 9.7); returns dPsi/ds_0 = -mu_0 per active response.
+  std::vector<dynamics::DistState> sweep();
+  /// The adjoint of the consistent start (section 9.2) from gbar = dPsi/ds_0.
+  void start_adjoint(std::vector<dynamics::DistState> &gbar);
+  /// -mu^T (dM/dx) u at the start for multipliers mu (one per active response) and one
+  /// velocity change u, on the ACF design body's elements or the rigid one's parameters.
+  void add_mass_terms(const std::vector<std::vector<double>> &mus,
+                      const std::vector<double> &velocity);
+  void add_small_mass_terms(const Matrix &mus, const Vector &velocity);
+
+  DynamicProblem &p_;
+  const bool gradients_;
+  const dynamics::Integrator integrator_;
+  const dynamics::DistributedAlpha &da_;
+  const bool acf_;           ///< the design body is ACF (else rigid, in the small part)
+  const std::size_t design_; ///< its index among the ACF bodies
+  bodies::AcfBody *body_ = nullptr;
+  dynamics::DistStartTrace trace_; ///< what the start did to the velocities (section 9.2)
+  DistRecord record_;
+  dynamics::DistState s0_;
+  std::unique_ptr<BinomialSchedule> schedule_;
+  std::vector<char> keep_;
+  std::unique_ptr<DistCheckpointStore> store_;
+  std::vector<int> strain_body_;              ///< per response: the ACF body of its energy
+  std::vector<std::vector<double>> energy_;   ///< per strain response: U_n
+  std::vector<double> energy_steps_;          ///< the design body's U_e, per step
+  Matrix G_;                                  ///< rigid design body: dPsi/dtheta
+  std::vector<std::size_t> active_;           ///< the responses that depend on the state
+  std::vector<dynamics::DistState> partials_; ///< work: one per active response
+  std::vector<std::vector<double>> d_modulus_, d_mass_, mu_d_;
+  std::vector<double> u_, v_, acc_;
+};
+
+} // namespace flexopt::adjoint::detail
