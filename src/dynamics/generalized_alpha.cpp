@@ -170,70 +170,65 @@ GeneralizedAlpha::GeneralizedAlpha(const Mechanism &mechanism, AlphaParameters p
     }
 }
 
-State GeneralizedAlpha::initial_state(const Vector &q0, const Vector &v0, double t0,
-                                      StartReport *report, StartTrace *trace) const {
-  const int n = mech_.coordinates(), m = mech_.constraints();
-  State s;
-  s.t = t0;
-  s.q = q0;
-  if (trace) *trace = StartTrace{};
+namespace {
+
+/// Gauss-Newton on the smallest correction of the positions q onto Phi(q, t0) = 0,
+/// q <- q - J^T (J J^T)^-1 Phi, to `tol`; the iterations taken (50: not converged).
+int gauss_newton_placement(const Mechanism &mech, Vector &q, double t0, double tol) {
   Vector phi;
   Matrix J;
-  // Positions: Gauss-Newton on the smallest correction, q <- q - J^T (J J^T)^-1 Phi.
-  double scale = 1;
-  for (int b = 0; b < static_cast<int>(mech_.bodies.size()); ++b)
-    scale = std::max(scale, q0.segment<3>(mech_.offset(b)).cwiseAbs().maxCoeff());
-  const double tol = 1e-13 * scale;
   int it = 0;
   for (; it < 50; ++it) {
-    mech_.constraint(s.q, t0, phi, &J);
-    if (m == 0 || phi.cwiseAbs().maxCoeff() <= tol) break;
+    mech.constraint(q, t0, phi, &J);
+    if (mech.constraints() == 0 || phi.cwiseAbs().maxCoeff() <= tol) break;
     const Matrix JJt = J * J.transpose();
-    s.q -= J.transpose() * JJt.partialPivLu().solve(phi);
+    q -= J.transpose() * JJt.partialPivLu().solve(phi);
   }
-  // The Gauss-Newton point is near, not at, the smallest correction, and where it lands
-  // depends on the iterations taken. Newton on the conditions of the smallest change,
-  // q - q0 + J^T mu = 0 and Phi = 0, makes it the closest point, a function of q0 whose
-  // derivative the adjoint has exactly (section 9.2 item 6).
-  Vector mu = Vector::Zero(m);
-  bool closest = true;
-  if (it > 0 && it < 50) {
-    mech_.constraint(s.q, t0, phi, &J);
-    const Matrix JJt = J * J.transpose();
-    mu = -JJt.partialPivLu().solve(J * (s.q - q0));
-    closest = false;
-    for (int k = 0; k < 8; ++k) {
-      mech_.constraint(s.q, t0, phi, &J);
-      const Vector g = s.q - q0 + J.transpose() * mu;
-      if (g.cwiseAbs().maxCoeff() <= tol && phi.cwiseAbs().maxCoeff() <= tol) {
-        closest = true;
-        break;
-      }
-      Matrix A = Matrix::Zero(n + m, n + m);
-      A.topLeftCorner(n, n) = Matrix::Identity(n, n);
-      mech_.add_constraint_hessian(s.q, t0, mu, A); // writes into the top-left n x n block
-      A.topRightCorner(n, m) = J.transpose();
-      A.bottomLeftCorner(m, n) = J;
-      Vector rhs(n + m);
-      rhs << -g, -phi;
-      const Vector d = A.partialPivLu().solve(rhs);
-      if (!d.allFinite()) break;
-      s.q += d.head(n);
-      mu += d.tail(m);
-    }
+  return it;
+}
+
+/// The Gauss-Newton point is near, not at, the smallest correction, and where it lands depends
+/// on the iterations taken. Newton on the conditions of the smallest change, q - q0 + J^T mu = 0
+/// and Phi = 0, from there makes q the closest point, a function of q0 whose derivative the
+/// adjoint has exactly (docs/theory.md section 9.2 item 6). Returns whether it converged to
+/// `tol`; mu: the multipliers.
+bool closest_placement(const Mechanism &mech, const Vector &q0, double t0, double tol, Vector &q,
+                       Vector &mu) {
+  const int n = mech.coordinates(), m = mech.constraints();
+  Vector phi;
+  Matrix J;
+  mech.constraint(q, t0, phi, &J);
+  const Matrix JJt = J * J.transpose();
+  mu = -JJt.partialPivLu().solve(J * (q - q0));
+  for (int k = 0; k < 8; ++k) {
+    mech.constraint(q, t0, phi, &J);
+    const Vector g = q - q0 + J.transpose() * mu;
+    if (g.cwiseAbs().maxCoeff() <= tol && phi.cwiseAbs().maxCoeff() <= tol) return true;
+    Matrix A = Matrix::Zero(n + m, n + m);
+    A.topLeftCorner(n, n) = Matrix::Identity(n, n);
+    mech.add_constraint_hessian(q, t0, mu, A); // writes into the top-left n x n block
+    A.topRightCorner(n, m) = J.transpose();
+    A.bottomLeftCorner(m, n) = J;
+    Vector rhs(n + m);
+    rhs << -g, -phi;
+    const Vector d = A.partialPivLu().solve(rhs);
+    if (!d.allFinite()) break;
+    q += d.head(n);
+    mu += d.tail(m);
   }
-  if (trace) {
-    trace->given = q0;
-    trace->multipliers = mu;
-    trace->closest = closest;
-  }
+  return false;
+}
+
+/// Throws a collective flexopt::Error naming (up to six of) the constraints that the placed
+/// positions q violate by more than 1e-9 `scale`, or if Gauss-Newton took all its iterations.
+void check_placement(const Mechanism &mech, const Vector &q, double t0, double scale, int it) {
   Vector all;
-  mech_.all_constraint_values(s.q, t0, all);
+  mech.all_constraint_values(q, t0, all);
   std::ostringstream bad;
   int nbad = 0;
   for (int r = 0; r < all.size(); ++r)
     if (!(std::abs(all(r)) <= 1e-9 * scale)) {
-      if (nbad++ < 6) bad << "\n  " << mech_.describe_row(r) << ": residual " << all(r);
+      if (nbad++ < 6) bad << "\n  " << mech.describe_row(r) << ": residual " << all(r);
     }
   if (nbad > 0 || it == 50)
     throw Error("initial conditions: the joints cannot all be satisfied by the initial placement "
@@ -242,6 +237,34 @@ State GeneralizedAlpha::initial_state(const Vector &q0, const Vector &v0, double
                     std::to_string(it) +
                     " position corrections these constraints remain violated:" + bad.str(),
                 true);
+}
+
+} // namespace
+
+State GeneralizedAlpha::initial_state(const Vector &q0, const Vector &v0, double t0,
+                                      StartReport *report, StartTrace *trace) const {
+  const int n = mech_.coordinates(), m = mech_.constraints();
+  State s;
+  s.t = t0;
+  s.q = q0;
+  if (trace) *trace = StartTrace{};
+  // Positions: the closest point of q0 on Phi(q, t0) = 0.
+  double scale = 1;
+  for (int b = 0; b < static_cast<int>(mech_.bodies.size()); ++b)
+    scale = std::max(scale, q0.segment<3>(mech_.offset(b)).cwiseAbs().maxCoeff());
+  const double tol = 1e-13 * scale;
+  const int it = gauss_newton_placement(mech_, s.q, t0, tol);
+  Vector mu = Vector::Zero(m);
+  bool closest = true;
+  if (it > 0 && it < 50) closest = closest_placement(mech_, q0, t0, tol, s.q, mu);
+  if (trace) {
+    trace->given = q0;
+    trace->multipliers = mu;
+    trace->closest = closest;
+  }
+  check_placement(mech_, s.q, t0, scale, it);
+  Vector phi;
+  Matrix J;
   // Velocities: the rigid-body velocities corrected onto Phi_q v + Phi_t = 0 with the least
   // change of kinetic energy, the elastic ones kept (section 6.4).
   Vector r;

@@ -402,35 +402,132 @@ Scene load_bodies(MPI_Comm comm, const SceneDescription &c, const InitialDesign 
   return scene;
 }
 
-void connect(MPI_Comm comm, const SceneDescription &c, Scene &scene, bool report) {
-  Mechanism &mech = scene.mechanism;
-  mech.equations.clear();
-  mech.forces.clear();
-  scene.sensors.clear();
-  place(comm, c, scene);
-  std::map<std::string, std::size_t> body_index;
-  for (std::size_t b = 0; b < c.bodies.size(); ++b) body_index[c.bodies[b].name] = b;
-  std::map<std::string, Vec3> ground;
-  for (const auto &g : c.ground) ground[g.name] = v3(g.origin);
+namespace {
 
-  // Position of a (validated) interface in the body's list: the index of its reduction data.
-  auto interface_index = [&](std::size_t b, const std::string &iface) {
-    const auto &list = c.bodies[b].interfaces;
+/// Binds a scene description's joints, drivers, forces and sensors to the placed bodies of a
+/// Scene (connect): names resolved to bodies and interfaces, attachments in the mechanism's
+/// bodies.
+class Connector {
+public:
+  Connector(const SceneDescription &c, Scene &scene)
+      : c_(c), scene_(scene), mech_(scene.mechanism) {
+    for (std::size_t b = 0; b < c.bodies.size(); ++b) body_index_[c.bodies[b].name] = b;
+    for (const auto &g : c.ground) ground_[g.name] = v3(g.origin);
+    for (const JointDescription &j : c.joints) joints_by_name_[j.name] = &j;
+    for (const SceneBody &sb : scene.bodies)
+      snap_scale_ = std::max(snap_scale_, sb.position.norm());
+  }
+
+  /// Euler-parameter normalization, one row per body, first.
+  void add_normalizations() {
+    for (std::size_t b = 0; b < mech_.bodies.size(); ++b) {
+      Equation e;
+      e.kind = K::Normalize;
+      e.a = static_cast<int>(b);
+      e.owner = std::string(mech_.bodies[b]->model() == std::string("interface") ? "interface node "
+                                                                                 : "body ") +
+                mech_.bodies[b]->name() + " (|p| = 1)";
+      mech_.equations.push_back(e);
+    }
+  }
+
+  /// Drivers come before the joints: when rows are found redundant, joint rows are left out
+  /// rather than a prescribed motion.
+  void add_drivers() {
+    for (const DriverDescription &d : c_.drivers) {
+      const JointDescription &j = *joints_by_name_.at(d.joint);
+      const auto [A, B] = joint_attachments(j);
+      mech_.equations.push_back(driver_equation(j.type, A, B, v3(j.axis),
+                                                std::make_shared<const Expression>(d.expression),
+                                                "driver of joint " + j.name));
+    }
+  }
+
+  void add_joints() {
+    for (const JointDescription &j : c_.joints) {
+      const auto [A, B] = joint_attachments(j);
+      joint_equation_[j.name] = static_cast<int>(mech_.equations.size());
+      const double gap = (A.world - B.world).norm();
+      if (gap > max_gap_ && (j.type != JointType::Prismatic)) max_gap_ = gap, gap_joint_ = j.name;
+      for (Equation &e : joint_equations(j.type, A, B, v3(j.axis),
+                                         "joint " + j.name + " (" + joint_type_name(j.type) + ")"))
+        mech_.equations.push_back(std::move(e));
+    }
+  }
+
+  /// The joints' gaps in the initial placement: the largest one snapped, the largest one left.
+  void report_gaps(MPI_Comm comm) const {
+    if (max_snap_ > 0)
+      print0(comm,
+             "scene: the interfaces of joint %s are %.3g m apart in the initial placement (a "
+             "meshed surface's centroid); joints with gaps below %g m are placed at their body "
+             "a's interface point\n",
+             snap_joint_.c_str(), max_snap_, kMeshGap * snap_scale_);
+    // (A scene with ACF bodies is not projected: its initial state checks the joints instead.)
+    if (max_gap_ > 1e-9 && scene_.acf.empty())
+      print0(comm,
+             "scene: the interfaces of joint %s are %.3g m apart in the initial placement; the "
+             "initial conditions move the bodies to close the joints\n",
+             gap_joint_.c_str(), max_gap_);
+  }
+
+  void add_forces() {
+    for (const ForceDescription &f : c_.forces) {
+      PointForce pf;
+      const Attachment a = attach(f.body, f.interface);
+      const std::size_t ub = body_index_.at(f.body);
+      pf.body = a.body;
+      pf.s = a.s;
+      if (const auto &red = scene_.bodies[ub].reduction)
+        pf.S = red->translation[interface_index(ub, f.interface)];
+      for (int k = 0; k < 3; ++k)
+        pf.value[static_cast<std::size_t>(k)] = Expression(f.value[static_cast<std::size_t>(k)]);
+      mech_.forces.push_back(pf);
+    }
+  }
+
+  /// The sensors in scene.sensors; returns (sensor, joint equation) of the reaction sensors.
+  std::vector<std::pair<std::size_t, int>> bind_sensors() {
+    std::vector<std::pair<std::size_t, int>> reactions;
+    for (const SensorDescription &s : c_.sensors) {
+      if (!s.joint.empty()) {
+        BoundSensor bs;
+        bs.name = s.name;
+        bs.quantity = s.quantity;
+        bs.body = -1;
+        reactions.emplace_back(scene_.sensors.size(), joint_equation_.at(s.joint));
+        scene_.sensors.push_back(bs);
+      } else {
+        scene_.sensors.push_back(body_sensor(s));
+      }
+    }
+    return reactions;
+  }
+
+private:
+  /// Interface points closer than kMeshGap of the scene's size are taken to meet
+  /// (joint_attachments).
+  static constexpr double kMeshGap = 1e-4;
+
+  /// Position of a (validated) interface in the body's list: the index of its reduction data.
+  std::size_t interface_index(std::size_t b, const std::string &iface) const {
+    const auto &list = c_.bodies[b].interfaces;
     return static_cast<std::size_t>(std::find(list.begin(), list.end(), iface) - list.begin());
-  };
-  auto attach = [&](const std::string &body, const std::string &iface) {
+  }
+
+  Attachment attach(const std::string &body, const std::string &iface) const {
     Attachment a;
     if (body == "ground") {
-      a.s = ground.at(iface);
+      a.s = ground_.at(iface);
       a.world = a.s;
       return a;
     }
-    const std::size_t ub = body_index.at(body);
-    const SceneBody &sb = scene.bodies[ub];
+    const std::size_t ub = body_index_.at(body);
+    const SceneBody &sb = scene_.bodies[ub];
     // An ACF body's interface: its interface node (reference point at the centroid).
     a.body = sb.mechanism >= 0 ? sb.mechanism : sb.nodes[interface_index(ub, iface)];
     const Vec3 X = sb.interfaces.at(iface);
-    a.s = X - mech.bodies[static_cast<std::size_t>(a.body)]->origin();
+    a.s = X - mech_.bodies[static_cast<std::size_t>(a.body)]->origin();
     a.R = sb.R;
     a.world = sb.position + a.R * X;
     if (sb.reduction) {
@@ -439,113 +536,49 @@ void connect(MPI_Comm comm, const SceneDescription &c, Scene &scene, bool report
       a.rotation = sb.reduction->rotation[i];
     }
     return a;
-  };
-  // Euler-parameter normalization, one row per body, first.
-  for (std::size_t b = 0; b < mech.bodies.size(); ++b) {
-    Equation e;
-    e.kind = K::Normalize;
-    e.a = static_cast<int>(b);
-    e.owner = std::string(mech.bodies[b]->model() == std::string("interface") ? "interface node "
-                                                                              : "body ") +
-              mech.bodies[b]->name() + " (|p| = 1)";
-    mech.equations.push_back(e);
   }
-  std::map<std::string, const JointDescription *> joints_by_name;
-  for (const JointDescription &j : c.joints) joints_by_name[j.name] = &j;
-  // A joint's two attachments. Interface points closer than kMeshGap of the scene's size are
-  // taken to meet: a meshed curved surface's centroid (a pin hole's) misses the geometric
-  // centre by such an amount, and an over-constrained (planar) mechanism's projection would
-  // leave that misfit in its redundant rows, while ACF scenes are not projected at all. Body
-  // b's attachment is moved onto body a's point (by the gap, in b's axes), so the placement is
-  // assembled exactly. Larger gaps are left to the initial conditions (rigid and FFRF bodies:
-  // projected; ACF: refused). Prismatic joints hold for any points (their offsets are taken
-  // from the placement). docs/case-format.md "joints".
-  constexpr double kMeshGap = 1e-4;
-  double snap_scale = 1;
-  for (const SceneBody &sb : scene.bodies) snap_scale = std::max(snap_scale, sb.position.norm());
-  double max_snap = 0;
-  std::string snap_joint;
-  // (A body given an initial elastic field meets its joints through that field: left alone.)
-  auto elastic_start = [&](const std::string &body) {
+
+  /// A body given an initial elastic field meets its joints through that field.
+  bool elastic_start(const std::string &body) const {
     if (body == "ground") return false;
-    const SceneBody &sb = scene.bodies[body_index.at(body)];
+    const SceneBody &sb = scene_.bodies[body_index_.at(body)];
     return static_cast<bool>(sb.u0) || sb.elastic0.size() > 0;
-  };
-  auto joint_attachments = [&](const JointDescription &j) {
+  }
+
+  /// A joint's two attachments. Interface points closer than kMeshGap of the scene's size are
+  /// taken to meet: a meshed curved surface's centroid (a pin hole's) misses the geometric
+  /// centre by such an amount, and an over-constrained (planar) mechanism's projection would
+  /// leave that misfit in its redundant rows, while ACF scenes are not projected at all. Body
+  /// b's attachment is moved onto body a's point (by the gap, in b's axes), so the placement
+  /// is assembled exactly. Larger gaps are left to the initial conditions (rigid and FFRF
+  /// bodies: projected; ACF: refused); so are bodies with an initial elastic field. Prismatic
+  /// joints hold for any points (their offsets are taken from the placement).
+  /// docs/case-format.md "joints".
+  std::pair<Attachment, Attachment> joint_attachments(const JointDescription &j) {
     const Attachment A = attach(j.a, j.a_interface);
     Attachment B = attach(j.b, j.b_interface);
     const Vec3 d = A.world - B.world;
     const double gap = d.norm();
-    if (j.type != JointType::Prismatic && gap > 0 && gap <= kMeshGap * snap_scale &&
+    if (j.type != JointType::Prismatic && gap > 0 && gap <= kMeshGap * snap_scale_ &&
         !elastic_start(j.a) && !elastic_start(j.b)) {
       B.s += B.body < 0 ? d : Vec3(B.R.transpose() * d);
       B.world = A.world;
-      if (gap > max_snap) max_snap = gap, snap_joint = j.name;
+      if (gap > max_snap_) max_snap_ = gap, snap_joint_ = j.name;
     }
     return std::make_pair(A, B);
-  };
-  // Drivers come before the joints: when rows are found redundant, joint rows are left out
-  // rather than a prescribed motion.
-  for (const DriverDescription &d : c.drivers) {
-    const JointDescription &j = *joints_by_name.at(d.joint);
-    const auto [A, B] = joint_attachments(j);
-    mech.equations.push_back(driver_equation(j.type, A, B, v3(j.axis),
-                                             std::make_shared<const Expression>(d.expression),
-                                             "driver of joint " + j.name));
   }
-  double max_gap = 0;
-  std::string gap_joint;
-  std::map<std::string, int> joint_equation; // a joint's first equation (the coincidence)
-  for (const JointDescription &j : c.joints) {
-    const auto [A, B] = joint_attachments(j);
-    joint_equation[j.name] = static_cast<int>(mech.equations.size());
-    const double gap = (A.world - B.world).norm();
-    if (gap > max_gap && (j.type != JointType::Prismatic)) max_gap = gap, gap_joint = j.name;
-    for (Equation &e : joint_equations(j.type, A, B, v3(j.axis),
-                                       "joint " + j.name + " (" + joint_type_name(j.type) + ")"))
-      mech.equations.push_back(std::move(e));
-  }
-  if (report && max_snap > 0)
-    print0(comm,
-           "scene: the interfaces of joint %s are %.3g m apart in the initial placement (a "
-           "meshed surface's centroid); joints with gaps below %g m are placed at their body "
-           "a's interface point\n",
-           snap_joint.c_str(), max_snap, kMeshGap * snap_scale);
-  // (A scene with ACF bodies is not projected: its initial state checks the joints instead.)
-  if (report && max_gap > 1e-9 && scene.acf.empty())
-    print0(comm,
-           "scene: the interfaces of joint %s are %.3g m apart in the initial placement; the "
-           "initial conditions move the bodies to close the joints\n",
-           gap_joint.c_str(), max_gap);
-  if (c.gravity) mech.gravity = v3(*c.gravity);
-  for (const ForceDescription &f : c.forces) {
-    PointForce pf;
-    const Attachment a = attach(f.body, f.interface);
-    const std::size_t ub = body_index.at(f.body);
-    pf.body = a.body;
-    pf.s = a.s;
-    if (const auto &red = scene.bodies[ub].reduction)
-      pf.S = red->translation[interface_index(ub, f.interface)];
-    for (int k = 0; k < 3; ++k)
-      pf.value[static_cast<std::size_t>(k)] = Expression(f.value[static_cast<std::size_t>(k)]);
-    mech.forces.push_back(pf);
-  }
-  std::vector<std::pair<std::size_t, int>> reactions; // sensor, joint equation
-  for (const SensorDescription &s : c.sensors) {
+
+  /// A sensor at a point of a body: in the ACF body's mesh (measured in the frame of its first
+  /// interface node), or in a rigid or FFRF body's frame (with the modes at the point).
+  BoundSensor body_sensor(const SensorDescription &s) const {
     BoundSensor bs;
     bs.name = s.name;
     bs.quantity = s.quantity;
-    if (!s.joint.empty()) {
-      reactions.emplace_back(scene.sensors.size(), joint_equation.at(s.joint));
-      bs.body = -1;
-      scene.sensors.push_back(bs);
-      continue;
-    }
-    const std::size_t ub = body_index.at(s.body);
+    const std::size_t ub = body_index_.at(s.body);
     bs.point = v3(s.point);
-    const SceneBody &sb = scene.bodies[ub];
+    const SceneBody &sb = scene_.bodies[ub];
+    const std::string where = s.where.str() + ": sensor '" + s.name + "' point";
     if (sb.acf >= 0) {
-      // The point in the ACF body's mesh; the frame of its first interface node.
       bs.acf_body = static_cast<int>(ub);
       bs.body = sb.nodes.empty() ? -1 : sb.nodes.front();
       if (bs.body < 0 && (s.quantity == SensorQuantity::ElasticDisplacement ||
@@ -555,20 +588,35 @@ void connect(MPI_Comm comm, const SceneDescription &c, Scene &scene, bool report
                         "body '" +
                         s.body + "' lists no interfaces",
                     true);
-      bs.location = fem::locate(scene.meshes[ub], {bs.point.x(), bs.point.y(), bs.point.z()},
-                                s.where.str() + ": sensor '" + s.name + "' point");
-      scene.sensors.push_back(bs);
-      continue;
+      bs.location =
+          fem::locate(scene_.meshes[ub], {bs.point.x(), bs.point.y(), bs.point.z()}, where);
+      return bs;
     }
     bs.body = sb.mechanism;
-    bs.s = bs.point - mech.bodies[static_cast<std::size_t>(bs.body)]->origin();
+    bs.s = bs.point - mech_.bodies[static_cast<std::size_t>(bs.body)]->origin();
     if (sb.reduction) {
-      bs.location = fem::locate(scene.meshes[ub], {bs.point.x(), bs.point.y(), bs.point.z()},
-                                s.where.str() + ": sensor '" + s.name + "' point");
-      bs.S = reduce::basis_at_point(scene.meshes[ub], *sb.reduction, bs.location);
+      bs.location =
+          fem::locate(scene_.meshes[ub], {bs.point.x(), bs.point.y(), bs.point.z()}, where);
+      bs.S = reduce::basis_at_point(scene_.meshes[ub], *sb.reduction, bs.location);
     }
-    scene.sensors.push_back(bs);
+    return bs;
   }
+
+  const SceneDescription &c_;
+  Scene &scene_;
+  Mechanism &mech_;
+  std::map<std::string, std::size_t> body_index_;
+  std::map<std::string, Vec3> ground_;
+  std::map<std::string, const JointDescription *> joints_by_name_;
+  std::map<std::string, int> joint_equation_; ///< a joint's first equation (the coincidence)
+  double snap_scale_ = 1, max_snap_ = 0, max_gap_ = 0;
+  std::string snap_joint_, gap_joint_;
+};
+
+/// Finalizes the scene's mechanism: the rigid sensors' empty mode matrices sized, the
+/// redundant rows dropped at q0, the reaction sensors' multiplier rows and the length scale.
+void finish_mechanism(Scene &scene, const std::vector<std::pair<std::size_t, int>> &reactions) {
+  Mechanism &mech = scene.mechanism;
   mech.finalize();
   for (BoundSensor &bs : scene.sensors)
     if (bs.acf_body < 0 && bs.body >= 0 && bs.S.cols() == 0)
@@ -585,6 +633,24 @@ void connect(MPI_Comm comm, const SceneDescription &c, Scene &scene, bool report
   for (int b = 0; b < static_cast<int>(mech.bodies.size()); ++b)
     scene.length_scale =
         std::max(scene.length_scale, scene.q0.segment<3>(mech.offset(b)).cwiseAbs().maxCoeff());
+}
+
+} // namespace
+
+void connect(MPI_Comm comm, const SceneDescription &c, Scene &scene, bool report) {
+  Mechanism &mech = scene.mechanism;
+  mech.equations.clear();
+  mech.forces.clear();
+  scene.sensors.clear();
+  place(comm, c, scene);
+  Connector k(c, scene);
+  k.add_normalizations();
+  k.add_drivers();
+  k.add_joints();
+  if (report) k.report_gaps(comm);
+  if (c.gravity) mech.gravity = v3(*c.gravity);
+  k.add_forces();
+  finish_mechanism(scene, k.bind_sensors());
 }
 
 Scene build_scene(MPI_Comm comm, const SceneDescription &c, const InitialDesign *design) {
