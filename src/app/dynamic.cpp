@@ -56,15 +56,69 @@ io::Json vec3_json(const bodies::Vec3 &v) {
   return io::Json(std::vector<double>{v.x(), v.y(), v.z()});
 }
 
-/// Integrates `scene` (with `design`: the scene of that problem at the design x, through its
-/// forward run, and with `gradient` its adjoint gradients too), writes dir/NAME.xdmf (+ .h5)
-/// and the run's figures into s. Collective.
-void integrate(const Context &ctx, const io::Case &c, dynamics::Scene &scene,
-               adjoint::DynamicProblem *design, Vec x, bool gradient, const std::string &dir,
-               const std::string &name, io::Json &s) {
-  const dynamics::Mechanism &mech = scene.mechanism;
+/// One integration of a scene with its output (motion file, samples, figures): the set-up
+/// prints the mechanism and the start, each main step is checked and sampled, and the run's
+/// figures go to the summary.
+class MotionRun {
+public:
+  MotionRun(const Context &ctx, const io::Case &c, dynamics::Scene &scene, const std::string &dir,
+            const std::string &name, io::Json &s);
+  /// Integrates the scene itself (dynamics::Integrator::run).
+  void run();
+  /// The design's forward run (and, with `gradient`, its backward sweep) is the integration: the
+  /// output follows its states, so the design is integrated once. Its responses (and gradients)
+  /// go to the summary.
+  void run_design(adjoint::DynamicProblem &design, Vec x, bool gradient);
+  /// The run's figures, sensors and bodies into the summary; closes the motion file.
+  void finish();
+
+private:
+  /// Largest residual of every row (the violation monitor) and of the rows left out as
+  /// redundant, with that row.
+  struct Residuals {
+    double unenforced = 0;
+    int row = -1;
+  };
+  void print_start(const dynamics::StartReport &st);
+  /// Frames of motion.xdmf (io::FrameSchedule), the size estimate and its warnings.
+  void plan_output();
+  Residuals monitor();
+  void sample(double t);
+  void frame(double t);
+  /// After main step n + 1 (the integrator holds its state): the checks, the figures, the
+  /// output.
+  void after_step(long long n, const dynamics::StepInfo &info);
+  void observe(long long j, const dynamics::StepInfo &info);
+  io::Json bodies_json() const;
+
+  const Context &ctx_;
+  const io::Case &c_;
+  dynamics::Scene &scene_;
+  const dynamics::Mechanism &mech_;
+  const std::string dir_, name_;
+  io::Json &s_;
+  const dynamics::IntegratorSettings settings_;
+  std::unique_ptr<dynamics::Integrator> run_;
+  std::unique_ptr<io::FrameSchedule> schedule_;
+  std::unique_ptr<io::MotionWriter> writer_;
+  bool sample_every_step_ = true;
+  double motion_bytes_ = 0;
+  std::vector<double> out_t_, frame_t_, energy_;
+  std::vector<std::vector<bodies::Vec3>> sensor_values_;
+  double max_violation_ = 0;
+  dynamics::Vector all_;
+  long long newton_total_ = 0, factorizations_total_ = 0;
+  int newton_max_ = 0, halvings_max_ = 0;
+  bool newton_monitor_ = false;
+  double t_start_ = 0, last_print_ = 0, t_end_ = 0, t_now_ = 0;
+};
+
+MotionRun::MotionRun(const Context &ctx, const io::Case &c, dynamics::Scene &scene,
+                     const std::string &dir, const std::string &name, io::Json &s)
+    : ctx_(ctx), c_(c), scene_(scene), mech_(scene.mechanism), dir_(dir), name_(name), s_(s),
+      settings_(dynamics::IntegratorSettings::from(c.time)), sensor_values_(scene.sensors.size()) {
   print0(ctx.comm(), "mechanism: %zu bodies, %d coordinates, %d constraint rows enforced of %d\n",
-         mech.bodies.size(), mech.coordinates(), mech.constraints(), mech.all_rows());
+         mech_.bodies.size(), mech_.coordinates(), mech_.constraints(), mech_.all_rows());
   io::Json redundant = io::Json::array();
   for (const auto &r : scene.redundant_rows) {
     print0(ctx.comm(),
@@ -74,77 +128,84 @@ void integrate(const Context &ctx, const io::Case &c, dynamics::Scene &scene,
     redundant.push_back(r);
   }
   s["redundant_constraints"] = redundant;
-
-  const dynamics::IntegratorSettings settings = dynamics::IntegratorSettings::from(c.time);
-  const dynamics::AlphaParameters &par = settings.alpha;
-  const dynamics::NewtonSettings &newton = settings.newton;
   if (!scene.acf.empty())
     print0(ctx.comm(),
            "mechanism: %zu ACF bodies on the distributed backend (one PETSc system over %d "
            "rank(s); Newton solver: options prefix mech_, MUMPS LU by default, KLU on one "
            "rank up to 2000 unknowns)\n",
            scene.acf.size(), ctx.size());
-  auto run = std::make_unique<dynamics::Integrator>(scene, settings);
+  run_ = std::make_unique<dynamics::Integrator>(scene, settings_);
   dynamics::StartReport start;
-  run->start(&start);
-  {
-    const dynamics::StartReport &st = start;
-    print0(ctx.comm(),
-           "initial velocities: the rigid-body velocities made consistent with the joints and "
-           "drivers; kinetic energy %.9g J given -> %.9g J (%+.6g J)\n",
-           st.kinetic_given, st.kinetic, st.kinetic - st.kinetic_given);
-    if (st.elastic_corrected)
-      print0(ctx.comm(),
-             "initial velocities: warning: rigid-body velocities alone cannot satisfy the joints "
-             "(residual %.3e): the elastic velocities were corrected too, with the least change "
-             "of kinetic energy\n",
-             st.rigid_residual);
-    s["initial_kinetic_energy"]["given"] = st.kinetic_given;
-    s["initial_kinetic_energy"]["start"] = st.kinetic;
-    s["initial_kinetic_energy"]["elastic_corrected"] = st.elastic_corrected;
-  }
-  const double h = settings.step;
-  const long long steps = settings.steps;
-  print0(ctx.comm(),
+  run_->start(&start);
+  print_start(start);
+  plan_output();
+  // -fx_newton_monitor: each step's Newton iterations, factorizations and increments.
+  PetscBool newton_monitor = PETSC_FALSE;
+  FX_PETSC(PetscOptionsGetBool(nullptr, nullptr, "-fx_newton_monitor", &newton_monitor, nullptr));
+  newton_monitor_ = newton_monitor == PETSC_TRUE;
+}
+
+void MotionRun::print_start(const dynamics::StartReport &st) {
+  print0(ctx_.comm(),
+         "initial velocities: the rigid-body velocities made consistent with the joints and "
+         "drivers; kinetic energy %.9g J given -> %.9g J (%+.6g J)\n",
+         st.kinetic_given, st.kinetic, st.kinetic - st.kinetic_given);
+  if (st.elastic_corrected)
+    print0(ctx_.comm(),
+           "initial velocities: warning: rigid-body velocities alone cannot satisfy the joints "
+           "(residual %.3e): the elastic velocities were corrected too, with the least change "
+           "of kinetic energy\n",
+           st.rigid_residual);
+  s_["initial_kinetic_energy"]["given"] = st.kinetic_given;
+  s_["initial_kinetic_energy"]["start"] = st.kinetic;
+  s_["initial_kinetic_energy"]["elastic_corrected"] = st.elastic_corrected;
+  const dynamics::AlphaParameters &par = settings_.alpha;
+  const double h = settings_.step;
+  const long long steps = settings_.steps;
+  print0(ctx_.comm(),
          "integrate: generalized-alpha rho_inf = %g (alpha_m %.4f, alpha_f %.4f, gamma %.4f, beta "
          "%.4f), %lld steps of %g s to t = %g s; Newton matrix kept while the contraction is <= "
          "%g\n",
          par.rho_inf, par.alpha_m, par.alpha_f, par.gamma, par.beta, steps, h,
-         static_cast<double>(steps) * h, newton.reuse_contraction);
+         static_cast<double>(steps) * h, settings_.newton.reuse_contraction);
   // rho_inf = 1 is the trapezoidal rule: it damps nothing, and on the index-3 equations of a
   // flexible mechanism the step can grow unstably (cases/slider_crank_start/README.md).
   if (par.rho_inf >= 1)
-    for (const auto &b : c.scene.bodies)
+    for (const auto &b : c_.scene.bodies)
       if (dynamics::simulated_model(b.model) != dynamics::BodyModel::Rigid) {
-        print0(ctx.comm(),
+        print0(ctx_.comm(),
                "time: warning: rho_inf = 1 (no numerical dissipation) with the flexible body "
                "'%s': generalized-alpha on the index-3 equations of a flexible mechanism can grow "
                "unstably at rho_inf = 1 (docs/theory.md 6.4); rho_inf <= 0.99 damps it\n",
                b.name.c_str());
         break;
       }
+}
 
+void MotionRun::plan_output() {
+  const double h = settings_.step;
+  const long long steps = settings_.steps;
   std::vector<io::MotionBody> mb;
-  for (std::size_t b = 0; b < c.scene.bodies.size(); ++b)
-    mb.push_back({c.scene.bodies[b].name, mesh::grid_layout(scene.meshes[b])});
-  // Frames of motion.xdmf (io::FrameSchedule). Energy and sensors are small: without output:
-  // they keep every step; with it they are sampled at the frames, as the key always did.
-  const io::FrameSchedule schedule(c.output, steps, h);
-  const bool sample_every_step = !c.output.given();
-  std::vector<std::vector<std::string>> fields(c.scene.bodies.size());
-  for (std::size_t b = 0; b < c.scene.bodies.size(); ++b)
-    if (writes_elastic(scene, b)) fields[b] = {"elastic_displacement"};
-  const long long frames = schedule.frames();
-  const double motion_bytes = io::estimate_motion_bytes(mb, fields, frames);
-  if (schedule.interval_below_step())
-    print0(ctx.comm(),
+  for (std::size_t b = 0; b < c_.scene.bodies.size(); ++b)
+    mb.push_back({c_.scene.bodies[b].name, mesh::grid_layout(scene_.meshes[b])});
+  // Energy and sensors are small: without output: they keep every step; with it they are
+  // sampled at the frames, as the key always did.
+  schedule_ = std::make_unique<io::FrameSchedule>(c_.output, steps, h);
+  sample_every_step_ = !c_.output.given();
+  std::vector<std::vector<std::string>> fields(c_.scene.bodies.size());
+  for (std::size_t b = 0; b < c_.scene.bodies.size(); ++b)
+    if (writes_elastic(scene_, b)) fields[b] = {"elastic_displacement"};
+  const long long frames = schedule_->frames();
+  motion_bytes_ = io::estimate_motion_bytes(mb, fields, frames);
+  if (schedule_->interval_below_step())
+    print0(ctx_.comm(),
            "output: warning: output.interval = %g s is shorter than time.step = %g s: every step "
            "is written\n",
-           c.output.interval, h);
-  print0(ctx.comm(), "output: %s.xdmf: %s; about %s; energy and sensors at %s\n", name.c_str(),
-         schedule.describe().c_str(), human_bytes(motion_bytes).c_str(),
-         sample_every_step ? "every step" : "the frames' steps");
-  if (motion_bytes > kLargeMotionBytes) {
+           c_.output.interval, h);
+  print0(ctx_.comm(), "output: %s.xdmf: %s; about %s; energy and sensors at %s\n", name_.c_str(),
+         schedule_->describe().c_str(), human_bytes(motion_bytes_).c_str(),
+         sample_every_step_ ? "every step" : "the frames' steps");
+  if (motion_bytes_ > kLargeMotionBytes) {
     // The estimate is linear in the frame count: what fits in kLargeMotionBytes?
     const double fixed = io::estimate_motion_bytes(mb, fields, 0);
     const double per_frame = io::estimate_motion_bytes(mb, fields, 1) - fixed;
@@ -159,231 +220,179 @@ void integrate(const Context &ctx, const io::Case &c, dynamics::Scene &scene,
               "} for at most " + human_bytes(kLargeMotionBytes);
     else
       hint += " (each frame alone takes " + human_bytes(per_frame) + ")";
-    print0(ctx.comm(), "output: warning: motion.h5 will take about %s (%lld frames of %s); %s\n",
-           human_bytes(motion_bytes).c_str(), frames, human_bytes(per_frame).c_str(), hint.c_str());
+    print0(ctx_.comm(), "output: warning: motion.h5 will take about %s (%lld frames of %s); %s\n",
+           human_bytes(motion_bytes_).c_str(), frames, human_bytes(per_frame).c_str(),
+           hint.c_str());
   }
-  io::MotionWriter writer(mb, dir, name);
-  if (design) {
-    // The design's densities on its body (the caller applied x), in every frame: threshold
-    // physical_density at 0.5.
-    const optimize::DesignField &f = design->field();
-    for (const auto &[field, v] :
-         {std::pair{"density", f.density()}, {"physical_density", f.physical()}}) {
-      const PetscScalar *a;
-      FX_PETSC(VecGetArrayRead(v, &a));
-      writer.constant_cell_scalar(design->design_body(), field, a);
-      FX_PETSC(VecRestoreArrayRead(v, &a));
-    }
-  }
+  writer_ = std::make_unique<io::MotionWriter>(mb, dir_, name_);
+}
 
-  std::vector<double> out_t, frame_t, energy;
-  std::vector<std::vector<bodies::Vec3>> sensor_values(scene.sensors.size());
-  double max_violation = 0;
-  dynamics::Vector all;
-  // Largest residual of every row (the violation monitor) and of the rows left out as
-  // redundant, with that row.
-  struct Residuals {
-    double unenforced = 0;
-    int row = -1;
-  };
-  auto monitor = [&]() {
-    const dynamics::State &st = run->mechanism_state();
-    mech.all_constraint_values(st.q, st.t, all);
-    Residuals out;
-    max_violation = std::max(max_violation, run->tie_violation());
-    for (int r = 0; r < all.size(); ++r) {
-      const double v = std::abs(all(r));
-      max_violation = std::max(max_violation, v);
-      if (!mech.enforced(r) && v >= out.unenforced) out.unenforced = v, out.row = r;
-    }
-    return out;
-  };
-  auto sample = [&](double t) {
-    out_t.push_back(t);
-    energy.push_back(run->energy());
-    for (std::size_t k = 0; k < scene.sensors.size(); ++k)
-      sensor_values[k].push_back(run->sensor(scene.sensors[k]));
-  };
-  auto frame = [&](double t) {
-    frame_t.push_back(t);
-    writer.begin_step(t);
-    std::vector<double> elastic;
-    for (std::size_t b = 0; b < c.scene.bodies.size(); ++b) {
-      const auto x = run->positions(b, elastic);
-      writer.positions(b, x.data());
-      if (!elastic.empty()) writer.node_vector(b, "elastic_displacement", elastic.data());
-    }
-  };
-  long long newton_total = 0, factorizations_total = 0;
-  // -fx_newton_monitor: each step's Newton iterations, factorizations and increments.
-  PetscBool newton_monitor = PETSC_FALSE;
-  FX_PETSC(PetscOptionsGetBool(nullptr, nullptr, "-fx_newton_monitor", &newton_monitor, nullptr));
-  int newton_max = 0, halvings_max = 0;
-  // The time steps are their own -log_view stage (the set-up, meshing and initial state apart).
-  // (registered once: optimize integrates its first and its last design)
+MotionRun::Residuals MotionRun::monitor() {
+  const dynamics::State &st = run_->mechanism_state();
+  mech_.all_constraint_values(st.q, st.t, all_);
+  Residuals out;
+  max_violation_ = std::max(max_violation_, run_->tie_violation());
+  for (int r = 0; r < all_.size(); ++r) {
+    const double v = std::abs(all_(r));
+    max_violation_ = std::max(max_violation_, v);
+    if (!mech_.enforced(r) && v >= out.unenforced) out.unenforced = v, out.row = r;
+  }
+  return out;
+}
+
+void MotionRun::sample(double t) {
+  out_t_.push_back(t);
+  energy_.push_back(run_->energy());
+  for (std::size_t k = 0; k < scene_.sensors.size(); ++k)
+    sensor_values_[k].push_back(run_->sensor(scene_.sensors[k]));
+}
+
+void MotionRun::frame(double t) {
+  frame_t_.push_back(t);
+  writer_->begin_step(t);
+  std::vector<double> elastic;
+  for (std::size_t b = 0; b < c_.scene.bodies.size(); ++b) {
+    const auto x = run_->positions(b, elastic);
+    writer_->positions(b, x.data());
+    if (!elastic.empty()) writer_->node_vector(b, "elastic_displacement", elastic.data());
+  }
+}
+
+void MotionRun::after_step(long long n, const dynamics::StepInfo &info) {
+  const double h = settings_.step;
+  const long long steps = settings_.steps;
+  t_now_ = static_cast<double>(n + 1) * h;
+  // Rows left out as redundant must stay satisfied: if one does not, it was only dependent
+  // in the initial configuration (a singular position such as a dead point), not
+  // structurally, and the mechanism is not what the case describes.
+  const Residuals res = monitor();
+  if (res.unenforced > kRedundantDriftTolerance * scene_.length_scale)
+    throw Error("integrate: at t = " + std::to_string(t_now_) + " s (step " +
+                    std::to_string(n + 1) + ") the constraint " + mech_.describe_row(res.row) +
+                    ", left out as redundant at t = 0, is violated by " +
+                    std::to_string(res.unenforced) +
+                    ": the initial placement is a singular configuration of the mechanism (a "
+                    "dead point or aligned links), not a structural redundancy. Place the "
+                    "bodies away from it.",
+                true);
+  if (newton_monitor_) {
+    std::ostringstream line;
+    line << "  step " << n + 1 << ": " << info.iterations << " Newton, " << info.factorizations
+         << " factorizations; increments";
+    for (double v : info.increment) line << ' ' << v;
+    line << "; constraint residuals";
+    for (double v : info.violation) line << ' ' << v;
+    print0(ctx_.comm(), "%s\n", line.str().c_str());
+  }
+  newton_total_ += info.iterations;
+  factorizations_total_ += info.factorizations;
+  newton_max_ = std::max(newton_max_, info.iterations);
+  halvings_max_ = std::max(halvings_max_, info.halvings);
+  // Frames and samples are full steps n h: a step that Newton halved is written once, at
+  // its end.
+  const bool is_frame = schedule_->is_frame(n + 1);
+  if (sample_every_step_ || is_frame) sample(t_now_);
+  if (is_frame) frame(t_now_);
+  const double now = wall_time();
+  t_end_ = now;
+  if (now - last_print_ > 2.0 || n + 1 == steps) {
+    const double rate = static_cast<double>(n + 1) / std::max(now - t_start_, 1e-9);
+    print0(ctx_.comm(),
+           "  t = %-10.6g step %lld/%lld  Newton %.2f/step  %.0f steps/s  ETA %.1f s\n", t_now_,
+           n + 1, steps, static_cast<double>(newton_total_) / static_cast<double>(n + 1), rate,
+           static_cast<double>(steps - n - 1) / rate);
+    last_print_ = now;
+  }
+}
+
+void MotionRun::observe(long long j, const dynamics::StepInfo &info) {
+  if (j == 0) {
+    monitor();
+    sample(0.0);
+    frame(0.0);
+  } else {
+    after_step(j - 1, info);
+  }
+}
+
+/// The time steps are their own -log_view stage (the set-up, meshing and initial state apart),
+/// registered once: optimize integrates its first and its last design.
+PetscLogStage time_steps_stage() {
   static PetscLogStage stage = -1;
   if (stage < 0) FX_PETSC(PetscLogStageRegister("Time steps", &stage));
-  FX_PETSC(PetscLogStagePush(stage));
-  const double t_start = wall_time();
-  double last_print = t_start, t_end = t_start;
-  double t_now = 0;
-  // After main step n + 1 (the backend holds its state): the checks, the figures, the output.
-  auto after_step = [&](long long n, const dynamics::StepInfo &info) {
-    t_now = static_cast<double>(n + 1) * h;
-    // Rows left out as redundant must stay satisfied: if one does not, it was only dependent
-    // in the initial configuration (a singular position such as a dead point), not
-    // structurally, and the mechanism is not what the case describes.
-    const Residuals res = monitor();
-    if (res.unenforced > kRedundantDriftTolerance * scene.length_scale)
-      throw Error("integrate: at t = " + std::to_string(t_now) + " s (step " +
-                      std::to_string(n + 1) + ") the constraint " + mech.describe_row(res.row) +
-                      ", left out as redundant at t = 0, is violated by " +
-                      std::to_string(res.unenforced) +
-                      ": the initial placement is a singular configuration of the mechanism (a "
-                      "dead point or aligned links), not a structural redundancy. Place the "
-                      "bodies away from it.",
-                  true);
-    if (newton_monitor) {
-      std::ostringstream line;
-      line << "  step " << n + 1 << ": " << info.iterations << " Newton, " << info.factorizations
-           << " factorizations; increments";
-      for (double v : info.increment) line << ' ' << v;
-      line << "; constraint residuals";
-      for (double v : info.violation) line << ' ' << v;
-      print0(ctx.comm(), "%s\n", line.str().c_str());
-    }
-    newton_total += info.iterations;
-    factorizations_total += info.factorizations;
-    newton_max = std::max(newton_max, info.iterations);
-    halvings_max = std::max(halvings_max, info.halvings);
-    // Frames and samples are full steps n h: a step that Newton halved is written once, at
-    // its end.
-    const bool is_frame = schedule.is_frame(n + 1);
-    if (sample_every_step || is_frame) sample(t_now);
-    if (is_frame) frame(t_now);
-    const double now = wall_time();
-    t_end = now;
-    if (now - last_print > 2.0 || n + 1 == steps) {
-      const double rate = static_cast<double>(n + 1) / std::max(now - t_start, 1e-9);
-      print0(ctx.comm(),
-             "  t = %-10.6g step %lld/%lld  Newton %.2f/step  %.0f steps/s  ETA %.1f s\n", t_now,
-             n + 1, steps, static_cast<double>(newton_total) / static_cast<double>(n + 1), rate,
-             static_cast<double>(steps - n - 1) / rate);
-      last_print = now;
-    }
-  };
-  if (design) {
-    // The design's forward run (and, with --gradient, its backward sweep) is the integration:
-    // the output follows its states, so the design is integrated once.
-    design->set_observer([&](long long j, const dynamics::StepInfo &info,
-                             const dynamics::State *dense, const dynamics::DistState *dist) {
-      run->set_state(dense, dist, static_cast<double>(j) * h);
-      if (j == 0) {
-        monitor();
-        sample(0.0);
-        frame(0.0);
-      } else {
-        after_step(j - 1, info);
-      }
-    });
-    optimize::Evaluation e;
-    design->evaluate(x, gradient, e);
-    design->set_observer(nullptr);
-    io::Json responses = io::Json::object();
-    const auto &names = design->response_names();
-    for (std::size_t i = 0; i < names.size(); ++i) {
-      const double v = e.value(i);
-      const std::string key = i == 0 ? "objective" : "constraint" + std::to_string(i - 1);
-      responses[key] = v;
-      print0(ctx.comm(), "response %-12s %-28s %.10g\n", key.c_str(), names[i].c_str(), v);
-    }
-    s["responses"] = responses;
-    io::Json rn = io::Json::array();
-    for (const auto &n : names) rn.push_back(n);
-    s["response_names"] = rn;
-    if (gradient) {
-      const std::string file = detail::write_gradients(*design, e, dir);
-      io::Json a = io::Json::object();
-      design->describe(a);
-      s["adjoint"] = a;
-      print0(ctx.comm(), "gradient: forward run %.3f s, backward sweep %.3f s; wrote %s\n",
-             design->forward_seconds(), design->adjoint_seconds(), file.c_str());
-    }
-  } else {
-    run->run([&](const dynamics::StepView &v) {
-      if (v.step == 0) {
-        monitor();
-        sample(0.0);
-        frame(0.0);
-      } else {
-        after_step(v.step - 1, v.info);
-      }
-    });
-  }
-  const double t_int = t_end - t_start; // the forward run (a design's backward sweep apart)
-  FX_PETSC(PetscLogStagePop());
-  const std::string xdmf = writer.close();
-  // The files' sizes as the file system reports them (-1 if it cannot).
-  std::error_code h5_error, xdmf_error;
-  const auto h5_bytes =
-      std::filesystem::file_size(std::filesystem::path(dir) / (name + ".h5"), h5_error);
-  const auto xdmf_bytes = std::filesystem::file_size(xdmf, xdmf_error);
-  const long long motion_file_bytes =
-      h5_error || xdmf_error ? -1LL : static_cast<long long>(h5_bytes + xdmf_bytes);
+  return stage;
+}
 
-  s["coordinates"] = mech.coordinates();
-  s["constraint_rows"] = mech.constraints();
-  s["steps"] = steps;
-  s["time_step"] = h;
-  s["t_end"] = static_cast<double>(steps) * h;
-  s["rho_inf"] = par.rho_inf;
-  s["output_times"] = io::Json(out_t); // the samples of energy and of the sensors
-  io::Json motion = io::Json::object();
-  motion["frames"] = static_cast<long long>(frame_t.size());
-  motion["rule"] = c.output.every > 0 ? "every" : c.output.interval > 0 ? "interval" : "default";
-  if (c.output.interval > 0) motion["interval"] = c.output.interval;
-  if (schedule.stride() > 0) motion["every"] = schedule.stride();
-  motion["times"] = io::Json(frame_t);
-  motion["estimated_bytes"] = motion_bytes;
-  motion["bytes"] = motion_file_bytes;
-  s["motion"] = motion;
-  s["energy"] = io::Json(energy);
-  s["constraint_violation_max"] = max_violation;
-  s["newton_iterations_total"] = newton_total;
-  s["newton_iterations_max"] = newton_max;
-  s["newton_factorizations_total"] = factorizations_total;
-  s["newton_reuse"] = newton.reuse_contraction;
-  s["step_halvings_max"] = halvings_max;
-  s["integration_s"] = t_int;
-  s["steps_per_second"] = static_cast<double>(steps) / std::max(t_int, 1e-9);
-  io::Json sensors = io::Json::object();
-  for (std::size_t k = 0; k < scene.sensors.size(); ++k) {
-    io::Json one = io::Json::object();
-    one["quantity"] = dynamics::quantity_name(scene.sensors[k].quantity);
-    one["t"] = io::Json(out_t);
-    io::Json vals = io::Json::array();
-    for (const auto &v : sensor_values[k]) vals.push_back(vec3_json(v));
-    one["value"] = vals;
-    sensors[scene.sensors[k].name] = one;
+void MotionRun::run() {
+  FX_PETSC(PetscLogStagePush(time_steps_stage()));
+  t_start_ = last_print_ = t_end_ = wall_time();
+  run_->run([&](const dynamics::StepView &v) { observe(v.step, v.info); });
+  FX_PETSC(PetscLogStagePop());
+}
+
+void MotionRun::run_design(adjoint::DynamicProblem &design, Vec x, bool gradient) {
+  // The design's densities on its body (the caller applied x), in every frame: threshold
+  // physical_density at 0.5.
+  const optimize::DesignField &f = design.field();
+  for (const auto &[field, v] :
+       {std::pair{"density", f.density()}, {"physical_density", f.physical()}}) {
+    const PetscScalar *a;
+    FX_PETSC(VecGetArrayRead(v, &a));
+    writer_->constant_cell_scalar(design.design_body(), field, a);
+    FX_PETSC(VecRestoreArrayRead(v, &a));
   }
-  s["sensors"] = sensors;
+  FX_PETSC(PetscLogStagePush(time_steps_stage()));
+  t_start_ = last_print_ = t_end_ = wall_time();
+  const double h = settings_.step;
+  design.set_observer([&](long long j, const dynamics::StepInfo &info, const dynamics::State *dense,
+                          const dynamics::DistState *dist) {
+    run_->set_state(dense, dist, static_cast<double>(j) * h);
+    observe(j, info);
+  });
+  optimize::Evaluation e;
+  design.evaluate(x, gradient, e);
+  design.set_observer(nullptr);
+  io::Json responses = io::Json::object();
+  const auto &names = design.response_names();
+  for (std::size_t i = 0; i < names.size(); ++i) {
+    const double v = e.value(i);
+    const std::string key = i == 0 ? "objective" : "constraint" + std::to_string(i - 1);
+    responses[key] = v;
+    print0(ctx_.comm(), "response %-12s %-28s %.10g\n", key.c_str(), names[i].c_str(), v);
+  }
+  s_["responses"] = responses;
+  io::Json rn = io::Json::array();
+  for (const auto &n : names) rn.push_back(n);
+  s_["response_names"] = rn;
+  if (gradient) {
+    const std::string file = detail::write_gradients(design, e, dir_);
+    io::Json a = io::Json::object();
+    design.describe(a);
+    s_["adjoint"] = a;
+    print0(ctx_.comm(), "gradient: forward run %.3f s, backward sweep %.3f s; wrote %s\n",
+           design.forward_seconds(), design.adjoint_seconds(), file.c_str());
+  }
+  FX_PETSC(PetscLogStagePop());
+}
+
+io::Json MotionRun::bodies_json() const {
   io::Json bl = io::Json::array();
-  for (std::size_t k = 0; k < c.scene.bodies.size(); ++k) {
-    const dynamics::SceneBody &sb = scene.bodies[k];
+  for (std::size_t k = 0; k < c_.scene.bodies.size(); ++k) {
+    const dynamics::SceneBody &sb = scene_.bodies[k];
     io::Json j = io::Json::object();
-    j["name"] = c.scene.bodies[k].name;
+    j["name"] = c_.scene.bodies[k].name;
     io::Json unused = io::Json::array();
-    for (const std::string &key : io::unused_settings(c.scene.bodies[k])) unused.push_back(key);
+    for (const std::string &key : io::unused_settings(c_.scene.bodies[k])) unused.push_back(key);
     j["unused_settings"] = unused;
     if (sb.acf >= 0) {
       j["model"] = "acf";
-      j["mass"] = scene.acf[static_cast<std::size_t>(sb.acf)]->total_mass();
-      j["dofs"] = 3LL * scene.meshes[k].global_nodes;
-      j["elements"] = static_cast<long long>(scene.meshes[k].global_elements);
+      j["mass"] = scene_.acf[static_cast<std::size_t>(sb.acf)]->total_mass();
+      j["dofs"] = 3LL * scene_.meshes[k].global_nodes;
+      j["elements"] = static_cast<long long>(scene_.meshes[k].global_elements);
       bl.push_back(j);
       continue;
     }
-    const auto &b = mech.bodies[static_cast<std::size_t>(sb.mechanism)];
+    const auto &b = mech_.bodies[static_cast<std::size_t>(sb.mechanism)];
     j["model"] = b->model();
     j["mass"] = b->mass();
     if (const auto *rigid = dynamic_cast<const bodies::RigidBody *>(b.get())) {
@@ -393,21 +402,86 @@ void integrate(const Context &ctx, const io::Case &c, dynamics::Scene &scene,
     } else {
       j["frame_origin"] = vec3_json(b->origin());
       j["elastic_coordinates"] = b->elastic_coordinates();
-      j["dofs"] = 3LL * scene.meshes[k].global_nodes;
-      j["elements"] = static_cast<long long>(scene.meshes[k].global_elements);
-      j["reduction_s"] = scene.reduction_seconds[k];
+      j["dofs"] = 3LL * scene_.meshes[k].global_nodes;
+      j["elements"] = static_cast<long long>(scene_.meshes[k].global_elements);
+      j["reduction_s"] = scene_.reduction_seconds[k];
     }
     bl.push_back(j);
   }
-  s["bodies"] = bl;
-  print0(ctx.comm(),
+  return bl;
+}
+
+void MotionRun::finish() {
+  const double h = settings_.step;
+  const long long steps = settings_.steps;
+  const double t_int = t_end_ - t_start_; // the forward run (a design's backward sweep apart)
+  const std::string xdmf = writer_->close();
+  // The files' sizes as the file system reports them (-1 if it cannot).
+  std::error_code h5_error, xdmf_error;
+  const auto h5_bytes =
+      std::filesystem::file_size(std::filesystem::path(dir_) / (name_ + ".h5"), h5_error);
+  const auto xdmf_bytes = std::filesystem::file_size(xdmf, xdmf_error);
+  const long long motion_file_bytes =
+      h5_error || xdmf_error ? -1LL : static_cast<long long>(h5_bytes + xdmf_bytes);
+  s_["coordinates"] = mech_.coordinates();
+  s_["constraint_rows"] = mech_.constraints();
+  s_["steps"] = steps;
+  s_["time_step"] = h;
+  s_["t_end"] = static_cast<double>(steps) * h;
+  s_["rho_inf"] = settings_.alpha.rho_inf;
+  s_["output_times"] = io::Json(out_t_); // the samples of energy and of the sensors
+  io::Json motion = io::Json::object();
+  motion["frames"] = static_cast<long long>(frame_t_.size());
+  motion["rule"] = c_.output.every > 0 ? "every" : c_.output.interval > 0 ? "interval" : "default";
+  if (c_.output.interval > 0) motion["interval"] = c_.output.interval;
+  if (schedule_->stride() > 0) motion["every"] = schedule_->stride();
+  motion["times"] = io::Json(frame_t_);
+  motion["estimated_bytes"] = motion_bytes_;
+  motion["bytes"] = motion_file_bytes;
+  s_["motion"] = motion;
+  s_["energy"] = io::Json(energy_);
+  s_["constraint_violation_max"] = max_violation_;
+  s_["newton_iterations_total"] = newton_total_;
+  s_["newton_iterations_max"] = newton_max_;
+  s_["newton_factorizations_total"] = factorizations_total_;
+  s_["newton_reuse"] = settings_.newton.reuse_contraction;
+  s_["step_halvings_max"] = halvings_max_;
+  s_["integration_s"] = t_int;
+  s_["steps_per_second"] = static_cast<double>(steps) / std::max(t_int, 1e-9);
+  io::Json sensors = io::Json::object();
+  for (std::size_t k = 0; k < scene_.sensors.size(); ++k) {
+    io::Json one = io::Json::object();
+    one["quantity"] = dynamics::quantity_name(scene_.sensors[k].quantity);
+    one["t"] = io::Json(out_t_);
+    io::Json vals = io::Json::array();
+    for (const auto &v : sensor_values_[k]) vals.push_back(vec3_json(v));
+    one["value"] = vals;
+    sensors[scene_.sensors[k].name] = one;
+  }
+  s_["sensors"] = sensors;
+  s_["bodies"] = bodies_json();
+  print0(ctx_.comm(),
          "integrate: %lld steps in %.3f s (%.0f steps/s), %lld Newton iterations (max %d per "
          "step) on %lld factorized matrices, max constraint violation %.3e, energy %.9g -> "
          "%.9g\n",
-         steps, t_int, static_cast<double>(steps) / std::max(t_int, 1e-9), newton_total, newton_max,
-         factorizations_total, max_violation, energy.front(), energy.back());
-  print0(ctx.comm(), "wrote %s (%zu frames, %s; open in ParaView and press play)\n", xdmf.c_str(),
-         frame_t.size(), human_bytes(static_cast<double>(motion_file_bytes)).c_str());
+         steps, t_int, static_cast<double>(steps) / std::max(t_int, 1e-9), newton_total_,
+         newton_max_, factorizations_total_, max_violation_, energy_.front(), energy_.back());
+  print0(ctx_.comm(), "wrote %s (%zu frames, %s; open in ParaView and press play)\n", xdmf.c_str(),
+         frame_t_.size(), human_bytes(static_cast<double>(motion_file_bytes)).c_str());
+}
+
+/// Integrates `scene` (with `design`: the scene of that problem at the design x, through its
+/// forward run, and with `gradient` its adjoint gradients too), writes dir/NAME.xdmf (+ .h5)
+/// and the run's figures into s. Collective.
+void integrate(const Context &ctx, const io::Case &c, dynamics::Scene &scene,
+               adjoint::DynamicProblem *design, Vec x, bool gradient, const std::string &dir,
+               const std::string &name, io::Json &s) {
+  MotionRun run(ctx, c, scene, dir, name, s);
+  if (design)
+    run.run_design(*design, x, gradient);
+  else
+    run.run();
+  run.finish();
 }
 
 } // namespace

@@ -12,6 +12,7 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <optional>
 #include <sstream>
 
 namespace flexopt::optimize {
@@ -69,268 +70,377 @@ void set_move_box(Vec x, double move, Vec xmin, Vec xmax) {
   FX_PETSC(VecRestoreArrayRead(x, &xa));
 }
 
-} // namespace
+/// Appends one line of history.csv: iteration, objective, constraints, max change, seconds and
+/// the split of the seconds (docs/theory.md section 11: the columns of the iteration line).
+void append_history_row(std::ostringstream &history, int k, double objective,
+                        const double *constraints, std::size_t m, double change, double seconds,
+                        const double *split, std::size_t nsplit) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%d,%.17g", k, objective);
+  history << buf;
+  for (std::size_t i = 0; i < m; ++i) {
+    std::snprintf(buf, sizeof buf, ",%.17g", constraints[i]);
+    history << buf;
+  }
+  std::snprintf(buf, sizeof buf, ",%.17g,%.6g", change, seconds);
+  history << buf;
+  for (std::size_t p = 0; p < nsplit; ++p) {
+    std::snprintf(buf, sizeof buf, ",%.6g", split[p]);
+    history << buf;
+  }
+  history << '\n';
+}
 
-OptimizationResult run_optimization(MPI_Comm comm, DesignProblem &design,
-                                    const OptimizerSettings &c, const std::string &out_dir,
-                                    bool restart) {
-  DesignProblem *problem = &design;
-  const auto &names = problem->response_names();
-  const std::size_t m = c.bounds.size();
-  OptimizationResult result;
-  result.dofs = problem->dofs();
-  result.elements = problem->mesh().global_elements;
-  result.design_variables = problem->design_size();
+/// One run of the optimization loop of docs/theory.md section 11: the design vectors, MMA with
+/// its move-limit box (docs/theory-mma.md §5), the scaling, the projection continuation, the
+/// history and the restart file.
+class OptimizationRun {
+public:
+  OptimizationRun(MPI_Comm comm, DesignProblem &design, const OptimizerSettings &c,
+                  const std::string &out_dir);
+  OptimizationRun(const OptimizationRun &) = delete;
+  OptimizationRun &operator=(const OptimizationRun &) = delete;
 
-  Vec x = problem->create_design_vector(), xold, xmin, xmax;
-  problem->initial_design(x);
-  FX_PETSC(VecDuplicate(x, &xold));
-  FX_PETSC(VecDuplicate(x, &xmin));
-  FX_PETSC(VecDuplicate(x, &xmax));
+  /// Continues after the iterations stored in restart.h5 (docs/theory-mma.md §7).
+  void read_restart();
+  /// Runs the iterations up to the limit or the stop rule.
+  void iterate();
+  /// The final evaluation, design.xdmf's last step and history.csv; the result. Destroys the
+  /// design vectors (an exception before leaves them to the end of the run).
+  OptimizationResult finish();
+
+private:
+  void write_history_header();
+  void print_header() const;
+  void restore_history(const io::RestartData &r, int done);
+  bool iteration(int k, Evaluation &e);
+  std::vector<double> scaled_constraints(const Evaluation &e);
+  std::vector<double> iteration_split(double seconds) const;
+  void record(int k, const Evaluation &e, double change, double seconds,
+              const std::vector<double> &split);
+  bool advance_continuation(int k, double change);
+  void write_restart_point(int k, double change, bool &last_stage);
+
+  MPI_Comm comm_;
+  DesignProblem *problem_;
+  const OptimizerSettings &c_;
+  const std::string out_dir_;
+  const std::size_t m_;
+  OptimizationResult result_;
+  Vec x_ = nullptr, xold_ = nullptr, xmin_ = nullptr, xmax_ = nullptr, df0_ = nullptr;
+  std::vector<Vec> dg_;
+  std::unique_ptr<Mma> mma_;
+  double objective_scale_ = 1.0;
+  std::optional<io::XdmfWriter> writer_; ///< design.xdmf, opened after the vectors
+  std::ostringstream history_;
+  std::vector<std::string> split_labels_;
+  std::size_t nsplit_ = 0;
+  std::string restart_path_;
+  std::vector<std::uint64_t> tags_;
+  int first_ = 1;
+  // Projection continuation: stage index into design.projection.beta and its first iteration.
+  const std::vector<double> &betas_;
+  int stage_ = 0, stage_start_ = 1;
+  std::vector<double> seconds_list_, split_list_; // per iteration; the split k x nsplit
+  Evaluation e_;
+};
+
+OptimizationRun::OptimizationRun(MPI_Comm comm, DesignProblem &design, const OptimizerSettings &c,
+                                 const std::string &out_dir)
+    : comm_(comm), problem_(&design), c_(c), out_dir_(out_dir), m_(c.bounds.size()),
+      betas_(design.field().settings().beta) {
+  DesignProblem *problem = problem_;
+  result_.dofs = problem->dofs();
+  result_.elements = problem->mesh().global_elements;
+  result_.design_variables = problem->design_size();
+
+  x_ = problem->create_design_vector();
+  problem->initial_design(x_);
+  FX_PETSC(VecDuplicate(x_, &xold_));
+  FX_PETSC(VecDuplicate(x_, &xmin_));
+  FX_PETSC(VecDuplicate(x_, &xmax_));
   // The move limit is applied as an outer box [max(0, x - m), min(1, x + m)] handed to MMA as
   // its bounds (Aage & Lazarov 2013), so that the initial asymptotes x -+ 0.5 (xmax - xmin) and
   // their clamps scale with the move limit rather than with [0, 1] (docs/theory-mma.md §5).
   MmaSettings settings;
   settings.move_limit = 1.0;
-  auto mma = Mma::create(x, static_cast<int>(m), settings);
+  mma_ = Mma::create(x_, static_cast<int>(m_), settings);
 
   // MMA works best with an objective of order 1 ... 100 and constraints of order 1 (Svanberg
   // 2007; its subproblem tolerance is absolute, docs/theory-mma.md): the objective is scaled
   // to 10 at the first iteration, and constraints are g_i = R_i / max_i - 1 (max_i > 0; else
   // (R_i - max_i) / |max_i|, or R_i for max_i = 0).
-  double objective_scale = 1.0;
-  std::vector<Vec> dg(m);
-  for (auto &v : dg) FX_PETSC(VecDuplicate(x, &v));
-  Vec df0;
-  FX_PETSC(VecDuplicate(x, &df0));
+  dg_.resize(m_);
+  for (auto &v : dg_) FX_PETSC(VecDuplicate(x_, &v));
+  FX_PETSC(VecDuplicate(x_, &df0_));
 
-  io::XdmfWriter writer(mesh::grid_layout(problem->mesh()), out_dir, "design");
-  std::ostringstream history;
-  history << "iteration,objective";
-  for (std::size_t i = 0; i < m; ++i) history << "," << names[i + 1];
-  history << ",max_change,seconds";
+  writer_.emplace(mesh::grid_layout(problem->mesh()), out_dir, "design");
+  write_history_header();
+  print_header();
+  restart_path_ = (std::filesystem::path(out_dir) / "restart.h5").string();
+  tags_.assign(problem->design_tags().begin(), problem->design_tags().end());
+}
+
+/// history.csv's header and the labels of the seconds' split (docs/theory.md section 11).
+void OptimizationRun::write_history_header() {
+  const auto &names = problem_->response_names();
+  history_ << "iteration,objective";
+  for (std::size_t i = 0; i < m_; ++i) history_ << "," << names[i + 1];
+  history_ << ",max_change,seconds";
   // The split of an iteration's seconds: the problem's parts, then the update (the filter, the
   // pull-back, MMA and the output: the rest of the iteration).
-  std::vector<std::string> split_labels;
-  for (const Timing &t : problem->timings()) {
-    history << ",seconds_" << t.name;
-    split_labels.push_back(t.label);
-    result.split_names.push_back(t.name);
+  for (const Timing &t : problem_->timings()) {
+    history_ << ",seconds_" << t.name;
+    split_labels_.push_back(t.label);
+    result_.split_names.push_back(t.name);
   }
-  split_labels.push_back("update");
-  result.split_names.emplace_back("update");
-  const std::size_t nsplit = split_labels.size();
-  history << ",seconds_update\n";
+  split_labels_.push_back("update");
+  result_.split_names.emplace_back("update");
+  nsplit_ = split_labels_.size();
+  history_ << ",seconds_update\n";
+}
 
+/// The run's first line and the header of the iteration lines.
+void OptimizationRun::print_header() const {
+  const auto &names = problem_->response_names();
   print0(
-      comm,
+      comm_,
       "optimize: %lld design variables, %zu constraint(s), at most %d iterations, move limit %g, "
       "%s\n",
-      static_cast<long long>(problem->design_size()), m, c.max_iterations, c.move_limit,
-      problem->field().filter_description().c_str());
-  print0(comm, "%5s %16s", "it", "objective");
-  for (std::size_t i = 0; i < m; ++i)
-    print0(comm, " %16s",
+      static_cast<long long>(problem_->design_size()), m_, c_.max_iterations, c_.move_limit,
+      problem_->field().filter_description().c_str());
+  print0(comm_, "%5s %16s", "it", "objective");
+  for (std::size_t i = 0; i < m_; ++i)
+    print0(comm_, " %16s",
            ("c" + std::to_string(i) + ":" + names[i + 1].substr(names[i + 1].find(':') + 1))
                .substr(0, 16)
                .c_str());
-  print0(comm, " %10s", "change");
-  for (const std::string &l : split_labels) print0(comm, " %8s", l.substr(0, 8).c_str());
-  print0(comm, " %8s\n", "s");
+  print0(comm_, " %10s", "change");
+  for (const std::string &l : split_labels_) print0(comm_, " %8s", l.substr(0, 8).c_str());
+  print0(comm_, " %8s\n", "s");
+}
 
-  const std::string restart_path = (std::filesystem::path(out_dir) / "restart.h5").string();
-  const std::vector<std::uint64_t> tags(problem->design_tags().begin(),
-                                        problem->design_tags().end());
-  int first = 1;
-  // Projection continuation: stage index into design.projection.beta and its first iteration.
-  const std::vector<double> &betas = problem->field().settings().beta;
-  int stage = 0, stage_start = 1;
-  std::vector<double> seconds_list, split_list; // per iteration; the split k x nsplit
-  if (restart) {
-    const io::RestartData r = io::read_restart(comm, restart_path, tags);
-    const auto &meta =
-        r.arrays.at("meta"); // iteration, objective scale, m, beta stage, its first iteration
-    const int done = static_cast<int>(meta.at(0));
-    if (static_cast<std::size_t>(meta.at(2)) != m)
-      throw Error(restart_path + ": written for " + std::to_string(static_cast<int>(meta.at(2))) +
-                      " constraints; the case has " + std::to_string(m),
-                  true);
-    objective_scale = meta.at(1);
-    stage = static_cast<int>(meta.at(3));
-    stage_start = static_cast<int>(meta.at(4));
-    set_local_values(x, r.fields.at("x"));
-    Mma::State st;
-    st.iteration = done;
-    Vec state_vecs[4];
-    const char *names4[4] = {"xold1", "xold2", "low", "upp"};
-    for (int i = 0; i < 4; ++i) {
-      FX_PETSC(VecDuplicate(x, &state_vecs[i]));
-      set_local_values(state_vecs[i], r.fields.at(names4[i]));
-    }
-    st.xold1 = state_vecs[0], st.xold2 = state_vecs[1], st.low = state_vecs[2],
-    st.upp = state_vecs[3];
-    mma->restore(st);
-    for (Vec &v : state_vecs) FX_PETSC(VecDestroy(&v));
-    const auto &obj = r.arrays.at("objective"), &chg = r.arrays.at("max_change"),
-               &con = r.arrays.at("constraints"), &sec = r.arrays.at("seconds");
-    // The split, k x nsplit (a restart file written without it: not a number).
-    const auto split = r.arrays.find("seconds_split");
-    if (split != r.arrays.end() && split->second.size() == static_cast<std::size_t>(done) * nsplit)
-      split_list = split->second;
-    else
-      split_list.assign(static_cast<std::size_t>(done) * nsplit, std::nan(""));
-    for (int k = 0; k < done; ++k) {
-      result.objective.push_back(obj.at(static_cast<std::size_t>(k)));
-      result.max_change.push_back(chg.at(static_cast<std::size_t>(k)));
-      result.constraints.emplace_back(con.begin() + static_cast<std::ptrdiff_t>(k * m),
-                                      con.begin() + static_cast<std::ptrdiff_t>((k + 1) * m));
-      char buf[64];
-      std::snprintf(buf, sizeof buf, "%d,%.17g", k + 1, obj[static_cast<std::size_t>(k)]);
-      history << buf;
-      for (std::size_t i = 0; i < m; ++i) {
-        std::snprintf(buf, sizeof buf, ",%.17g", con[static_cast<std::size_t>(k) * m + i]);
-        history << buf;
-      }
-      std::snprintf(buf, sizeof buf, ",%.17g,%.6g", chg[static_cast<std::size_t>(k)],
-                    sec[static_cast<std::size_t>(k)]);
-      history << buf;
-      for (std::size_t p = 0; p < nsplit; ++p) {
-        std::snprintf(buf, sizeof buf, ",%.6g",
-                      split_list[static_cast<std::size_t>(k) * nsplit + p]);
-        history << buf;
-      }
-      history << '\n';
-    }
-    seconds_list = sec;
-    result.iterations = done;
-    first = done + 1;
-    print0(comm, "optimize: restarting from %s after iteration %d\n", restart_path.c_str(), done);
+void OptimizationRun::read_restart() {
+  const io::RestartData r = io::read_restart(comm_, restart_path_, tags_);
+  const auto &meta =
+      r.arrays.at("meta"); // iteration, objective scale, m, beta stage, its first iteration
+  const int done = static_cast<int>(meta.at(0));
+  if (static_cast<std::size_t>(meta.at(2)) != m_)
+    throw Error(restart_path_ + ": written for " + std::to_string(static_cast<int>(meta.at(2))) +
+                    " constraints; the case has " + std::to_string(m_),
+                true);
+  objective_scale_ = meta.at(1);
+  stage_ = static_cast<int>(meta.at(3));
+  stage_start_ = static_cast<int>(meta.at(4));
+  set_local_values(x_, r.fields.at("x"));
+  Mma::State st;
+  st.iteration = done;
+  Vec state_vecs[4];
+  const char *names4[4] = {"xold1", "xold2", "low", "upp"};
+  for (int i = 0; i < 4; ++i) {
+    FX_PETSC(VecDuplicate(x_, &state_vecs[i]));
+    set_local_values(state_vecs[i], r.fields.at(names4[i]));
   }
+  st.xold1 = state_vecs[0], st.xold2 = state_vecs[1], st.low = state_vecs[2],
+  st.upp = state_vecs[3];
+  mma_->restore(st);
+  for (Vec &v : state_vecs) FX_PETSC(VecDestroy(&v));
+  restore_history(r, done);
+  result_.iterations = done;
+  first_ = done + 1;
+  print0(comm_, "optimize: restarting from %s after iteration %d\n", restart_path_.c_str(), done);
+}
 
-  Evaluation e;
-  for (int k = first; k <= c.max_iterations; ++k) {
-    const double t0 = wall_time();
-    if (!betas.empty()) problem->field().set_beta(betas[static_cast<std::size_t>(stage)]);
-    problem->evaluate(x, true, e);
-    if (!std::isfinite(e.objective))
-      throw Error("optimize: iteration " + std::to_string(k) + ": the objective is not finite",
-                  true);
-    if (k == 1) objective_scale = std::abs(e.objective) > 0 ? 10.0 / std::abs(e.objective) : 1.0;
-    const int stride = std::max(c.output_every, 1);
-    const bool write = (k - 1) % stride == 0;
-    if (write) write_densities(writer, problem->field(), k - 1);
-
-    FX_PETSC(VecCopy(e.d_objective, df0));
-    FX_PETSC(VecScale(df0, objective_scale));
-    std::vector<double> g(m);
-    for (std::size_t i = 0; i < m; ++i) {
-      // R <= max as g = R / max - 1 <= 0 for a positive bound; a bound <= 0 (a sensor
-      // component that must stay negative) as g = (R - max) / |max| (or R when max = 0).
-      const double bound = c.bounds[i];
-      const double scale = bound > 0 ? bound : bound < 0 ? -bound : 1.0;
-      g[i] = bound > 0 ? e.constraints[i] / bound - 1.0 : (e.constraints[i] - bound) / scale;
-      FX_PETSC(VecCopy(e.d_constraints[i], dg[i]));
-      FX_PETSC(VecScale(dg[i], 1.0 / scale));
-    }
-    FX_PETSC(VecCopy(x, xold));
-    set_move_box(x, c.move_limit, xmin, xmax);
-    mma->update(x, xmin, xmax, e.objective * objective_scale, df0, g, dg);
-    const double change = max_abs_change(x, xold);
-    const double seconds = wall_time() - t0;
-    std::vector<double> split;
-    double parts = 0;
-    for (const Timing &t : problem->timings()) {
-      split.push_back(t.seconds);
-      parts += t.seconds;
-    }
-    split.push_back(seconds - parts);
-
-    result.iterations = k;
-    result.objective.push_back(e.objective);
-    result.constraints.push_back(e.constraints);
-    result.max_change.push_back(change);
-    print0(comm, "%5d %16.9e", k, e.objective);
-    for (double v : e.constraints) print0(comm, " %16.9e", v);
-    print0(comm, " %10.3e", change);
-    for (double v : split) print0(comm, " %8.2f", v);
-    print0(comm, " %8.2f\n", seconds);
-    char buf[64];
-    std::snprintf(buf, sizeof buf, "%d,%.17g", k, e.objective);
-    history << buf;
-    for (double v : e.constraints) {
-      std::snprintf(buf, sizeof buf, ",%.17g", v);
-      history << buf;
-    }
-    std::snprintf(buf, sizeof buf, ",%.17g,%.6g", change, seconds);
-    history << buf;
-    for (double v : split) {
-      std::snprintf(buf, sizeof buf, ",%.6g", v);
-      history << buf;
-    }
-    history << '\n';
-    seconds_list.push_back(seconds);
-    split_list.insert(split_list.end(), split.begin(), split.end());
-
-    // Restart point after every iteration (atomic: a kill at any moment leaves the previous
-    // complete file).
-    io::RestartData rd;
-    rd.tags = tags;
-    rd.fields["x"] = local_values(x);
-    const Mma::State st = mma->state();
-    rd.fields["xold1"] = local_values(st.xold1);
-    rd.fields["xold2"] = local_values(st.xold2);
-    rd.fields["low"] = local_values(st.low);
-    rd.fields["upp"] = local_values(st.upp);
-    // Advance the projection continuation: after `every` iterations at this beta, or when
-    // the design has settled at it.
-    const bool last_stage = betas.empty() || stage + 1 == static_cast<int>(betas.size());
-    const bool settled = change < c.tolerance;
-    if (!last_stage && (settled || k - stage_start + 1 >= problem->field().settings().beta_every)) {
-      ++stage;
-      stage_start = k + 1;
-      print0(comm, "optimize: projection beta -> %g from iteration %d\n",
-             betas[static_cast<std::size_t>(stage)], k + 1);
-    }
-    rd.arrays["meta"] = {static_cast<double>(k), objective_scale, static_cast<double>(m),
-                         static_cast<double>(stage), static_cast<double>(stage_start)};
-    rd.arrays["objective"] = result.objective;
-    rd.arrays["max_change"] = result.max_change;
-    rd.arrays["seconds"] = seconds_list;
-    rd.arrays["seconds_split"] = split_list;
-    std::vector<double> flat;
-    for (const auto &row : result.constraints) flat.insert(flat.end(), row.begin(), row.end());
-    rd.arrays["constraints"] = flat;
-    io::write_restart(comm, restart_path, rd);
-    if (change < c.tolerance && last_stage) {
-      result.converged = true;
-      result.stop_reason = "max design change " + std::to_string(change) + " < tolerance " +
-                           std::to_string(c.tolerance);
-      break;
-    }
+/// The result's and history.csv's rows of the `done` iterations stored in a restart file.
+void OptimizationRun::restore_history(const io::RestartData &r, int done) {
+  const std::size_t m = m_, nsplit = nsplit_;
+  const auto &obj = r.arrays.at("objective"), &chg = r.arrays.at("max_change"),
+             &con = r.arrays.at("constraints"), &sec = r.arrays.at("seconds");
+  // The split, k x nsplit (a restart file written without it: not a number).
+  const auto split = r.arrays.find("seconds_split");
+  if (split != r.arrays.end() && split->second.size() == static_cast<std::size_t>(done) * nsplit)
+    split_list_ = split->second;
+  else
+    split_list_.assign(static_cast<std::size_t>(done) * nsplit, std::nan(""));
+  for (int k = 0; k < done; ++k) {
+    const auto kk = static_cast<std::size_t>(k);
+    result_.objective.push_back(obj.at(kk));
+    result_.max_change.push_back(chg.at(kk));
+    result_.constraints.emplace_back(con.begin() + static_cast<std::ptrdiff_t>(k * m),
+                                     con.begin() + static_cast<std::ptrdiff_t>((k + 1) * m));
+    append_history_row(history_, k + 1, obj[kk], con.data() + kk * m, m, chg[kk], sec[kk],
+                       split_list_.data() + kk * nsplit, nsplit);
   }
+  seconds_list_ = sec;
+}
+
+void OptimizationRun::iterate() {
+  for (int k = first_; k <= c_.max_iterations; ++k)
+    if (iteration(k, e_)) break;
+}
+
+/// The constraints g_i for MMA and their scaled gradients dg_i (docs/theory-mma.md §6).
+std::vector<double> OptimizationRun::scaled_constraints(const Evaluation &e) {
+  std::vector<double> g(m_);
+  for (std::size_t i = 0; i < m_; ++i) {
+    // R <= max as g = R / max - 1 <= 0 for a positive bound; a bound <= 0 (a sensor
+    // component that must stay negative) as g = (R - max) / |max| (or R when max = 0).
+    const double bound = c_.bounds[i];
+    const double scale = bound > 0 ? bound : bound < 0 ? -bound : 1.0;
+    g[i] = bound > 0 ? e.constraints[i] / bound - 1.0 : (e.constraints[i] - bound) / scale;
+    FX_PETSC(VecCopy(e.d_constraints[i], dg_[i]));
+    FX_PETSC(VecScale(dg_[i], 1.0 / scale));
+  }
+  return g;
+}
+
+/// The split of an iteration's seconds: the problem's parts, then the update (the rest).
+std::vector<double> OptimizationRun::iteration_split(double seconds) const {
+  std::vector<double> split;
+  double parts = 0;
+  for (const Timing &t : problem_->timings()) {
+    split.push_back(t.seconds);
+    parts += t.seconds;
+  }
+  split.push_back(seconds - parts);
+  return split;
+}
+
+/// Iteration k of docs/theory.md section 11: evaluate, scale, the MMA update in the move-limit
+/// box, record, restart point, continuation. Returns true if the stop rule holds.
+bool OptimizationRun::iteration(int k, Evaluation &e) {
+  DesignProblem *problem = problem_;
+  const double t0 = wall_time();
+  if (!betas_.empty()) problem->field().set_beta(betas_[static_cast<std::size_t>(stage_)]);
+  problem->evaluate(x_, true, e);
+  if (!std::isfinite(e.objective))
+    throw Error("optimize: iteration " + std::to_string(k) + ": the objective is not finite", true);
+  if (k == 1) objective_scale_ = std::abs(e.objective) > 0 ? 10.0 / std::abs(e.objective) : 1.0;
+  const int stride = std::max(c_.output_every, 1);
+  const bool write = (k - 1) % stride == 0;
+  if (write) write_densities(*writer_, problem->field(), k - 1);
+
+  FX_PETSC(VecCopy(e.d_objective, df0_));
+  FX_PETSC(VecScale(df0_, objective_scale_));
+  const std::vector<double> g = scaled_constraints(e);
+  FX_PETSC(VecCopy(x_, xold_));
+  set_move_box(x_, c_.move_limit, xmin_, xmax_);
+  mma_->update(x_, xmin_, xmax_, e.objective * objective_scale_, df0_, g, dg_);
+  const double change = max_abs_change(x_, xold_);
+  const double seconds = wall_time() - t0;
+  record(k, e, change, seconds, iteration_split(seconds));
+
+  bool last_stage = false;
+  write_restart_point(k, change, last_stage);
+  if (change < c_.tolerance && last_stage) {
+    result_.converged = true;
+    result_.stop_reason = "max design change " + std::to_string(change) + " < tolerance " +
+                          std::to_string(c_.tolerance);
+    return true;
+  }
+  return false;
+}
+
+/// Iteration k's entries of the result, its line on the terminal and in history.csv.
+void OptimizationRun::record(int k, const Evaluation &e, double change, double seconds,
+                             const std::vector<double> &split) {
+  result_.iterations = k;
+  result_.objective.push_back(e.objective);
+  result_.constraints.push_back(e.constraints);
+  result_.max_change.push_back(change);
+  print0(comm_, "%5d %16.9e", k, e.objective);
+  for (double v : e.constraints) print0(comm_, " %16.9e", v);
+  print0(comm_, " %10.3e", change);
+  for (double v : split) print0(comm_, " %8.2f", v);
+  print0(comm_, " %8.2f\n", seconds);
+  append_history_row(history_, k, e.objective, e.constraints.data(), e.constraints.size(), change,
+                     seconds, split.data(), split.size());
+  seconds_list_.push_back(seconds);
+  split_list_.insert(split_list_.end(), split.begin(), split.end());
+}
+
+/// Advances the projection continuation after iteration k: after `every` iterations at this
+/// beta, or when the design has settled at it. Returns whether the stage (before advancing) is
+/// the last.
+bool OptimizationRun::advance_continuation(int k, double change) {
+  const bool last_stage = betas_.empty() || stage_ + 1 == static_cast<int>(betas_.size());
+  const bool settled = change < c_.tolerance;
+  if (!last_stage && (settled || k - stage_start_ + 1 >= problem_->field().settings().beta_every)) {
+    ++stage_;
+    stage_start_ = k + 1;
+    print0(comm_, "optimize: projection beta -> %g from iteration %d\n",
+           betas_[static_cast<std::size_t>(stage_)], k + 1);
+  }
+  return last_stage;
+}
+
+/// restart.h5 after iteration k (docs/theory-mma.md §7: x and MMA's state; the scale, the
+/// continuation stage and the history), with the continuation advanced in between.
+void OptimizationRun::write_restart_point(int k, double change, bool &last_stage) {
+  // Restart point after every iteration (atomic: a kill at any moment leaves the previous
+  // complete file).
+  io::RestartData rd;
+  rd.tags = tags_;
+  rd.fields["x"] = local_values(x_);
+  const Mma::State st = mma_->state();
+  rd.fields["xold1"] = local_values(st.xold1);
+  rd.fields["xold2"] = local_values(st.xold2);
+  rd.fields["low"] = local_values(st.low);
+  rd.fields["upp"] = local_values(st.upp);
+  // Advance the projection continuation: after `every` iterations at this beta, or when
+  // the design has settled at it.
+  last_stage = advance_continuation(k, change);
+  rd.arrays["meta"] = {static_cast<double>(k), objective_scale_, static_cast<double>(m_),
+                       static_cast<double>(stage_), static_cast<double>(stage_start_)};
+  rd.arrays["objective"] = result_.objective;
+  rd.arrays["max_change"] = result_.max_change;
+  rd.arrays["seconds"] = seconds_list_;
+  rd.arrays["seconds_split"] = split_list_;
+  std::vector<double> flat;
+  for (const auto &row : result_.constraints) flat.insert(flat.end(), row.begin(), row.end());
+  rd.arrays["constraints"] = flat;
+  io::write_restart(comm_, restart_path_, rd);
+}
+
+OptimizationResult OptimizationRun::finish() {
+  DesignProblem *problem = problem_;
+  OptimizationResult &result = result_;
+  Evaluation &e = e_;
   if (!result.converged) result.stop_reason = "max_iterations reached";
-  for (std::size_t k = 0; k * nsplit < split_list.size(); ++k)
-    result.seconds_split.emplace_back(split_list.begin() + static_cast<std::ptrdiff_t>(k * nsplit),
-                                      split_list.begin() +
-                                          static_cast<std::ptrdiff_t>((k + 1) * nsplit));
+  for (std::size_t k = 0; k * nsplit_ < split_list_.size(); ++k)
+    result.seconds_split.emplace_back(
+        split_list_.begin() + static_cast<std::ptrdiff_t>(k * nsplit_),
+        split_list_.begin() + static_cast<std::ptrdiff_t>((k + 1) * nsplit_));
   // Final state: the design after the last update.
-  problem->evaluate(x, false, e);
-  write_densities(writer, problem->field(), result.iterations);
+  problem->evaluate(x_, false, e);
+  write_densities(*writer_, problem->field(), result.iterations);
   result.volume_fraction = problem->field().volume_fraction();
-  result.output = writer.close();
-  run_on_root(comm, 0, [&] {
-    io::write_file_atomic((std::filesystem::path(out_dir) / "history.csv").string(), history.str());
+  result.output = writer_->close();
+  run_on_root(comm_, 0, [&] {
+    io::write_file_atomic((std::filesystem::path(out_dir_) / "history.csv").string(),
+                          history_.str());
   });
-  print0(comm,
+  print0(comm_,
          "optimize: stopped after %d iterations: %s; final objective %.9e, volume fraction %.6f\n",
          result.iterations, result.stop_reason.c_str(), e.objective, result.volume_fraction);
-  for (auto &v : dg) FX_PETSC(VecDestroy(&v));
-  FX_PETSC(VecDestroy(&df0));
-  FX_PETSC(VecDestroy(&x));
-  FX_PETSC(VecDestroy(&xold));
-  FX_PETSC(VecDestroy(&xmin));
-  FX_PETSC(VecDestroy(&xmax));
+  for (auto &v : dg_) FX_PETSC(VecDestroy(&v));
+  FX_PETSC(VecDestroy(&df0_));
+  FX_PETSC(VecDestroy(&x_));
+  FX_PETSC(VecDestroy(&xold_));
+  FX_PETSC(VecDestroy(&xmin_));
+  FX_PETSC(VecDestroy(&xmax_));
   return result;
+}
+
+} // namespace
+
+OptimizationResult run_optimization(MPI_Comm comm, DesignProblem &design,
+                                    const OptimizerSettings &c, const std::string &out_dir,
+                                    bool restart) {
+  OptimizationRun run(comm, design, c, out_dir);
+  if (restart) run.read_restart();
+  run.iterate();
+  return run.finish();
 }
 
 } // namespace flexopt::optimize
