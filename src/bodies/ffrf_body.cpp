@@ -49,6 +49,226 @@ struct FrameKinematics {
   }
 };
 
+/// An FFRF body's model and its invariants packed for matrix-vector products (FfrfBody's
+/// members; docs/theory.md section 7.3), as the residual's parts read them.
+struct PackedInvariants {
+  const FfrfModel &model;
+  const Matrix &mzz, &s2_by_k, &s2_by_l, &g_by_k, &g_by_l, &s1;
+  bool stiffening;
+};
+
+/// The quantities of docs/theory.md section 7.3 at (q, v, a) that the residual and its
+/// Jacobians share: the frame's kinematics, d, C_k (vec C_k in Cv, c_k in Cm), S, J, P, h_k
+/// (Hm), D zeta', D zeta'', s_c(omega) with its derivative, (K_r + sum_c s_c G_c) zeta and the
+/// G_c zeta; then the residual's own yr, F_w, tr P I - P^T and vec(|w|^2 I - w w^T).
+struct ResidualTerms {
+  int n;
+  FrameKinematics f;
+  Vec4 p, vp, ap;
+  Vec3 d;
+  Mat9N Cv;
+  Mat3N Cm, Hm;
+  Mat3 S, J, P;
+  Vec3 Dzd, Dzdd;
+  Eigen::Matrix<double, 6, 3> ds;
+  Eigen::Matrix<double, 6, 1> s;
+  VecN Kz;
+  MatN6 Gz;
+  Vec3 yr, Fw;
+  Mat3 Pt;
+  Vec9 cw;
+  ResidualTerms(const ConstVectorRef &q, const ConstVectorRef &v, const ConstVectorRef &a,
+                const Vec3 &gravity, int n_)
+      : n(n_), f(q, v, a, gravity), p(q.segment<4>(3)), vp(v.segment<4>(3)), ap(a.segment<4>(3)) {}
+};
+
+/// J, h_k, P, D zeta', D zeta'', s_c(omega) and (K_r + sum_c s_c G_c) zeta from C_k and S
+/// (docs/theory.md section 7.3).
+void shared_terms(const PackedInvariants &pk, const ConstVectorRef &q, const ConstVectorRef &v,
+                  const ConstVectorRef &a, ResidualTerms &t) {
+  const int n = t.n;
+  const auto &inv = pk.model.invariants;
+  const Mat3 I3 = Mat3::Identity();
+  const Vec3 &w = t.f.w;
+  const auto z = q.tail(n), zd = v.tail(n), zdd = a.tail(n);
+  t.J = t.S.trace() * I3 - t.S;
+  t.Hm.resize(3, n);
+  VecMap(t.Hm.data(), 3 * n).noalias() = ConstMap(pk.g_by_k.data(), 3 * n, n) * zd;
+  Vec9 pv;
+  pv.noalias() = t.Cv * zd;
+  t.P = ConstMat3Map(pv.data());
+  t.Dzd = inv.D * zd;
+  t.Dzdd = inv.D * zdd;
+  t.s = reduce::centrifugal_coefficients(w, &t.ds);
+  // (K_r + sum_c s_c G_c) zeta and the columns G_c zeta (for the omega derivatives).
+  t.Kz.resize(n);
+  t.Kz.noalias() = pk.model.stiffness * z;
+  if (pk.stiffening) {
+    t.Gz.resize(n, 6);
+    for (int c = 0; c < 6; ++c)
+      t.Gz.col(c).noalias() = pk.model.geometric[static_cast<std::size_t>(c)] * z;
+    t.Kz.noalias() += t.Gz * t.s;
+  }
+}
+
+/// res = [F_r; 2 Gbar(p)^T F_w; F_z] (docs/theory.md section 7.3, "Virtual work").
+void residual_forces(const PackedInvariants &pk, const ConstVectorRef &v, const ConstVectorRef &a,
+                     ResidualTerms &t, Eigen::Ref<Vector> res) {
+  const int n = t.n;
+  const auto &inv = pk.model.invariants;
+  const Mat3 I3 = Mat3::Identity();
+  const Mat3 &A = t.f.A;
+  const Mat34 &G = t.f.G;
+  const Vec3 &w = t.f.w, &wd = t.f.wd, &rho = t.f.rho, &rb = t.f.rb, &d = t.d;
+  const auto zd = v.tail(n), zdd = a.tail(n);
+  t.yr = wd.cross(d) + t.Dzdd + w.cross(w.cross(d)) + 2 * w.cross(t.Dzd);
+  const Vec3 Fr = inv.mass * rho + A * t.yr;
+  t.Pt = t.P.trace() * I3 - t.P.transpose();
+  t.Fw = d.cross(rb) + t.J * wd + t.Cm * zdd + w.cross(t.J * w) + 2 * t.Pt * w;
+  res.head<3>() = Fr;
+  res.segment<4>(3) = 2 * G.transpose() * t.Fw;
+  // F_z, with -[tr C_k |w|^2 - w^T C_k w]_k + 2 [w . h_k]_k as products with vec C and Hm.
+  auto Fz = res.tail(n);
+  t.cw = centrifugal_weights(w);
+  Fz.noalias() = inv.D.transpose() * rb;
+  Fz.noalias() += t.Cm.transpose() * wd;
+  Fz.noalias() += pk.mzz * zdd;
+  Fz += t.Kz;
+  Fz.noalias() += pk.model.damping * zd;
+  Fz.noalias() -= t.Cv.transpose() * t.cw;
+  Fz.noalias() += 2 * (t.Hm.transpose() * w);
+}
+
+/// M = d res / d a (docs/theory.md section 7.3, "Jacobians"): symmetric.
+void mass_jacobian(const PackedInvariants &pk, const ResidualTerms &t, Matrix &M) {
+  const int n = t.n, N = 7 + n;
+  const auto &inv = pk.model.invariants;
+  const Mat3 I3 = Mat3::Identity();
+  const Mat3 &A = t.f.A;
+  const Mat34 &G = t.f.G;
+  M.setZero(N, N);
+  M.block<3, 3>(0, 0) = inv.mass * I3;
+  M.block<3, 4>(0, 3) = -2 * A * skew(t.d) * G;
+  M.block(0, 7, 3, n) = A * inv.D;
+  M.block<4, 3>(3, 0) = 2 * G.transpose() * skew(t.d) * A.transpose();
+  M.block<4, 4>(3, 3) = 4 * G.transpose() * t.J * G;
+  M.block(3, 7, 4, n) = 2 * G.transpose() * t.Cm;
+  M.block(7, 0, n, 3) = inv.D.transpose() * A.transpose();
+  M.block(7, 3, n, 4) = 2 * t.Cm.transpose() * G;
+  M.block(7, 7, n, n) = pk.mzz;
+}
+
+/// What K and C share (docs/theory.md section 7.3, "Jacobians"): d omega / dp, d omega / dv_p,
+/// d omega' / dp, d rho_b / dp, and d yr, d F_w, d F_z with respect to omega.
+struct OmegaDerivatives {
+  Mat34 Wp, Wv, Ap, Rp;
+  Mat3 Yw, Ww;
+  MatN3 Fzw;
+
+  OmegaDerivatives(const PackedInvariants &pk, const ResidualTerms &t)
+      : Wp(-2 * gbar_matrix(t.vp)), Wv(2 * t.f.G), Ap(-2 * gbar_matrix(t.ap)),
+        Rp(rotate_transpose_jacobian(t.p, t.f.rho)) {
+    const int n = t.n;
+    const Mat3 I3 = Mat3::Identity();
+    const Vec3 &w = t.f.w, &d = t.d;
+    // d yr / d omega, d F_w / d omega, d F_z / d omega.
+    Yw = w.dot(d) * I3 + w * d.transpose() - 2 * d * w.transpose() - 2 * skew(t.Dzd);
+    Ww = -skew(t.J * w) + skew(w) * t.J + 2 * t.Pt;
+    Fzw.resize(n, 3);
+    for (int k = 0; k < n; ++k) {
+      const ConstMat3Map c(t.Cv.col(k).data());
+      Fzw.row(k) = -(2 * c.trace() * w.transpose() - w.transpose() * (c + c.transpose())) +
+                   2 * t.Hm.col(k).transpose();
+    }
+    if (pk.stiffening) Fzw.noalias() += t.Gz * t.ds;
+  }
+};
+
+/// Row block p of K: 2 Gbar^T d F_w / d q (docs/theory.md section 7.3, "Jacobians").
+void stiffness_jacobian_p(const PackedInvariants &pk, const ConstVectorRef &q,
+                          const ConstVectorRef &v, const ConstVectorRef &a, const ResidualTerms &t,
+                          const OmegaDerivatives &o, Matrix &K) {
+  const int n = t.n;
+  const auto &inv = pk.model.invariants;
+  const Mat3 I3 = Mat3::Identity();
+  const Mat34 &G = t.f.G;
+  const Vec3 &w = t.f.w, &wd = t.f.wd, &rb = t.f.rb, &d = t.d;
+  const auto z = q.tail(n), zd = v.tail(n), zdd = a.tail(n);
+  // Row block p: 2 Gbar^T F_w. d F_w / d zeta_l with dJ_l = tr(S_l) I - S_l,
+  // S_l = S1[l] + S1[l]^T + Q_l + Q_l^T, Q_l = sum_k zeta_k S2[l][k],
+  // P_l = sum_k zeta'_k S2[l][k], gz_l = sum_k zeta''_k g_lk.
+  const Mat34 Fwp = skew(d) * o.Rp + t.J * o.Ap + o.Ww * o.Wp;
+  Mat9N Q(9, n), Pl(9, n);
+  Mat3N gz(3, n), Fwz(3, n);
+  const ConstMap by_l(pk.s2_by_l.data(), 9 * n, n);
+  VecMap(Q.data(), 9 * n).noalias() = by_l * z;
+  VecMap(Pl.data(), 9 * n).noalias() = by_l * zd;
+  VecMap(gz.data(), 3 * n).noalias() = ConstMap(pk.g_by_l.data(), 3 * n, n) * zdd;
+  const Mat3 srb = skew(rb);
+  for (int l = 0; l < n; ++l) {
+    const ConstMat3Map Ql(Q.col(l).data()), Pll(Pl.col(l).data()), S1l(pk.s1.col(l).data());
+    const Mat3 Sl = S1l + S1l.transpose() + Ql + Ql.transpose();
+    const Mat3 dJ = Sl.trace() * I3 - Sl;
+    Fwz.col(l) = -srb * inv.D.col(l) + dJ * wd + gz.col(l) + w.cross(dJ * w) +
+                 2 * (Pll.trace() * I3 - Pll.transpose()) * w;
+  }
+  K.block<4, 4>(3, 3) = 2 * gbar_transpose_matrix(t.Fw) + 2 * G.transpose() * Fwp;
+  K.block(3, 7, 4, n) = 2 * G.transpose() * Fwz;
+}
+
+/// K = d res / d q (docs/theory.md section 7.3, "Jacobians").
+void stiffness_jacobian(const PackedInvariants &pk, const ConstVectorRef &q,
+                        const ConstVectorRef &v, const ConstVectorRef &a, const ResidualTerms &t,
+                        const OmegaDerivatives &o, Matrix &K) {
+  const int n = t.n, N = 7 + n;
+  const auto &inv = pk.model.invariants;
+  const Mat3 &A = t.f.A;
+  const Vec3 &w = t.f.w, &wd = t.f.wd;
+  K.setZero(N, N);
+  // Row block r.
+  K.block<3, 4>(0, 3) = rotate_jacobian(t.p, t.yr) + A * (-skew(t.d) * o.Ap + o.Yw * o.Wp);
+  K.block(0, 7, 3, n) = A * (skew(wd) + skew(w) * skew(w)) * inv.D;
+  stiffness_jacobian_p(pk, q, v, a, t, o, K);
+  // Row block zeta: K_zz = K_r + sum_c s_c G_c
+  //   + [g_lk . w' - (tr S2[l][k] |w|^2 - w^T S2[l][k] w)]_kl.
+  K.block(7, 3, n, 4) = inv.D.transpose() * o.Rp + t.Cm.transpose() * o.Ap + o.Fzw * o.Wp;
+  auto Kzz = K.block(7, 7, n, n);
+  Kzz = pk.model.stiffness;
+  if (pk.stiffening)
+    for (int c = 0; c < 6; ++c) Kzz += t.s(c) * pk.model.geometric[static_cast<std::size_t>(c)];
+  for (int l = 0; l < n; ++l) {
+    Kzz.col(l).noalias() += pk.g_by_k.middleCols(l * n, n).transpose() * wd;
+    Kzz.col(l).noalias() -= pk.s2_by_k.middleCols(l * n, n).transpose() * t.cw;
+  }
+}
+
+/// C = d res / d v (docs/theory.md section 7.3, "Jacobians").
+void damping_jacobian(const PackedInvariants &pk, const ResidualTerms &t, const OmegaDerivatives &o,
+                      Matrix &C) {
+  const int n = t.n, N = 7 + n;
+  const auto &inv = pk.model.invariants;
+  const Mat3 I3 = Mat3::Identity();
+  const Mat3 &A = t.f.A;
+  const Mat34 &G = t.f.G;
+  const Vec3 &w = t.f.w;
+  C.setZero(N, N);
+  C.block<3, 4>(0, 3) = A * o.Yw * o.Wv;
+  C.block(0, 7, 3, n) = 2 * A * skew(w) * inv.D;
+  Mat3N Fwzd(3, n);
+  for (int k = 0; k < n; ++k) {
+    const ConstMat3Map c(t.Cv.col(k).data());
+    Fwzd.col(k) = 2 * (c.trace() * I3 - c.transpose()) * w;
+  }
+  C.block<4, 4>(3, 3) = 2 * G.transpose() * o.Ww * o.Wv;
+  C.block(3, 7, 4, n) = 2 * G.transpose() * Fwzd;
+  C.block(7, 3, n, 4) = o.Fzw * o.Wv;
+  // C_zz = C_d + [2 w . g_lk]_kl.
+  auto Czz = C.block(7, 7, n, n);
+  Czz = pk.model.damping;
+  for (int l = 0; l < n; ++l)
+    Czz.col(l).noalias() += 2 * (pk.g_by_k.middleCols(l * n, n).transpose() * w);
+}
+
 } // namespace
 
 FfrfBody::FfrfBody(std::string name, FfrfModel model)
@@ -178,138 +398,20 @@ void FfrfBody::residual(const ConstVectorRef &q, const ConstVectorRef &v, const 
                         const Vec3 &gravity, Eigen::Ref<Vector> res, Matrix *K, Matrix *C,
                         Matrix *M) const {
   const int n = n_;
-  const auto &inv = model_.invariants;
-  const Mat3 I3 = Mat3::Identity();
-  const FrameKinematics f(q, v, a, gravity);
-  const Mat3 &A = f.A;
-  const Mat34 &G = f.G;
-  const Vec3 &w = f.w, &wd = f.wd, &rho = f.rho, &rb = f.rb;
-  const auto z = q.tail(n), zd = v.tail(n), zdd = a.tail(n);
-  const Vec4 p = q.segment<4>(3), vp = v.segment<4>(3), ap = a.segment<4>(3);
-  const Vec3 d = inv.first_moment(z);
+  const PackedInvariants pk{model_, mzz_, s2_by_k_, s2_by_l_, g_by_k_, g_by_l_, s1_, stiffening()};
+  ResidualTerms t(q, v, a, gravity, n);
+  const auto z = q.tail(n);
+  t.d = model_.invariants.first_moment(z);
   // C_k = S1[k] + sum_l zeta_l S2[l][k] (sum m u_i Psi_jk^T), c_k = axial(C_k),
   // P = sum_k zeta'_k C_k, h_k = sum_l zeta'_l g_lk.
-  Mat9N Cv;
-  Mat3N Cm, Hm(3, n);
-  Mat3 S;
-  couplings(z, Cv, Cm, S);
-  const Mat3 J = S.trace() * I3 - S;
-  VecMap(Hm.data(), 3 * n).noalias() = ConstMap(g_by_k_.data(), 3 * n, n) * zd;
-  Vec9 pv;
-  pv.noalias() = Cv * zd;
-  const Mat3 P = ConstMat3Map(pv.data());
-  const Vec3 Dzd = inv.D * zd, Dzdd = inv.D * zdd;
-  Eigen::Matrix<double, 6, 3> ds;
-  const Eigen::Matrix<double, 6, 1> s = reduce::centrifugal_coefficients(w, &ds);
-  // (K_r + sum_c s_c G_c) zeta and the columns G_c zeta (for the omega derivatives).
-  VecN Kz(n);
-  Kz.noalias() = model_.stiffness * z;
-  MatN6 Gz;
-  if (stiffening()) {
-    Gz.resize(n, 6);
-    for (int c = 0; c < 6; ++c)
-      Gz.col(c).noalias() = model_.geometric[static_cast<std::size_t>(c)] * z;
-    Kz.noalias() += Gz * s;
-  }
-
-  const Vec3 yr = wd.cross(d) + Dzdd + w.cross(w.cross(d)) + 2 * w.cross(Dzd);
-  const Vec3 Fr = inv.mass * rho + A * yr;
-  const Mat3 Pt = P.trace() * I3 - P.transpose();
-  const Vec3 Fw = d.cross(rb) + J * wd + Cm * zdd + w.cross(J * w) + 2 * Pt * w;
-  res.head<3>() = Fr;
-  res.segment<4>(3) = 2 * G.transpose() * Fw;
-  // F_z, with -[tr C_k |w|^2 - w^T C_k w]_k + 2 [w . h_k]_k as products with vec C and Hm.
-  auto Fz = res.tail(n);
-  const Vec9 cw = centrifugal_weights(w);
-  Fz.noalias() = inv.D.transpose() * rb;
-  Fz.noalias() += Cm.transpose() * wd;
-  Fz.noalias() += mzz_ * zdd;
-  Fz += Kz;
-  Fz.noalias() += model_.damping * zd;
-  Fz.noalias() -= Cv.transpose() * cw;
-  Fz.noalias() += 2 * (Hm.transpose() * w);
-
-  const int N = 7 + n;
-  if (M) {
-    M->setZero(N, N);
-    M->block<3, 3>(0, 0) = inv.mass * I3;
-    M->block<3, 4>(0, 3) = -2 * A * skew(d) * G;
-    M->block(0, 7, 3, n) = A * inv.D;
-    M->block<4, 3>(3, 0) = 2 * G.transpose() * skew(d) * A.transpose();
-    M->block<4, 4>(3, 3) = 4 * G.transpose() * J * G;
-    M->block(3, 7, 4, n) = 2 * G.transpose() * Cm;
-    M->block(7, 0, n, 3) = inv.D.transpose() * A.transpose();
-    M->block(7, 3, n, 4) = 2 * Cm.transpose() * G;
-    M->block(7, 7, n, n) = mzz_;
-  }
+  couplings(z, t.Cv, t.Cm, t.S);
+  shared_terms(pk, q, v, a, t);
+  residual_forces(pk, v, a, t, res);
+  if (M) mass_jacobian(pk, t, *M);
   if (!K && !C) return;
-  const Mat34 Wp = -2 * gbar_matrix(vp), Wv = 2 * G, Ap = -2 * gbar_matrix(ap);
-  const Mat34 Rp = rotate_transpose_jacobian(p, rho);
-  // d yr / d omega, d F_w / d omega, d F_z / d omega.
-  const Mat3 Yw = w.dot(d) * I3 + w * d.transpose() - 2 * d * w.transpose() - 2 * skew(Dzd);
-  const Mat3 Ww = -skew(J * w) + skew(w) * J + 2 * Pt;
-  MatN3 Fzw(n, 3);
-  for (int k = 0; k < n; ++k) {
-    const ConstMat3Map c(Cv.col(k).data());
-    Fzw.row(k) = -(2 * c.trace() * w.transpose() - w.transpose() * (c + c.transpose())) +
-                 2 * Hm.col(k).transpose();
-  }
-  if (stiffening()) Fzw.noalias() += Gz * ds;
-  if (K) {
-    K->setZero(N, N);
-    // Row block r.
-    K->block<3, 4>(0, 3) = rotate_jacobian(p, yr) + A * (-skew(d) * Ap + Yw * Wp);
-    K->block(0, 7, 3, n) = A * (skew(wd) + skew(w) * skew(w)) * inv.D;
-    // Row block p: 2 Gbar^T F_w. d F_w / d zeta_l with dJ_l = tr(S_l) I - S_l,
-    // S_l = S1[l] + S1[l]^T + Q_l + Q_l^T, Q_l = sum_k zeta_k S2[l][k],
-    // P_l = sum_k zeta'_k S2[l][k], gz_l = sum_k zeta''_k g_lk.
-    const Mat34 Fwp = skew(d) * Rp + J * Ap + Ww * Wp;
-    Mat9N Q(9, n), Pl(9, n);
-    Mat3N gz(3, n), Fwz(3, n);
-    const ConstMap by_l(s2_by_l_.data(), 9 * n, n);
-    VecMap(Q.data(), 9 * n).noalias() = by_l * z;
-    VecMap(Pl.data(), 9 * n).noalias() = by_l * zd;
-    VecMap(gz.data(), 3 * n).noalias() = ConstMap(g_by_l_.data(), 3 * n, n) * zdd;
-    const Mat3 srb = skew(rb);
-    for (int l = 0; l < n; ++l) {
-      const ConstMat3Map Ql(Q.col(l).data()), Pll(Pl.col(l).data()), S1l(s1_.col(l).data());
-      const Mat3 Sl = S1l + S1l.transpose() + Ql + Ql.transpose();
-      const Mat3 dJ = Sl.trace() * I3 - Sl;
-      Fwz.col(l) = -srb * inv.D.col(l) + dJ * wd + gz.col(l) + w.cross(dJ * w) +
-                   2 * (Pll.trace() * I3 - Pll.transpose()) * w;
-    }
-    K->block<4, 4>(3, 3) = 2 * gbar_transpose_matrix(Fw) + 2 * G.transpose() * Fwp;
-    K->block(3, 7, 4, n) = 2 * G.transpose() * Fwz;
-    // Row block zeta: K_zz = K_r + sum_c s_c G_c
-    //   + [g_lk . w' - (tr S2[l][k] |w|^2 - w^T S2[l][k] w)]_kl.
-    K->block(7, 3, n, 4) = inv.D.transpose() * Rp + Cm.transpose() * Ap + Fzw * Wp;
-    auto Kzz = K->block(7, 7, n, n);
-    Kzz = model_.stiffness;
-    if (stiffening())
-      for (int c = 0; c < 6; ++c) Kzz += s(c) * model_.geometric[static_cast<std::size_t>(c)];
-    for (int l = 0; l < n; ++l) {
-      Kzz.col(l).noalias() += g_by_k_.middleCols(l * n, n).transpose() * wd;
-      Kzz.col(l).noalias() -= s2_by_k_.middleCols(l * n, n).transpose() * cw;
-    }
-  }
-  if (C) {
-    C->setZero(N, N);
-    C->block<3, 4>(0, 3) = A * Yw * Wv;
-    C->block(0, 7, 3, n) = 2 * A * skew(w) * inv.D;
-    Mat3N Fwzd(3, n);
-    for (int k = 0; k < n; ++k) {
-      const ConstMat3Map c(Cv.col(k).data());
-      Fwzd.col(k) = 2 * (c.trace() * I3 - c.transpose()) * w;
-    }
-    C->block<4, 4>(3, 3) = 2 * G.transpose() * Ww * Wv;
-    C->block(3, 7, 4, n) = 2 * G.transpose() * Fwzd;
-    C->block(7, 3, n, 4) = Fzw * Wv;
-    // C_zz = C_d + [2 w . g_lk]_kl.
-    auto Czz = C->block(7, 7, n, n);
-    Czz = model_.damping;
-    for (int l = 0; l < n; ++l)
-      Czz.col(l).noalias() += 2 * (g_by_k_.middleCols(l * n, n).transpose() * w);
-  }
+  const OmegaDerivatives o(pk, t);
+  if (K) stiffness_jacobian(pk, q, v, a, t, o, *K);
+  if (C) damping_jacobian(pk, t, o, *C);
 }
 
 double FfrfBody::energy(const ConstVectorRef &q, const ConstVectorRef &v,

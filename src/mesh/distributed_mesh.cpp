@@ -156,70 +156,88 @@ std::vector<int> partition_elements(const MeshData &m, int parts) {
   return part;
 }
 
-} // namespace
+/// The lines of s, each ended by '\n'.
+std::vector<std::string> split_lines(const std::string &s) {
+  std::vector<std::string> out;
+  std::size_t a = 0;
+  for (std::size_t b; (b = s.find('\n', a)) != std::string::npos; a = b + 1)
+    out.push_back(s.substr(a, b - a));
+  return out;
+}
 
-DistributedMesh distribute_mesh(MPI_Comm comm, const MeshData *root_mesh) {
-  const int rank = comm_rank(comm), size = comm_size(comm);
-  DistributedMesh dm;
-  dm.comm = comm;
-
-  // Everything every rank needs to know first: type, sizes, group names.
-  int type = 0;
-  long long n_nodes = 0;
-  std::string volume_names, surface_names;
+/// What every rank needs to know before its part: type, sizes, group names (and the face type
+/// of each surface group). Collective; root_mesh significant on rank 0 only.
+struct MeshHeader {
+  std::vector<std::string> vnames, snames;
   std::vector<int> face_types;
-  if (rank == 0) {
-    dm.source = root_mesh->source;
-    type = static_cast<int>(root_mesh->type);
-    n_nodes = root_mesh->node_count();
-    for (const auto &kv : root_mesh->volume_groups) volume_names += kv.first + '\n';
-    for (const auto &kv : root_mesh->surface_groups) {
-      surface_names += kv.first + '\n';
-      face_types.push_back(static_cast<int>(kv.second.type));
+
+  MeshHeader(MPI_Comm comm, const MeshData *root_mesh, DistributedMesh &dm) {
+    // Everything every rank needs to know first: type, sizes, group names.
+    int type = 0;
+    long long n_nodes = 0;
+    std::string volume_names, surface_names;
+    if (comm_rank(comm) == 0) {
+      dm.source = root_mesh->source;
+      type = static_cast<int>(root_mesh->type);
+      n_nodes = root_mesh->node_count();
+      for (const auto &kv : root_mesh->volume_groups) volume_names += kv.first + '\n';
+      for (const auto &kv : root_mesh->surface_groups) {
+        surface_names += kv.first + '\n';
+        face_types.push_back(static_cast<int>(kv.second.type));
+      }
     }
+    broadcast_string(comm, dm.source);
+    broadcast_string(comm, volume_names);
+    broadcast_string(comm, surface_names);
+    MPI_Bcast(&type, 1, MPI_INT, 0, comm);
+    MPI_Bcast(&n_nodes, 1, MPI_LONG_LONG, 0, comm);
+    dm.type = static_cast<ElementType>(type);
+    dm.global_nodes = static_cast<PetscInt>(n_nodes);
+    vnames = split_lines(volume_names);
+    snames = split_lines(surface_names);
+    int n_faces_types = static_cast<int>(snames.size());
+    face_types.resize(snames.size());
+    MPI_Bcast(face_types.data(), n_faces_types, MPI_INT, 0, comm);
   }
-  broadcast_string(comm, dm.source);
-  broadcast_string(comm, volume_names);
-  broadcast_string(comm, surface_names);
-  MPI_Bcast(&type, 1, MPI_INT, 0, comm);
-  MPI_Bcast(&n_nodes, 1, MPI_LONG_LONG, 0, comm);
-  dm.type = static_cast<ElementType>(type);
-  dm.global_nodes = static_cast<PetscInt>(n_nodes);
-  auto split = [](const std::string &s) {
-    std::vector<std::string> out;
-    std::size_t a = 0;
-    for (std::size_t b; (b = s.find('\n', a)) != std::string::npos; a = b + 1)
-      out.push_back(s.substr(a, b - a));
-    return out;
-  };
-  const auto vnames = split(volume_names), snames = split(surface_names);
-  int n_faces_types = static_cast<int>(snames.size());
-  face_types.resize(snames.size());
-  MPI_Bcast(face_types.data(), n_faces_types, MPI_INT, 0, comm);
+};
 
-  const int npe = dm.nodes_per_element();
-  std::vector<std::vector<PetscInt>> conn_parts(static_cast<std::size_t>(size)),
-      ghost_parts(static_cast<std::size_t>(size));
-  std::vector<std::vector<double>> coord_parts(static_cast<std::size_t>(size));
-  std::vector<std::vector<std::size_t>> tag_parts(static_cast<std::size_t>(size));
-  std::vector<std::vector<PetscInt>> meta_parts(
-      static_cast<std::size_t>(size)); // owned count, start
-  std::vector<std::vector<std::vector<PetscInt>>> vgroup_parts(
-      vnames.size(), std::vector<std::vector<PetscInt>>(static_cast<std::size_t>(size)));
-  std::vector<std::vector<std::vector<PetscInt>>> sface_parts(
-      snames.size(), std::vector<std::vector<PetscInt>>(static_cast<std::size_t>(size)));
-  std::vector<std::vector<std::vector<double>>> scoord_parts(
-      snames.size(), std::vector<std::vector<double>>(static_cast<std::size_t>(size)));
-  std::vector<std::vector<std::vector<PetscInt>>> snode_parts(
-      snames.size(), std::vector<std::vector<PetscInt>>(static_cast<std::size_t>(size)));
+/// Per rank p, what the root sends it (docs/theory.md section 2): elements (connectivity in
+/// the local numbering, tags), ghosts, node coordinates, the owned range, and its share of every
+/// volume and surface group.
+struct MeshParts {
+  template <class T> using PerRank = std::vector<std::vector<T>>;
+  PerRank<PetscInt> conn, ghosts;
+  PerRank<double> coords;
+  PerRank<std::size_t> tags;
+  PerRank<PetscInt> meta; ///< owned count, start
+  std::vector<PerRank<PetscInt>> vgroups, sfaces, snodes;
+  std::vector<PerRank<double>> scoords;
 
-  run_on_root(comm, 0, [&] {
-    const MeshData &m = *root_mesh;
+  MeshParts(int size, std::size_t volume_groups, std::size_t surface_groups)
+      : conn(static_cast<std::size_t>(size)), ghosts(static_cast<std::size_t>(size)),
+        coords(static_cast<std::size_t>(size)), tags(static_cast<std::size_t>(size)),
+        meta(static_cast<std::size_t>(size)),
+        vgroups(volume_groups, PerRank<PetscInt>(static_cast<std::size_t>(size))),
+        sfaces(surface_groups, PerRank<PetscInt>(static_cast<std::size_t>(size))),
+        snodes(surface_groups, PerRank<PetscInt>(static_cast<std::size_t>(size))),
+        scoords(surface_groups, PerRank<double>(static_cast<std::size_t>(size))) {}
+};
+
+/// The node ownership and the global renumbering (docs/theory.md section 2, "Ownership"): a
+/// node belongs to the lowest part among the elements touching it; nodes are numbered by owner
+/// rank, then by original index.
+struct NodeNumbering {
+  std::vector<int> owner;               ///< by original node
+  std::vector<PetscInt> owned_count;    ///< per rank
+  std::vector<PetscInt> start;          ///< per rank: first owned global node
+  std::vector<PetscInt> new_number;     ///< by original node
+  std::vector<std::int64_t> old_of_new; ///< by new number
+
+  NodeNumbering(const MeshData &m, const std::vector<int> &part, int size) {
     const std::int64_t ne = m.element_count(), nn = m.node_count();
-    const std::vector<int> part = partition_elements(m, size);
-
+    const int npe = nodes_per_element(m.type);
     // Owner of a node: the lowest part among the elements touching it.
-    std::vector<int> owner(static_cast<std::size_t>(nn), size);
+    owner.assign(static_cast<std::size_t>(nn), size);
     for (std::int64_t e = 0; e < ne; ++e)
       for (int a = 0; a < npe; ++a) {
         int &o =
@@ -227,124 +245,162 @@ DistributedMesh distribute_mesh(MPI_Comm comm, const MeshData *root_mesh) {
         o = std::min(o, part[static_cast<std::size_t>(e)]);
       }
     // New global numbering: by owner rank, then by original index.
-    std::vector<PetscInt> owned_count(static_cast<std::size_t>(size), 0),
-        start(static_cast<std::size_t>(size), 0);
+    owned_count.assign(static_cast<std::size_t>(size), 0);
+    start.assign(static_cast<std::size_t>(size), 0);
     for (int o : owner) ++owned_count[static_cast<std::size_t>(o)];
     for (int p = 1; p < size; ++p)
       start[static_cast<std::size_t>(p)] =
           start[static_cast<std::size_t>(p - 1)] + owned_count[static_cast<std::size_t>(p - 1)];
-    std::vector<PetscInt> new_number(static_cast<std::size_t>(nn));
+    new_number.resize(static_cast<std::size_t>(nn));
     {
       std::vector<PetscInt> next = start;
       for (std::int64_t i = 0; i < nn; ++i)
         new_number[static_cast<std::size_t>(i)] =
             next[static_cast<std::size_t>(owner[static_cast<std::size_t>(i)])]++;
     }
-    // Elements per part, in original order; their local element index for volume groups.
-    std::vector<PetscInt> local_index(static_cast<std::size_t>(ne));
-    std::vector<std::vector<std::int64_t>> elements_of(static_cast<std::size_t>(size));
-    for (std::int64_t e = 0; e < ne; ++e) {
-      auto &list = elements_of[static_cast<std::size_t>(part[static_cast<std::size_t>(e)])];
-      local_index[static_cast<std::size_t>(e)] = static_cast<PetscInt>(list.size());
-      list.push_back(e);
-    }
-    std::vector<std::int64_t> old_of_new(static_cast<std::size_t>(nn));
+    old_of_new.resize(static_cast<std::size_t>(nn));
     for (std::int64_t i = 0; i < nn; ++i)
       old_of_new[static_cast<std::size_t>(new_number[static_cast<std::size_t>(i)])] = i;
+  }
+};
 
-    for (int p = 0; p < size; ++p) {
-      const PetscInt s = start[static_cast<std::size_t>(p)],
-                     n_own = owned_count[static_cast<std::size_t>(p)];
-      auto &conn = conn_parts[static_cast<std::size_t>(p)];
-      auto &ghosts = ghost_parts[static_cast<std::size_t>(p)];
-      for (std::int64_t e : elements_of[static_cast<std::size_t>(p)]) {
-        tag_parts[static_cast<std::size_t>(p)].push_back(
-            m.element_tags[static_cast<std::size_t>(e)]);
-        for (int a = 0; a < npe; ++a) {
-          const PetscInt g = new_number[static_cast<std::size_t>(
-              m.connectivity[static_cast<std::size_t>(e * npe + a)])];
-          conn.push_back(g);
-          if (g < s || g >= s + n_own) ghosts.push_back(g);
-        }
-      }
-      std::sort(ghosts.begin(), ghosts.end());
-      ghosts.erase(std::unique(ghosts.begin(), ghosts.end()), ghosts.end());
-      // Global -> local node index for this part.
-      for (PetscInt &g : conn) {
-        if (g >= s && g < s + n_own)
-          g -= s;
-        else
-          g = n_own + static_cast<PetscInt>(std::lower_bound(ghosts.begin(), ghosts.end(), g) -
-                                            ghosts.begin());
-      }
-      auto &xyz = coord_parts[static_cast<std::size_t>(p)];
-      xyz.reserve(static_cast<std::size_t>(3 * (n_own + static_cast<PetscInt>(ghosts.size()))));
-      auto push_node = [&](PetscInt g) {
-        const std::int64_t old = old_of_new[static_cast<std::size_t>(g)];
+/// Part p's elements (tags, connectivity in the local numbering: owned nodes, then the ghosts
+/// in ascending global order), ghosts, node coordinates and owned range (docs/theory.md
+/// section 2, "Local numbering").
+void fill_element_part(const MeshData &m, const NodeNumbering &nodes,
+                       const std::vector<std::int64_t> &elements, int p, MeshParts &parts) {
+  const int npe = nodes_per_element(m.type);
+  const PetscInt s = nodes.start[static_cast<std::size_t>(p)],
+                 n_own = nodes.owned_count[static_cast<std::size_t>(p)];
+  auto &conn = parts.conn[static_cast<std::size_t>(p)];
+  auto &ghosts = parts.ghosts[static_cast<std::size_t>(p)];
+  for (std::int64_t e : elements) {
+    parts.tags[static_cast<std::size_t>(p)].push_back(m.element_tags[static_cast<std::size_t>(e)]);
+    for (int a = 0; a < npe; ++a) {
+      const PetscInt g = nodes.new_number[static_cast<std::size_t>(
+          m.connectivity[static_cast<std::size_t>(e * npe + a)])];
+      conn.push_back(g);
+      if (g < s || g >= s + n_own) ghosts.push_back(g);
+    }
+  }
+  std::sort(ghosts.begin(), ghosts.end());
+  ghosts.erase(std::unique(ghosts.begin(), ghosts.end()), ghosts.end());
+  // Global -> local node index for this part.
+  for (PetscInt &g : conn) {
+    if (g >= s && g < s + n_own)
+      g -= s;
+    else
+      g = n_own +
+          static_cast<PetscInt>(std::lower_bound(ghosts.begin(), ghosts.end(), g) - ghosts.begin());
+  }
+  auto &xyz = parts.coords[static_cast<std::size_t>(p)];
+  xyz.reserve(static_cast<std::size_t>(3 * (n_own + static_cast<PetscInt>(ghosts.size()))));
+  auto push_node = [&](PetscInt g) {
+    const std::int64_t old = nodes.old_of_new[static_cast<std::size_t>(g)];
+    for (int k = 0; k < 3; ++k) xyz.push_back(m.coordinates[static_cast<std::size_t>(3 * old + k)]);
+  };
+  for (PetscInt g = s; g < s + n_own; ++g) push_node(g);
+  for (PetscInt g : ghosts) push_node(g);
+  parts.meta[static_cast<std::size_t>(p)] = {n_own, s};
+}
+
+/// Every surface group's faces, by the rank owning their first node (with their global node
+/// numbers and coordinates), and its nodes, by owner (docs/theory.md section 2, "Surface
+/// faces").
+void fill_surface_parts(const MeshData &m, const NodeNumbering &nodes, MeshParts &parts) {
+  std::size_t si = 0;
+  for (const auto &kv : m.surface_groups) {
+    const SurfaceGroup &g = kv.second;
+    const int npf = nodes_per_face(g.type);
+    std::vector<PetscInt> nodes_on;
+    for (std::size_t f = 0; f < g.size(); ++f) {
+      const PetscInt first = nodes.new_number[static_cast<std::size_t>(
+          g.connectivity[f * static_cast<std::size_t>(npf)])];
+      const int p =
+          nodes.owner[static_cast<std::size_t>(nodes.old_of_new[static_cast<std::size_t>(first)])];
+      for (int a = 0; a < npf; ++a) {
+        const std::int64_t old =
+            g.connectivity[f * static_cast<std::size_t>(npf) + static_cast<std::size_t>(a)];
+        parts.sfaces[si][static_cast<std::size_t>(p)].push_back(
+            nodes.new_number[static_cast<std::size_t>(old)]);
+        nodes_on.push_back(nodes.new_number[static_cast<std::size_t>(old)]);
         for (int k = 0; k < 3; ++k)
-          xyz.push_back(m.coordinates[static_cast<std::size_t>(3 * old + k)]);
-      };
-      for (PetscInt g = s; g < s + n_own; ++g) push_node(g);
-      for (PetscInt g : ghosts) push_node(g);
-      meta_parts[static_cast<std::size_t>(p)] = {n_own, s};
-    }
-    std::size_t gi = 0;
-    for (const auto &kv : m.volume_groups) {
-      for (std::int64_t e : kv.second)
-        vgroup_parts[gi][static_cast<std::size_t>(part[static_cast<std::size_t>(e)])].push_back(
-            local_index[static_cast<std::size_t>(e)]);
-      ++gi;
-    }
-    std::size_t si = 0;
-    for (const auto &kv : m.surface_groups) {
-      const SurfaceGroup &g = kv.second;
-      const int npf = nodes_per_face(g.type);
-      std::vector<PetscInt> nodes_on;
-      for (std::size_t f = 0; f < g.size(); ++f) {
-        const PetscInt first =
-            new_number[static_cast<std::size_t>(g.connectivity[f * static_cast<std::size_t>(npf)])];
-        const int p = owner[static_cast<std::size_t>(old_of_new[static_cast<std::size_t>(first)])];
-        for (int a = 0; a < npf; ++a) {
-          const std::int64_t old =
-              g.connectivity[f * static_cast<std::size_t>(npf) + static_cast<std::size_t>(a)];
-          sface_parts[si][static_cast<std::size_t>(p)].push_back(
-              new_number[static_cast<std::size_t>(old)]);
-          nodes_on.push_back(new_number[static_cast<std::size_t>(old)]);
-          for (int k = 0; k < 3; ++k)
-            scoord_parts[si][static_cast<std::size_t>(p)].push_back(
-                m.coordinates[static_cast<std::size_t>(3 * old + k)]);
-        }
+          parts.scoords[si][static_cast<std::size_t>(p)].push_back(
+              m.coordinates[static_cast<std::size_t>(3 * old + k)]);
       }
-      std::sort(nodes_on.begin(), nodes_on.end());
-      nodes_on.erase(std::unique(nodes_on.begin(), nodes_on.end()), nodes_on.end());
-      for (PetscInt gnode : nodes_on)
-        snode_parts[si][static_cast<std::size_t>(owner[static_cast<std::size_t>(
-                            old_of_new[static_cast<std::size_t>(gnode)])])]
-            .push_back(gnode);
-      ++si;
     }
-  });
+    std::sort(nodes_on.begin(), nodes_on.end());
+    nodes_on.erase(std::unique(nodes_on.begin(), nodes_on.end()), nodes_on.end());
+    for (PetscInt gnode : nodes_on)
+      parts
+          .snodes[si][static_cast<std::size_t>(nodes.owner[static_cast<std::size_t>(
+              nodes.old_of_new[static_cast<std::size_t>(gnode)])])]
+          .push_back(gnode);
+    ++si;
+  }
+}
 
-  const auto meta = scatter_parts(comm, meta_parts);
+/// The root's side (docs/theory.md section 2): partition, ownership and numbering, then every
+/// rank's elements, nodes, volume groups and surface groups.
+void partition_on_root(const MeshData &m, int size, MeshParts &parts) {
+  const std::int64_t ne = m.element_count();
+  const std::vector<int> part = partition_elements(m, size);
+  const NodeNumbering nodes(m, part, size);
+  // Elements per part, in original order; their local element index for volume groups.
+  std::vector<PetscInt> local_index(static_cast<std::size_t>(ne));
+  std::vector<std::vector<std::int64_t>> elements_of(static_cast<std::size_t>(size));
+  for (std::int64_t e = 0; e < ne; ++e) {
+    auto &list = elements_of[static_cast<std::size_t>(part[static_cast<std::size_t>(e)])];
+    local_index[static_cast<std::size_t>(e)] = static_cast<PetscInt>(list.size());
+    list.push_back(e);
+  }
+  for (int p = 0; p < size; ++p)
+    fill_element_part(m, nodes, elements_of[static_cast<std::size_t>(p)], p, parts);
+  std::size_t gi = 0;
+  for (const auto &kv : m.volume_groups) {
+    for (std::int64_t e : kv.second)
+      parts.vgroups[gi][static_cast<std::size_t>(part[static_cast<std::size_t>(e)])].push_back(
+          local_index[static_cast<std::size_t>(e)]);
+    ++gi;
+  }
+  fill_surface_parts(m, nodes, parts);
+}
+
+/// Every rank's part from the root into dm, and the element counts and offsets. Collective.
+void receive_parts(MPI_Comm comm, const MeshHeader &header, const MeshParts &parts,
+                   DistributedMesh &dm) {
+  const auto meta = scatter_parts(comm, parts.meta);
   dm.owned_nodes = meta[0];
   dm.node_start = meta[1];
-  dm.connectivity = scatter_parts(comm, conn_parts);
-  dm.ghosts = scatter_parts(comm, ghost_parts);
-  dm.coordinates = scatter_parts(comm, coord_parts);
-  dm.element_tags = scatter_parts(comm, tag_parts);
-  for (std::size_t g = 0; g < vnames.size(); ++g)
-    dm.volume_groups[vnames[g]] = scatter_parts(comm, vgroup_parts[g]);
-  for (std::size_t g = 0; g < snames.size(); ++g) {
-    LocalSurface &s = dm.surfaces[snames[g]];
-    s.type = static_cast<FaceType>(face_types[g]);
-    s.global_nodes = scatter_parts(comm, sface_parts[g]);
-    s.coordinates = scatter_parts(comm, scoord_parts[g]);
-    dm.surface_nodes[snames[g]] = scatter_parts(comm, snode_parts[g]);
+  dm.connectivity = scatter_parts(comm, parts.conn);
+  dm.ghosts = scatter_parts(comm, parts.ghosts);
+  dm.coordinates = scatter_parts(comm, parts.coords);
+  dm.element_tags = scatter_parts(comm, parts.tags);
+  for (std::size_t g = 0; g < header.vnames.size(); ++g)
+    dm.volume_groups[header.vnames[g]] = scatter_parts(comm, parts.vgroups[g]);
+  for (std::size_t g = 0; g < header.snames.size(); ++g) {
+    LocalSurface &s = dm.surfaces[header.snames[g]];
+    s.type = static_cast<FaceType>(header.face_types[g]);
+    s.global_nodes = scatter_parts(comm, parts.sfaces[g]);
+    s.coordinates = scatter_parts(comm, parts.scoords[g]);
+    dm.surface_nodes[header.snames[g]] = scatter_parts(comm, parts.snodes[g]);
   }
   PetscInt n_local = dm.local_elements();
   MPI_Allreduce(&n_local, &dm.global_elements, 1, MPIU_INT, MPI_SUM, comm);
   MPI_Exscan(&n_local, &dm.element_start, 1, MPIU_INT, MPI_SUM, comm);
-  if (rank == 0) dm.element_start = 0;
+  if (comm_rank(comm) == 0) dm.element_start = 0;
+}
+
+} // namespace
+
+DistributedMesh distribute_mesh(MPI_Comm comm, const MeshData *root_mesh) {
+  const int size = comm_size(comm);
+  DistributedMesh dm;
+  dm.comm = comm;
+  const MeshHeader header(comm, root_mesh, dm);
+  MeshParts parts(size, header.vnames.size(), header.snames.size());
+  run_on_root(comm, 0, [&] { partition_on_root(*root_mesh, size, parts); });
+  receive_parts(comm, header, parts, dm);
   return dm;
 }
 

@@ -345,23 +345,9 @@ std::string gmsh_failure(const std::string &path) {
   return path + ": Gmsh failed" + (err.empty() ? std::string() : ": " + err);
 }
 
-} // namespace
-
-MeshData read_gmsh(const std::string &path, const MeshOptions &options, MeshEstimate *estimate) {
-  namespace fs = std::filesystem;
-  if (!fs::is_regular_file(path)) throw Error(path + ": geometry file not found");
-  const std::string ext = fs::path(path).extension().string();
-
-  MeshData mesh;
-  mesh.source = path;
-  if (ext == ".geo") {
-    // The estimate runs in a Gmsh session of its own, so that the mesh made afterwards is
-    // exactly the one Gmsh makes of the .geo without it.
-    const MeshEstimate est = estimate_gmsh(path, options);
-    if (estimate) *estimate = est;
-    if (options.before_meshing) options.before_meshing(est); // may refuse: not Gmsh's failure
-  }
-  GmshSession session;
+/// Meshes the .geo (with the options' sizes and order) or opens the .msh in the current Gmsh
+/// session; any Gmsh failure becomes a flexopt::Error naming the file.
+void mesh_or_open(const std::string &path, const std::string &ext, const MeshOptions &options) {
   if (ext == ".geo") {
     try {
       ProgressTicker ticker(options.progress);
@@ -383,33 +369,42 @@ MeshData read_gmsh(const std::string &path, const MeshOptions &options, MeshEsti
       throw Error(gmsh_failure(path));
     }
   }
+}
 
-  // Volume elements: every 3D entity of the model belongs to the body.
+/// The volume elements of the model by Gmsh type block: every 3D entity belongs to the body,
+/// and all its elements have one type.
+struct VolumeElements {
   std::vector<int> types;
   std::vector<std::vector<std::size_t>> tags, nodes;
-  gmsh::model::mesh::getElements(types, tags, nodes, 3, -1);
-  std::size_t n_volume = 0;
-  int vtype = -1;
-  for (std::size_t k = 0; k < types.size(); ++k) {
-    if (tags[k].empty()) continue;
-    if (vtype != -1 && vtype != types[k])
-      throw Error(path + ": the mesh mixes volume element types; flexopt needs one type per body "
-                         "(all Tet4, all Tet10 or all Hex8)");
-    vtype = types[k];
-    n_volume += tags[k].size();
-  }
-  if (n_volume == 0)
-    throw Error(path + ": the mesh has no volume elements (is there a Volume in the geometry, "
-                       "and was it meshed in 3D?)");
-  mesh.type = volume_type(vtype, path);
-  const int npe = nodes_per_element(mesh.type);
+  std::size_t count = 0; ///< elements over all blocks
+  int gmsh_type = -1;
 
+  explicit VolumeElements(const std::string &path) {
+    gmsh::model::mesh::getElements(types, tags, nodes, 3, -1);
+    for (std::size_t k = 0; k < types.size(); ++k) {
+      if (tags[k].empty()) continue;
+      if (gmsh_type != -1 && gmsh_type != types[k])
+        throw Error(path + ": the mesh mixes volume element types; flexopt needs one type per "
+                           "body (all Tet4, all Tet10 or all Hex8)");
+      gmsh_type = types[k];
+      count += tags[k].size();
+    }
+    if (count == 0)
+      throw Error(path + ": the mesh has no volume elements (is there a Volume in the geometry, "
+                         "and was it meshed in 3D?)");
+  }
+};
+
+/// Gmsh node tags -> compact indices over the nodes that volume elements use, and their
+/// coordinates into mesh.coordinates.
+std::unordered_map<std::size_t, std::int64_t>
+compact_nodes(const std::string &path, const VolumeElements &volume, MeshData &mesh) {
   // Gmsh node tags -> compact indices over the nodes that volume elements use.
   std::unordered_map<std::size_t, std::int64_t> index_of;
-  index_of.reserve(n_volume * 2);
+  index_of.reserve(volume.count * 2);
   std::vector<std::size_t> used_tags;
-  for (std::size_t k = 0; k < types.size(); ++k)
-    for (std::size_t t : nodes[k])
+  for (std::size_t k = 0; k < volume.types.size(); ++k)
+    for (std::size_t t : volume.nodes[k])
       if (index_of.emplace(t, static_cast<std::int64_t>(used_tags.size())).second)
         used_tags.push_back(t);
 
@@ -425,20 +420,80 @@ MeshData read_gmsh(const std::string &path, const MeshOptions &options, MeshEsti
     ++found;
   }
   if (found < used_tags.size()) throw Error(path + ": some element nodes have no coordinates");
+  return index_of;
+}
 
-  mesh.connectivity.reserve(n_volume * static_cast<std::size_t>(npe));
+/// The elements' tags and connectivity (compact node indices) into mesh; returns the element
+/// index of each Gmsh element tag.
+std::unordered_map<std::size_t, std::int64_t>
+element_connectivity(const VolumeElements &volume,
+                     const std::unordered_map<std::size_t, std::int64_t> &index_of,
+                     MeshData &mesh) {
+  const int npe = nodes_per_element(mesh.type);
+  mesh.connectivity.reserve(volume.count * static_cast<std::size_t>(npe));
   std::unordered_map<std::size_t, std::int64_t> element_index;
-  for (std::size_t k = 0; k < types.size(); ++k) {
-    for (std::size_t e = 0; e < tags[k].size(); ++e) {
-      element_index[tags[k][e]] = static_cast<std::int64_t>(mesh.element_tags.size());
-      mesh.element_tags.push_back(tags[k][e]);
+  for (std::size_t k = 0; k < volume.types.size(); ++k) {
+    for (std::size_t e = 0; e < volume.tags[k].size(); ++e) {
+      element_index[volume.tags[k][e]] = static_cast<std::int64_t>(mesh.element_tags.size());
+      mesh.element_tags.push_back(volume.tags[k][e]);
       for (int a = 0; a < npe; ++a)
-        mesh.connectivity.push_back(
-            index_of.at(nodes[k][e * static_cast<std::size_t>(npe) + static_cast<std::size_t>(a)]));
+        mesh.connectivity.push_back(index_of.at(
+            volume.nodes[k][e * static_cast<std::size_t>(npe) + static_cast<std::size_t>(a)]));
     }
   }
+  return element_index;
+}
 
-  // Physical groups by name.
+/// The sorted element indices of a physical volume's entities.
+void read_volume_group(const std::vector<int> &entities,
+                       const std::unordered_map<std::size_t, std::int64_t> &element_index,
+                       std::vector<std::int64_t> &list) {
+  for (int ent : entities) {
+    std::vector<int> et;
+    std::vector<std::vector<std::size_t>> etags, enodes;
+    gmsh::model::mesh::getElements(et, etags, enodes, 3, ent);
+    for (const auto &tv : etags)
+      for (std::size_t t : tv) list.push_back(element_index.at(t));
+  }
+  std::sort(list.begin(), list.end());
+}
+
+/// A physical surface's (dim 2) or curve's (dim 1) faces of one type, in compact node indices;
+/// throws unless every face node is a volume element's.
+void read_surface_group(const std::string &path, const std::string &name, int dim,
+                        const std::vector<int> &entities,
+                        const std::unordered_map<std::size_t, std::int64_t> &index_of,
+                        SurfaceGroup &group) {
+  int ftype = -1;
+  for (int ent : entities) {
+    std::vector<int> et;
+    std::vector<std::vector<std::size_t>> etags, enodes;
+    gmsh::model::mesh::getElements(et, etags, enodes, dim, ent);
+    for (std::size_t k = 0; k < et.size(); ++k) {
+      if (etags[k].empty()) continue;
+      if (ftype != -1 && ftype != et[k])
+        throw Error(path + ": physical surface '" + name + "' mixes face element types");
+      ftype = et[k];
+      group.type = face_type(et[k], path, name);
+      for (std::size_t t : enodes[k]) {
+        auto it = index_of.find(t);
+        if (it == index_of.end())
+          throw Error(path + ": physical surface '" + name +
+                      "' has nodes that belong to no volume element (a surface outside the body?)");
+        group.connectivity.push_back(it->second);
+      }
+    }
+  }
+  if (group.connectivity.empty())
+    throw Error(path + ": physical surface '" + name + "' has no mesh faces");
+}
+
+/// The physical groups by name: volumes as element lists, surfaces and curves as face groups
+/// (one namespace of boundary groups).
+void read_physical_groups(const std::string &path,
+                          const std::unordered_map<std::size_t, std::int64_t> &index_of,
+                          const std::unordered_map<std::size_t, std::int64_t> &element_index,
+                          MeshData &mesh) {
   gmsh::vectorpair groups;
   gmsh::model::getPhysicalGroups(groups, -1);
   for (const auto &[dim, tag] : groups) {
@@ -449,46 +504,42 @@ MeshData read_gmsh(const std::string &path, const MeshOptions &options, MeshEsti
     std::vector<int> entities;
     gmsh::model::getEntitiesForPhysicalGroup(dim, tag, entities);
     if (dim == 3) {
-      auto &list = mesh.volume_groups[name];
-      for (int ent : entities) {
-        std::vector<int> et;
-        std::vector<std::vector<std::size_t>> etags, enodes;
-        gmsh::model::mesh::getElements(et, etags, enodes, 3, ent);
-        for (const auto &tv : etags)
-          for (std::size_t t : tv) list.push_back(element_index.at(t));
-      }
-      std::sort(list.begin(), list.end());
+      read_volume_group(entities, element_index, mesh.volume_groups[name]);
     } else {
       // Physical surfaces and physical curves share one namespace of boundary groups.
       if (mesh.surface_groups.count(name))
         throw Error(path + ": a physical curve and a physical surface are both named '" + name +
                     "'");
-      SurfaceGroup &group = mesh.surface_groups[name];
-      int ftype = -1;
-      for (int ent : entities) {
-        std::vector<int> et;
-        std::vector<std::vector<std::size_t>> etags, enodes;
-        gmsh::model::mesh::getElements(et, etags, enodes, dim, ent);
-        for (std::size_t k = 0; k < et.size(); ++k) {
-          if (etags[k].empty()) continue;
-          if (ftype != -1 && ftype != et[k])
-            throw Error(path + ": physical surface '" + name + "' mixes face element types");
-          ftype = et[k];
-          group.type = face_type(et[k], path, name);
-          for (std::size_t t : enodes[k]) {
-            auto it = index_of.find(t);
-            if (it == index_of.end())
-              throw Error(
-                  path + ": physical surface '" + name +
-                  "' has nodes that belong to no volume element (a surface outside the body?)");
-            group.connectivity.push_back(it->second);
-          }
-        }
-      }
-      if (group.connectivity.empty())
-        throw Error(path + ": physical surface '" + name + "' has no mesh faces");
+      read_surface_group(path, name, dim, entities, index_of, mesh.surface_groups[name]);
     }
   }
+}
+
+} // namespace
+
+MeshData read_gmsh(const std::string &path, const MeshOptions &options, MeshEstimate *estimate) {
+  namespace fs = std::filesystem;
+  if (!fs::is_regular_file(path)) throw Error(path + ": geometry file not found");
+  const std::string ext = fs::path(path).extension().string();
+
+  MeshData mesh;
+  mesh.source = path;
+  if (ext == ".geo") {
+    // The estimate runs in a Gmsh session of its own, so that the mesh made afterwards is
+    // exactly the one Gmsh makes of the .geo without it.
+    const MeshEstimate est = estimate_gmsh(path, options);
+    if (estimate) *estimate = est;
+    if (options.before_meshing) options.before_meshing(est); // may refuse: not Gmsh's failure
+  }
+  GmshSession session;
+  mesh_or_open(path, ext, options);
+
+  // Volume elements: every 3D entity of the model belongs to the body.
+  const VolumeElements volume(path);
+  mesh.type = volume_type(volume.gmsh_type, path);
+  const auto index_of = compact_nodes(path, volume, mesh);
+  const auto element_index = element_connectivity(volume, index_of, mesh);
+  read_physical_groups(path, index_of, element_index, mesh);
   return mesh;
 }
 

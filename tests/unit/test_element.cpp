@@ -1,4 +1,4 @@
-// Unit tests of the element kernels (src/fem/element.cpp). Each test asserts a mathematical fact;
+// Unit tests of the element kernels (src/fem/element*.cpp). Each test asserts a mathematical fact;
 // tolerances are stated next to the assertion with the reason for their size. Roundoff in a sum of
 // m terms of size s is bounded by about m * eps * s (eps = 2.2e-16), which is where the "1e-14" and
 // "1e-13" relative tolerances of exact identities come from.

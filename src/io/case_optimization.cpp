@@ -1,0 +1,298 @@
+/// \file case.yaml's optimization (docs/case-format.md): design, objective, constraints,
+/// optimizer and adjoint.
+#include "case_sections.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <set>
+#include <string>
+
+namespace flexopt::io::detail {
+
+namespace {
+
+using dynamics::BodyModel;
+using dynamics::SensorQuantity;
+
+/// `design:` (the design body, region, interpolation, filter and projection) into c.design.
+void read_design(const Reader &r, const YAML::Node &v, Case &c) {
+  const std::string path = "design";
+  r.require_map(v, path);
+  r.check_keys(v, path, {"body", "region", "initial", "interpolation", "filter", "projection"});
+  optimize::DesignSettings d;
+  d.where = r.where(v);
+  d.body = r.string(r.require(v, "body", path), path + ".body");
+  if (!has_body(c, d.body)) r.fail(v["body"], path + ".body: no body named '" + d.body + "'");
+  if (v["region"]) d.region = r.string(v["region"], path + ".region");
+  if (v["initial"]) {
+    d.initial = r.number(v["initial"], path + ".initial");
+    if (!(d.initial > 0 && d.initial <= 1))
+      r.fail(v["initial"], path + ".initial: must lie in (0, 1]");
+  }
+  // The mass interpolation's default: a flexible design body in a dynamic analysis gets the one
+  // that keeps its lowest modes global (docs/theory.md 9.1, "Local modes"); a rigid one has no
+  // modes, and its mass is best exactly the densities'.
+  for (const dynamics::BodyDescription &b : c.scene.bodies)
+    if (b.name == d.body && c.dynamic() && dynamics::simulated_model(b.model) != BodyModel::Rigid)
+      d.mass = optimize::MassInterpolation::Pedersen;
+  // A static design under body forces (self-weight, inertia): a void element's load w(rho) f_e
+  // must vanish faster than its SIMP stiffness, or it deforms without bound (docs/theory.md
+  // section 5); the Du-Olhoff form (rho^6 below 0.1) does, a linear mass does not.
+  if (!c.dynamic() && (c.loads.gravity || c.loads.inertia))
+    d.mass = optimize::MassInterpolation::Pedersen;
+  if (v["interpolation"]) {
+    const YAML::Node &i = v["interpolation"];
+    const std::string ip = path + ".interpolation";
+    r.require_map(i, ip);
+    r.check_keys(i, ip, {"penalty", "min_stiffness", "mass"});
+    if (i["penalty"]) {
+      d.penalty = r.number(i["penalty"], ip + ".penalty");
+      if (!(d.penalty >= 1)) r.fail(i["penalty"], ip + ".penalty: the SIMP exponent must be >= 1");
+    }
+    if (i["min_stiffness"]) {
+      d.min_stiffness = r.number(i["min_stiffness"], ip + ".min_stiffness");
+      if (!(d.min_stiffness > 0 && d.min_stiffness < 1))
+        r.fail(i["min_stiffness"], ip + ".min_stiffness: E_min / E_0 must lie in (0, 1)");
+    }
+    if (i["mass"])
+      d.mass = r.enumerated(i["mass"], ip + ".mass",
+                            {std::pair{"linear", optimize::MassInterpolation::Linear},
+                             {"pedersen", optimize::MassInterpolation::Pedersen}});
+  }
+  // Without filter: or its radius, DesignField takes a radius from the design elements' size
+  // (filter_radius 0 here).
+  if (const YAML::Node &f = v["filter"]) {
+    r.require_map(f, path + ".filter");
+    r.check_keys(f, path + ".filter", {"type", "radius"});
+    if (f["type"])
+      d.filter_type = r.enumerated(f["type"], path + ".filter.type",
+                                   {std::pair{"helmholtz", optimize::FilterType::Helmholtz},
+                                    {"cone", optimize::FilterType::Cone}});
+    if (f["radius"]) {
+      d.filter_radius = r.number(f["radius"], path + ".filter.radius");
+      if (!(d.filter_radius > 0)) r.fail(f["radius"], path + ".filter.radius: must be positive");
+    }
+  }
+  if (v["projection"]) {
+    const YAML::Node &p = v["projection"];
+    const std::string pp = path + ".projection";
+    r.require_map(p, pp);
+    r.check_keys(p, pp, {"beta", "eta", "every"});
+    const YAML::Node &b = r.require(p, "beta", pp);
+    r.require_sequence(b, pp + ".beta");
+    if (b.size() == 0) r.fail(b, pp + ".beta: give at least one value");
+    for (std::size_t k = 0; k < b.size(); ++k) {
+      d.beta.push_back(r.number(b[k], pp + ".beta[" + std::to_string(k) + "]"));
+      if (!(d.beta.back() > 0)) r.fail(b[k], pp + ".beta: values must be positive");
+    }
+    if (p["every"]) {
+      d.beta_every = r.integer(p["every"], pp + ".every");
+      if (d.beta_every < 1) r.fail(p["every"], pp + ".every: must be >= 1");
+    }
+    if (p["eta"]) {
+      d.eta = r.number(p["eta"], pp + ".eta");
+      if (!(d.eta > 0 && d.eta < 1)) r.fail(p["eta"], pp + ".eta: must lie in (0, 1)");
+    }
+  }
+  c.design = d;
+}
+
+/// The objective or a constraint (`constraint`: with its bound `max`) at `path`.
+optimize::ResponseSettings read_response(const Reader &r, const YAML::Node &v,
+                                         const std::string &path, bool constraint, const Case &c) {
+  using optimize::ResponseType;
+  r.require_map(v, path);
+  r.check_keys(
+      v, path,
+      {"type", "sensor", "direction", "body", "target", "component", "measure", "ks", "max"});
+  optimize::ResponseSettings s;
+  s.where = r.where(v);
+  const bool dynamic = c.dynamic();
+  s.type = r.enumerated(r.require(v, "type", path), path + ".type",
+                        {std::pair{"compliance", ResponseType::Compliance},
+                         {"volume_fraction", ResponseType::VolumeFraction},
+                         {"displacement", ResponseType::Displacement},
+                         {"strain_energy_integral", ResponseType::StrainEnergyIntegral},
+                         {"tracking_error", ResponseType::TrackingError},
+                         {"sensor", ResponseType::Sensor},
+                         {"mass", ResponseType::Mass}});
+  const std::string type = optimize::response_type_name(s.type);
+  const bool dynamic_only = s.type == ResponseType::StrainEnergyIntegral ||
+                            s.type == ResponseType::TrackingError ||
+                            s.type == ResponseType::Sensor || s.type == ResponseType::Mass;
+  if (!dynamic && dynamic_only)
+    r.fail(v["type"], path + ".type: '" + type + "' is a response of a dynamic analysis");
+  if (dynamic && (s.type == ResponseType::Compliance || s.type == ResponseType::Displacement))
+    r.fail(v["type"], path + ".type: '" + type +
+                          "' is a response of a static analysis (dynamic: strain_energy_integral, "
+                          "tracking_error, sensor, volume_fraction, mass)");
+  // Which keys each type takes.
+  std::set<std::string> takes;
+  if (s.type == ResponseType::Displacement) takes = {"sensor", "direction"};
+  if (s.type == ResponseType::TrackingError) takes = {"sensor", "target"};
+  if (s.type == ResponseType::Sensor) takes = {"sensor", "component", "measure", "ks"};
+  if (s.type == ResponseType::StrainEnergyIntegral || s.type == ResponseType::Mass)
+    takes = {"body"};
+  for (const char *k : {"sensor", "direction", "body", "target", "component", "measure", "ks"})
+    if (v[k] && !takes.count(k))
+      r.fail(v[k], path + "." + k + ": a '" + type + "' response does not take it");
+  auto find_sensor = [&]() {
+    s.sensor = r.string(r.require(v, "sensor", path), path + ".sensor");
+    for (const auto &sensor : c.scene.sensors)
+      if (sensor.name == s.sensor) {
+        if (dynamic && (sensor.quantity == SensorQuantity::RotationAngle ||
+                        sensor.quantity == SensorQuantity::Reaction))
+          r.fail(v["sensor"], path + ".sensor: sensor '" + s.sensor + "' measures " +
+                                  dynamics::quantity_name(sensor.quantity) +
+                                  ", which a response cannot use yet (position, displacement, "
+                                  "elastic_displacement)");
+        s.point = sensor.point;
+        s.point_where = sensor.where;
+        return;
+      }
+    r.fail(v["sensor"], path + ".sensor: no sensor named '" + s.sensor + "'");
+  };
+  if (s.type == ResponseType::Displacement) {
+    find_sensor();
+    s.direction = r.direction(r.require(v, "direction", path), path + ".direction");
+  }
+  if (s.type == ResponseType::TrackingError) {
+    find_sensor();
+    const YAML::Node &tg = r.require(v, "target", path);
+    if (!tg.IsSequence() || tg.size() != 3)
+      r.fail(tg, path + ".target: expected a list of 3 components [x, y, z], each a number or an "
+                        "expression in t");
+    for (std::size_t k = 0; k < 3; ++k) {
+      const std::string kp = path + ".target[" + std::to_string(k) + "]";
+      s.target[k] = r.expression(tg[k], kp);
+      if (c.time.given)
+        for (double t : {0.0, 0.5 * c.time.end, c.time.end}) {
+          const double y = Expression(s.target[k])(t);
+          if (!std::isfinite(y)) {
+            char buf[64];
+            std::snprintf(buf, sizeof buf, "%g s (%g)", t, y);
+            r.fail(tg[k], kp + ": '" + s.target[k] + "' is not finite at t = " + buf);
+          }
+        }
+    }
+  }
+  if (s.type == ResponseType::Sensor) {
+    find_sensor();
+    const YAML::Node &cn = r.require(v, "component", path);
+    const std::string cs = cn.IsScalar() ? cn.Scalar() : "";
+    if (cs == "0" || cs == "x")
+      s.component = 0;
+    else if (cs == "1" || cs == "y")
+      s.component = 1;
+    else if (cs == "2" || cs == "z")
+      s.component = 2;
+    else
+      r.fail(cn, path + ".component: expected 0, 1, 2 (or x, y, z), got '" + cs + "'");
+    s.measure = r.enumerated(r.require(v, "measure", path), path + ".measure",
+                             {std::pair{"final", optimize::SensorMeasure::Final},
+                              {"mean_square", optimize::SensorMeasure::MeanSquare},
+                              {"ks_max", optimize::SensorMeasure::KsMax}});
+    if (v["ks"]) {
+      if (s.measure != optimize::SensorMeasure::KsMax)
+        r.fail(v["ks"], path + ".ks: only measure: ks_max takes it");
+      s.ks = r.number(v["ks"], path + ".ks");
+      if (!(s.ks > 0)) r.fail(v["ks"], path + ".ks: must be positive");
+    }
+  }
+  if (s.type == ResponseType::StrainEnergyIntegral || s.type == ResponseType::Mass) {
+    s.body = r.string(r.require(v, "body", path), path + ".body");
+    if (!has_body(c, s.body)) r.fail(v["body"], path + ".body: no body named '" + s.body + "'");
+  }
+  if (constraint) {
+    s.max = r.number(r.require(v, "max", path), path + ".max");
+    s.has_max = true;
+    if (s.type == ResponseType::VolumeFraction && !(s.max > 0 && s.max < 1))
+      r.fail(v["max"], path + ".max: a volume fraction bound must lie in (0, 1)");
+    if (s.type == ResponseType::Mass && !(s.max > 0))
+      r.fail(v["max"], path + ".max: a mass bound must be positive [kg]");
+  } else if (v["max"]) {
+    r.fail(v["max"], path + ".max: the objective takes no bound");
+  }
+  return s;
+}
+
+/// `adjoint:` (the checkpointing of a dynamic optimization's backward sweep) into c.adjoint.
+void read_adjoint(const Reader &r, const YAML::Node &v, Case &c) {
+  const std::string path = "adjoint";
+  r.require_map(v, path);
+  r.check_keys(v, path, {"checkpoints", "storage", "basis"});
+  adjoint::CheckpointSettings &a = c.adjoint;
+  a.where = r.where(v);
+  if (v["checkpoints"]) {
+    const YAML::Node &n = v["checkpoints"];
+    if (!(n.IsScalar() && n.Scalar() == "all")) {
+      a.checkpoints = r.integer(n, path + ".checkpoints");
+      if (a.checkpoints < 1)
+        r.fail(n, path + ".checkpoints: must be 'all' or a number of stored states >= 1 (got " +
+                      n.Scalar() + ")");
+    }
+  }
+  if (v["storage"])
+    a.storage = r.enumerated(v["storage"], path + ".storage",
+                             {std::pair{"memory", adjoint::CheckpointStorage::Memory},
+                              {"disk", adjoint::CheckpointStorage::Disk}});
+  if (v["basis"])
+    a.basis = r.enumerated(v["basis"], path + ".basis",
+                           {std::pair{"exact", reduce::BasisDerivative::Exact},
+                            {"fixed", reduce::BasisDerivative::Fixed}});
+}
+
+/// `optimizer:` into c.optimizer (the iterations, the move limit, the tolerance).
+void read_optimizer(const Reader &r, const YAML::Node &o, Case &c) {
+  r.require_map(o, "optimizer");
+  r.check_keys(o, "optimizer", {"max_iterations", "move_limit", "tolerance"});
+  if (o["max_iterations"]) {
+    c.optimizer.max_iterations = r.integer(o["max_iterations"], "optimizer.max_iterations");
+    if (c.optimizer.max_iterations < 1)
+      r.fail(o["max_iterations"], "optimizer.max_iterations: must be >= 1");
+  }
+  if (o["move_limit"]) {
+    c.optimizer.move_limit = r.number(o["move_limit"], "optimizer.move_limit");
+    if (!(c.optimizer.move_limit > 0 && c.optimizer.move_limit <= 1))
+      r.fail(o["move_limit"], "optimizer.move_limit: must lie in (0, 1]");
+  }
+  if (o["tolerance"]) {
+    c.optimizer.tolerance = r.number(o["tolerance"], "optimizer.tolerance");
+    if (!(c.optimizer.tolerance >= 0)) r.fail(o["tolerance"], "optimizer.tolerance: must be >= 0");
+  }
+}
+
+} // namespace
+
+void read_optimization(const Reader &r, YAML::Node root, Case &c) {
+  const bool dynamic = c.dynamic();
+  if (root["design"]) read_design(r, root["design"], c);
+  if (root["objective"]) c.objective = read_response(r, root["objective"], "objective", false, c);
+  if (root["constraints"]) {
+    const YAML::Node &l = root["constraints"];
+    r.require_sequence(l, "constraints");
+    for (std::size_t i = 0; i < l.size(); ++i)
+      c.constraints.push_back(
+          read_response(r, l[i], "constraints[" + std::to_string(i) + "]", true, c));
+  }
+  if (root["optimizer"]) read_optimizer(r, root["optimizer"], c);
+  if (root["adjoint"]) {
+    if (!dynamic)
+      r.fail(r.key_node(root, "adjoint"),
+             "adjoint: needs analysis: dynamic (a static optimization stores no states)");
+    read_adjoint(r, root["adjoint"], c);
+  }
+  if ((c.objective || !c.constraints.empty() || root["optimizer"]) && !c.design)
+    r.fail(root, "objective/constraints/optimizer need a design: section (the design field)");
+  if (c.design && !c.objective)
+    r.fail(root["design"], "design: an optimization needs an objective:");
+
+  // The optimizer's share of other keys: the constraints' bounds, and design.xdmf's stride
+  // (output.every thins it in a static analysis only: in a dynamic one it counts the motion's
+  // time steps, docs/case-format.md "output").
+  for (const optimize::ResponseSettings &con : c.constraints) c.optimizer.bounds.push_back(con.max);
+  c.optimizer.output_every = dynamic ? 1 : std::max(c.output.every, 1);
+}
+
+} // namespace flexopt::io::detail
