@@ -36,7 +36,8 @@ private:
 
 } // namespace flexopt
 
-/// Wrap a PETSc or SLEPc call made from C++ code: a non-zero code becomes a flexopt::Error.
+/// Wrap a PETSc or SLEPc call made from C++ code: a non-zero code ends the job at once on this
+/// rank (throw_petsc_error, abort_local: a message naming the call, file and line, MPI_Abort).
 #define FX_PETSC(call)                                                                             \
   do {                                                                                             \
     PetscErrorCode fx_ierr_ = (call);                                                              \
