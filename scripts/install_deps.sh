@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
 # Install every package flexopt needs from Debian. Idempotent: packages already present are
 # left alone and apt-get update only runs when something is missing.
+#   scripts/install_deps.sh           # to build and run flexopt (scripts/run_case.sh)
+#   scripts/install_deps.sh --tests   # and what the tests need besides (scripts/test.sh)
 set -euo pipefail
 
 PACKAGES=(
@@ -18,8 +20,15 @@ PACKAGES=(
   libmuparser-dev
   python3 python3-yaml python3-numpy python3-scipy python3-h5py
   python3-paraview   # tests open the XDMF output with ParaView's own reader
-  python3-matplotlib # scripts/study_ffrf_vs_acf.py draws docs/figures/ffrf_vs_acf.png
+  paraview           # pvbatch: `flexopt report` renders the designs and the motion
+  xvfb xauth         # xvfb-run: that rendering where there is no display
+  python3-matplotlib # `flexopt report`'s plots; scripts/study_ffrf_vs_acf.py
 )
+if [ "${1:-}" = "--tests" ]; then
+  PACKAGES+=(
+    chromium # tests/check_report.py opens the report's index.html in headless Chromium
+  )
+fi
 
 missing=()
 for p in "${PACKAGES[@]}"; do

@@ -12,7 +12,7 @@ for a in "$@"; do
     *) echo "usage: scripts/test.sh [--long]" >&2; exit 2 ;;
   esac
 done
-"$root/scripts/install_deps.sh"
+"$root/scripts/install_deps.sh" --tests
 "$root/scripts/build.sh"
 source "$root/scripts/env.sh"
 cd "${FLEXOPT_BUILD_DIR:-$root/build}"

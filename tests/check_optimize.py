@@ -46,6 +46,17 @@ rows = list(csv.DictReader(open(os.path.join(out, "np2", "history.csv"))))
 expect(len(rows) == k and abs(float(rows[-1]["objective"]) - s["objective"][-1]) <= 1e-12 * s["objective"][-1],
        "history.csv has one row per iteration matching summary.json")
 expect(os.path.exists(os.path.join(out, "np2", "design.xdmf")), "design.xdmf written")
+# design.xdmf's frames (the case gives no output:, so the default stride ceil(max_iterations /
+# 100)) and its size against the estimate printed before the run: within 20 %.
+o = s["design_output"]
+steps = open(os.path.join(out, "np2", "design.xdmf")).read().count('GridType="Uniform"')
+planned = (s["iterations"] - 1) // o["every"] + 2  # iterations 1, 1 + every, ...; the final
+expect(steps == planned and o["frames"] >= planned,
+       f"design.xdmf: {steps} frames written, {planned} for {s['iterations']} iterations at every {o['every']} "
+       f"({o['frames']} planned for the iteration limit)")
+est = o["estimated_bytes"] * (planned / o["frames"])  # the estimate is linear in the frames
+expect(abs(o["bytes"] / est - 1) <= 0.2,
+       f"design.h5 + design.xdmf: {o['bytes']} bytes against the estimate {est:.0f} (ratio {o['bytes'] / est:.3f}, within 20 %)")
 vmax = 0.4
 expect(s["volume_fraction"] <= vmax * (1 + 1e-3), f"final volume fraction {s['volume_fraction']:.6f} <= {vmax}")
 emin, p = 1e-6, 3.0

@@ -36,6 +36,18 @@ for k in range(n):
         if d > worst:
             worst, where = d, f"iteration {k + 1}, {name}"
 ok = a["iterations"] == b["iterations"] == n and worst <= tol
+# The final motion shows the whole mechanism after thresholding physical_density at 0.5: every
+# body carries the field, 1 in each cell of a body that is not the design body.
+import h5py  # noqa: E402
+with h5py.File(os.path.join(out, "np2", "motion_final.h5"), "r") as f:
+    bodies = [k for k in f.keys() if isinstance(f[k], h5py.Group) and "reference_geometry" in f[k]]
+    fields = {k: f[k]["physical_density"][...] for k in bodies if "physical_density" in f[k]}
+solid = [k for k, v in fields.items() if v.size and (v == 1.0).all()]
+designed = [k for k, v in fields.items() if v.size and not (v == 1.0).all()]
+dens_ok = len(fields) == len(bodies) >= 2 and len(designed) == 1 and len(solid) == len(bodies) - 1
+print(("ok    " if dens_ok else "FAIL  ") + f"motion_final.h5: physical_density on {sorted(fields)} of the bodies "
+      f"{sorted(bodies)}; solid (1 everywhere): {sorted(solid)}, designed: {designed}")
+ok = ok and dens_ok
 print(("ok    " if ok else "FAIL  ") + f"first {n} iterates on 1 and 2 ranks: max relative difference {worst:.2e} "
       f"({where}) <= {tol:g}")
 sys.exit(0 if ok else 1)

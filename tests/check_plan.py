@@ -119,6 +119,17 @@ if bodies:
     check(b["recommended"] == "ffrf" and b["geometric_stiffening"],
           f"spin_up_beam: beam -> {b['recommended']}, stiffening {b['geometric_stiffening']}")
 
+# 3b. Without --auto the case's own model runs and the plan reports what runs: the spin-up
+#     beam's `model: ffrf` with `reduction: {modes: 8, geometric_stiffening: true}`, whatever
+#     the estimates recommend (recommended_modes).
+bodies = plan(case("spin_up_beam"), "spin_up_beam_given", auto=False)
+if bodies:
+    b = bodies["beam"]
+    check(b["given"] == "ffrf" and b["model"] == "ffrf" and b["modes"] == 8 and b["geometric_stiffening"]
+          and b["recommended_modes"] >= 1,
+          f"spin_up_beam as given: {b['model']}, {b['modes']} modes (the case's 8), stiffening "
+          f"{b['geometric_stiffening']}; recommended {b['recommended_modes']} modes")
+
 # 4. The Kane beam: ACF or stiffened FFRF, never linear FFRF.
 bodies = stiffened["kane_beam"] = plan(case("kane_beam"), "kane_beam")
 if bodies:

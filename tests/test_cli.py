@@ -30,9 +30,17 @@ def expect(cond, what):
 
 rc, out, _ = run(["--help"])
 expect(rc == 0 and "usage: flexopt <command> CASE" in out, "flexopt --help prints usage, exit 0")
-for cmd in ["info", "simulate", "modes"]:
+expect(all(f"flexopt {cmd} cases/" in out for cmd in ("optimize", "plan", "simulate")),
+       "the usage's examples run optimize, plan and simulate")
+for cmd in ["info", "simulate", "modes", "optimize", "plan", "check-gradient"]:
     rc, out, _ = run([cmd, "--help"])
     expect(rc == 0 and f"usage: flexopt {cmd}" in out, f"flexopt {cmd} --help")
+# Under mpirun the texts printed before MPI starts (help, argument errors) come once, from rank 0.
+rc, out, _ = run(["--help"], ranks=2)
+expect(rc == 0 and out.count("usage: flexopt <command> CASE") == 1, "mpirun -n 2 flexopt --help prints once")
+rc, _, err = run(["optimise", CASE], ranks=2)
+expect(rc != 0 and err.count("unknown command 'optimise'") == 1,
+       "mpirun -n 2: an unknown command is reported once, non-zero exit")
 rc, _, err = run(["optimise", CASE])
 expect(rc == 2 and "unknown command 'optimise'" in err, "unknown command: exit 2 with a message")
 rc, _, err = run(["modes", CASE, "--count", "zero"])

@@ -21,7 +21,7 @@ void check_interfaces(const optimize::DesignField &f, const dynamics::BodyDescri
   const optimize::DesignField::SurfaceContact c = f.touched_surface(body.interfaces);
   if (c.elements == 0) return;
   const std::string what =
-      d.where.str() + ": design.region '" + d.region + "' of body '" + d.body +
+      d.region_where.str() + ": design.region '" + d.region + "' of body '" + d.body +
       "' touches its interface '" + c.surface + "' (" + std::to_string(c.elements) +
       " design elements have nodes on it, e.g. Gmsh element " + std::to_string(c.tag) + ")";
   if (refuse)

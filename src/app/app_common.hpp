@@ -46,6 +46,16 @@ int run_check_gradient(const Context &ctx, const Options &o, const io::Case &c, 
 /// (-*ksp_rtol, -*ksp_atol, -*eps_tol, -fx_warm_start), which are named on rank 0. Collective.
 std::string check_gradient_solver_options(const Context &ctx, const io::Case &c);
 
+/// Whether a run writes its report (Options::report, and FLEXOPT_REPORT=0 in the environment
+/// turns it off: the test suite's runs).
+bool report_wanted(const Options &o);
+/// Runs scripts/report.py on `out_dir` on rank 0 (docs/output.md "Report"); its exit status on
+/// every rank (0: written; the pictures may still be missing, which the report says).
+/// Collective.
+int write_report(const Context &ctx, const std::string &out_dir);
+/// `flexopt report OUT`. Collective.
+int run_report(const Context &ctx, const Options &o);
+
 /// `simulate` for `analysis: dynamic`: generalized-alpha run of the mechanism, motion.xdmf and
 /// summary.json. Collective.
 int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double t0);

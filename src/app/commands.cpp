@@ -516,15 +516,37 @@ int run_optimize(const Context &ctx, const Options &o, const io::Case &c, double
   s["restarted"] = o.restart;
   s["stop_reason"] = r.stop_reason;
   s["output"] = r.output;
+  io::Json design_output = io::Json::object();
+  design_output["every"] = r.output_stride;
+  design_output["frames"] = r.output_frames;
+  design_output["estimated_bytes"] = r.output_estimated_bytes;
+  std::error_code h5_error, xdmf_error;
+  const auto h5_bytes = fs::file_size(fs::path(dir) / "design.h5", h5_error);
+  const auto xdmf_bytes = fs::file_size(r.output, xdmf_error);
+  if (!h5_error && !xdmf_error) design_output["bytes"] = static_cast<double>(h5_bytes + xdmf_bytes);
+  s["design_output"] = design_output;
+  io::Json stages = io::Json::array();
+  for (const auto &[first, beta] : r.beta_stages) {
+    io::Json st = io::Json::object();
+    st["first_iteration"] = first;
+    st["beta"] = beta;
+    stages.push_back(st);
+  }
+  s["beta_stages"] = stages;
   s["history"] = (fs::path(dir) / "history.csv").string();
   if (auto *dynamic = dynamic_cast<adjoint::DynamicProblem *>(problem.get()))
     write_design_motions(ctx, run_case, *dynamic, dir, s);
   write_summary(ctx, dir, s, t0);
-  print0(
-      ctx.comm(),
-      "wrote %s (densities per iteration: threshold physical_density at 0.5 in ParaView), %s, %s\n",
-      r.output.c_str(), (fs::path(dir) / "history.csv").c_str(),
-      (fs::path(dir) / "summary.json").c_str());
+  print0(ctx.comm(),
+         "wrote %s (densities every %d iteration(s) and the final design: threshold "
+         "physical_density at 0.5 in ParaView), %s, %s\n",
+         r.output.c_str(), r.output_stride, (fs::path(dir) / "history.csv").c_str(),
+         (fs::path(dir) / "summary.json").c_str());
+  if (report_wanted(o) && write_report(ctx, dir) != 0)
+    print0(ctx.comm(),
+           "optimize: warning: the report failed (the run's results are complete; "
+           "flexopt report %s tries again)\n",
+           dir.c_str());
   return 0;
 }
 
@@ -558,6 +580,7 @@ int run_plan(const Context &ctx, const Options &o, io::Case c, double t0) {
 int run(const Context &ctx, const Options &given) {
   const double t0 = wall_time();
   Options o = given;
+  if (o.command == "report") return run_report(ctx, o); // OUT, not a case
   io::Case c = io::load_case(o.case_dir);
   const std::string solver =
       o.command == "check-gradient" ? check_gradient_solver_options(ctx, c) : c.solver;

@@ -14,6 +14,7 @@
 #include "flexopt/io/frame_schedule.hpp"
 #include "flexopt/io/motion_writer.hpp"
 #include "flexopt/io/restart.hpp"
+#include "flexopt/io/xdmf.hpp"
 #include "flexopt/mesh/grid_layout.hpp"
 
 #include <cmath>
@@ -40,18 +41,6 @@ bool writes_elastic(const dynamics::Scene &scene, std::size_t b) {
   return scene.mechanism.size(sb.mechanism) > 7;
 }
 
-/// "12.3 MB", "1.76 GB": decimal units, as file managers show them.
-std::string human_bytes(double bytes) {
-  char buf[32];
-  if (bytes >= 1e9)
-    std::snprintf(buf, sizeof buf, "%.2f GB", bytes / 1e9);
-  else if (bytes >= 1e6)
-    std::snprintf(buf, sizeof buf, "%.1f MB", bytes / 1e6);
-  else
-    std::snprintf(buf, sizeof buf, "%.0f kB", bytes / 1e3);
-  return buf;
-}
-
 io::Json vec3_json(const bodies::Vec3 &v) {
   return io::Json(std::vector<double>{v.x(), v.y(), v.z()});
 }
@@ -61,8 +50,10 @@ io::Json vec3_json(const bodies::Vec3 &v) {
 /// figures go to the summary.
 class MotionRun {
 public:
+  /// `max_frames` > 0: the motion file takes at most about that many frames (an
+  /// optimization's motions; io::FrameSchedule).
   MotionRun(const Context &ctx, const io::Case &c, dynamics::Scene &scene, const std::string &dir,
-            const std::string &name, io::Json &s);
+            const std::string &name, io::Json &s, long long max_frames = 0);
   /// Integrates the scene itself (dynamics::Integrator::run).
   void run();
   /// The design's forward run (and, with `gradient`, its backward sweep) is the integration: the
@@ -97,6 +88,7 @@ private:
   const dynamics::Mechanism &mech_;
   const std::string dir_, name_;
   io::Json &s_;
+  const long long max_frames_;
   const dynamics::IntegratorSettings settings_;
   std::unique_ptr<dynamics::Integrator> run_;
   std::unique_ptr<io::FrameSchedule> schedule_;
@@ -114,9 +106,11 @@ private:
 };
 
 MotionRun::MotionRun(const Context &ctx, const io::Case &c, dynamics::Scene &scene,
-                     const std::string &dir, const std::string &name, io::Json &s)
+                     const std::string &dir, const std::string &name, io::Json &s,
+                     long long max_frames)
     : ctx_(ctx), c_(c), scene_(scene), mech_(scene.mechanism), dir_(dir), name_(name), s_(s),
-      settings_(dynamics::IntegratorSettings::from(c.time)), sensor_values_(scene.sensors.size()) {
+      max_frames_(max_frames), settings_(dynamics::IntegratorSettings::from(c.time)),
+      sensor_values_(scene.sensors.size()) {
   print0(ctx.comm(), "mechanism: %zu bodies, %d coordinates, %d constraint rows enforced of %d\n",
          mech_.bodies.size(), mech_.coordinates(), mech_.constraints(), mech_.all_rows());
   io::Json redundant = io::Json::array();
@@ -190,7 +184,7 @@ void MotionRun::plan_output() {
     mb.push_back({c_.scene.bodies[b].name, mesh::grid_layout(scene_.meshes[b])});
   // Energy and sensors are small: without output: they keep every step; with it they are
   // sampled at the frames, as the key always did.
-  schedule_ = std::make_unique<io::FrameSchedule>(c_.output, steps, h);
+  schedule_ = std::make_unique<io::FrameSchedule>(c_.output, steps, h, max_frames_);
   sample_every_step_ = !c_.output.given();
   std::vector<std::vector<std::string>> fields(c_.scene.bodies.size());
   for (std::size_t b = 0; b < c_.scene.bodies.size(); ++b)
@@ -203,7 +197,7 @@ void MotionRun::plan_output() {
            "is written\n",
            c_.output.interval, h);
   print0(ctx_.comm(), "output: %s.xdmf: %s; about %s; energy and sensors at %s\n", name_.c_str(),
-         schedule_->describe().c_str(), human_bytes(motion_bytes_).c_str(),
+         schedule_->describe().c_str(), io::human_bytes(motion_bytes_).c_str(),
          sample_every_step_ ? "every step" : "the frames' steps");
   if (motion_bytes_ > kLargeMotionBytes) {
     // The estimate is linear in the frame count: what fits in kLargeMotionBytes?
@@ -217,11 +211,11 @@ void MotionRun::plan_output() {
       hint += ", e.g. output: {every: " +
               std::to_string(
                   static_cast<long long>(std::ceil(static_cast<double>(steps) / (fit - 2)))) +
-              "} for at most " + human_bytes(kLargeMotionBytes);
+              "} for at most " + io::human_bytes(kLargeMotionBytes);
     else
-      hint += " (each frame alone takes " + human_bytes(per_frame) + ")";
+      hint += " (each frame alone takes " + io::human_bytes(per_frame) + ")";
     print0(ctx_.comm(), "output: warning: motion.h5 will take about %s (%lld frames of %s); %s\n",
-           human_bytes(motion_bytes_).c_str(), frames, human_bytes(per_frame).c_str(),
+           io::human_bytes(motion_bytes_).c_str(), frames, io::human_bytes(per_frame).c_str(),
            hint.c_str());
   }
   writer_ = std::make_unique<io::MotionWriter>(mb, dir_, name_);
@@ -331,8 +325,8 @@ void MotionRun::run() {
 }
 
 void MotionRun::run_design(adjoint::DynamicProblem &design, Vec x, bool gradient) {
-  // The design's densities on its body (the caller applied x), in every frame: threshold
-  // physical_density at 0.5.
+  // The design's densities on its body (the caller applied x), in every frame; every other
+  // body is solid (1), so that thresholding physical_density at 0.5 keeps the whole mechanism.
   const optimize::DesignField &f = design.field();
   for (const auto &[field, v] :
        {std::pair{"density", f.density()}, {"physical_density", f.physical()}}) {
@@ -340,6 +334,8 @@ void MotionRun::run_design(adjoint::DynamicProblem &design, Vec x, bool gradient
     FX_PETSC(VecGetArrayRead(v, &a));
     writer_->constant_cell_scalar(design.design_body(), field, a);
     FX_PETSC(VecRestoreArrayRead(v, &a));
+    for (std::size_t b = 0; b < writer_->bodies(); ++b)
+      if (b != design.design_body()) writer_->constant_cell_value(b, field, 1.0);
   }
   FX_PETSC(PetscLogStagePush(time_steps_stage()));
   t_start_ = last_print_ = t_end_ = wall_time();
@@ -467,7 +463,7 @@ void MotionRun::finish() {
          steps, t_int, static_cast<double>(steps) / std::max(t_int, 1e-9), newton_total_,
          newton_max_, factorizations_total_, max_violation_, energy_.front(), energy_.back());
   print0(ctx_.comm(), "wrote %s (%zu frames, %s; open in ParaView and press play)\n", xdmf.c_str(),
-         frame_t_.size(), human_bytes(static_cast<double>(motion_file_bytes)).c_str());
+         frame_t_.size(), io::human_bytes(static_cast<double>(motion_file_bytes)).c_str());
 }
 
 /// Integrates `scene` (with `design`: the scene of that problem at the design x, through its
@@ -475,8 +471,8 @@ void MotionRun::finish() {
 /// and the run's figures into s. Collective.
 void integrate(const Context &ctx, const io::Case &c, dynamics::Scene &scene,
                adjoint::DynamicProblem *design, Vec x, bool gradient, const std::string &dir,
-               const std::string &name, io::Json &s) {
-  MotionRun run(ctx, c, scene, dir, name, s);
+               const std::string &name, io::Json &s, long long max_frames = 0) {
+  MotionRun run(ctx, c, scene, dir, name, s, max_frames);
   if (design)
     run.run_design(*design, x, gradient);
   else
@@ -521,6 +517,11 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
   if (x) FX_PETSC(VecDestroy(&x));
   detail::write_summary(ctx, dir, s, t0);
   print0(ctx.comm(), "wrote %s/summary.json\n", dir.c_str());
+  if (report_wanted(o) && write_report(ctx, dir) != 0)
+    print0(ctx.comm(),
+           "simulate: warning: the report failed (the run's results are complete; "
+           "flexopt report %s tries again)\n",
+           dir.c_str());
   return 0;
 }
 
@@ -540,9 +541,11 @@ void write_design_motions(const Context &ctx, const io::Case &c, adjoint::Dynami
     print0(ctx.comm(), "%s: the mechanism with the %s design moving\n", name.c_str(), which);
     io::Json one = io::Json::object();
     problem.apply_design(x);
-    integrate(ctx, c, problem.scene(), &problem, x, false, dir, name, one);
+    integrate(ctx, c, problem.scene(), &problem, x, false, dir, name, one,
+              io::FrameSchedule::kOptimizationFrames);
     io::Json brief = io::Json::object();
-    for (const char *key : {"responses", "motion", "integration_s", "constraint_violation_max"})
+    for (const char *key :
+         {"responses", "motion", "integration_s", "constraint_violation_max", "sensors"})
       brief[key] = one[key];
     s[name] = brief;
   }

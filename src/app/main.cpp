@@ -4,11 +4,14 @@
 ///   mpirun -n 2 build/flexopt info cases/cantilever
 ///   mpirun -n 2 build/flexopt simulate cases/cantilever -ksp_monitor
 ///   mpirun -n 2 build/flexopt modes cases/beam_modes --count 6 --free
+///   mpirun -n 2 build/flexopt plan cases/slider_crank_flexible
+///   mpirun -n 2 build/flexopt optimize cases/slider_crank_topopt
 #include "flexopt/app/commands.hpp"
 #include "flexopt/core/context.hpp"
 #include "flexopt/core/error.hpp"
 
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <string>
 #include <vector>
@@ -28,6 +31,8 @@ const char *kUsage =
     "            topology optimization case (design:, objective:, constraints:)\n"
     "  plan      the model each body needs (rigid, FFRF with its modes, ACF) for the case's\n"
     "            accuracy, with reasons and predicted cost; what `model: auto` runs\n"
+    "  report    pictures of a finished run: flexopt report OUT writes OUT/report/index.html\n"
+    "            (optimize and a dynamic simulate write it themselves)\n"
     "\n"
     "options:\n"
     "  --out DIR    output directory (default CASE/out)\n"
@@ -41,10 +46,26 @@ const char *kUsage =
     "               restart.h5\n"
     "  --gradient   simulate (dynamic, with design:): also the adjoint gradients\n"
     "  --auto       plan: estimate every body as if its model were auto\n"
+    "  --no-report  optimize, simulate (dynamic): no OUT/report/ (FLEXOPT_REPORT=0 too)\n"
     "  --help       this text, or a command's: flexopt <command> --help\n"
     "\n"
     "PETSc and SLEPc options (-ksp_monitor, -log_view, -eps_view, ...) pass through; the\n"
-    "case's `solver:` string is applied first, so the command line overrides it.\n";
+    "case's `solver:` string is applied first, so the command line overrides it.\n"
+    "\n"
+    "examples:\n"
+    "  mpirun -n 2 flexopt optimize cases/slider_crank_topopt   # a link designed in motion\n"
+    "  mpirun -n 2 flexopt plan cases/slider_crank_flexible     # which model each body needs\n"
+    "  mpirun -n 2 flexopt simulate cases/slider_crank_rigid    # then open out/motion.xdmf\n"
+    "  mpirun -n 2 flexopt optimize cases/cantilever_topopt     # static topology optimization\n";
+
+/// This process's rank in the launcher's job (Open MPI, PMIx, MPICH's PMI), before MPI is
+/// initialized: 0 outside a launcher. Messages printed before MPI_Init (the usage, a bad
+/// argument) are printed by rank 0 only.
+int launcher_rank() {
+  for (const char *name : {"OMPI_COMM_WORLD_RANK", "PMIX_RANK", "PMI_RANK"})
+    if (const char *v = std::getenv(name)) return std::atoi(v);
+  return 0;
+}
 
 const char *command_help(const std::string &cmd) {
   if (cmd == "info")
@@ -119,7 +140,18 @@ const char *command_help(const std::string &cmd) {
            "with a warning where the estimates disagree. --auto estimates every body, rigid\n"
            "ones too. `simulate`, `optimize` and `check-gradient` run the same plan first when\n"
            "a body is auto. Writes out/summary.json (plan: [{body, model, modes,\n"
-           "geometric_stiffening, reasons, predicted_cost_s, estimates}]).\n";
+           "geometric_stiffening, recommended_modes, reasons, predicted_cost_s, estimates}]).\n";
+  if (cmd == "report")
+    return "usage: flexopt report OUT\n"
+           "Pictures of a finished run in OUT/report/: history.png (optimize: objective,\n"
+           "constraints and design change per iteration, the projection's beta steps marked),\n"
+           "design.png (the final design thresholded at 0.5; dynamic: the initial one too),\n"
+           "motion.png (a dynamic run: the mechanism at 6 instants coloured by its elastic\n"
+           "displacement, and the sensors) and index.html (the pictures, the responses, the\n"
+           "time split, links to the XDMF files). The 3D pictures are rendered by ParaView\n"
+           "(pvbatch; under xvfb-run without a display); where that is impossible the report\n"
+           "says so and still writes the plots. optimize and a dynamic simulate write it at\n"
+           "their end unless --no-report (or FLEXOPT_REPORT=0).\n";
   return nullptr;
 }
 
@@ -170,6 +202,8 @@ int main(int argc, char **argv) {
       opts.gradient = true;
     else if (a == "--auto")
       opts.all_auto = true;
+    else if (a == "--no-report")
+      opts.report = false;
     else if (a == "--max-iterations")
       positive_int("--max-iterations", opts.max_iterations);
     else if (a == "--fd-step") {
@@ -199,17 +233,18 @@ int main(int argc, char **argv) {
       arg_error = "unexpected argument '" + a + "'";
   }
 
+  const bool speaks = launcher_rank() == 0;
   if (want_help || opts.command.empty()) {
     const char *h = opts.command.empty() ? nullptr : command_help(opts.command);
-    std::fputs(h ? h : kUsage, opts.command.empty() && !want_help ? stderr : stdout);
+    if (speaks) std::fputs(h ? h : kUsage, opts.command.empty() && !want_help ? stderr : stdout);
     return want_help ? 0 : 2;
   }
   if (!command_help(opts.command))
     arg_error = "unknown command '" + opts.command + "'";
   else if (opts.case_dir.empty())
-    arg_error = "missing CASE directory";
+    arg_error = opts.command == "report" ? "missing OUT directory" : "missing CASE directory";
   if (!arg_error.empty()) {
-    std::fprintf(stderr, "flexopt: %s (see flexopt --help)\n", arg_error.c_str());
+    if (speaks) std::fprintf(stderr, "flexopt: %s (see flexopt --help)\n", arg_error.c_str());
     return 2;
   }
 

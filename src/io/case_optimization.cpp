@@ -24,7 +24,11 @@ void read_design(const Reader &r, const YAML::Node &v, Case &c) {
   d.where = r.where(v);
   d.body = r.string(r.require(v, "body", path), path + ".body");
   if (!has_body(c, d.body)) r.fail(v["body"], path + ".body: no body named '" + d.body + "'");
-  if (v["region"]) d.region = r.string(v["region"], path + ".region");
+  d.region_where = d.where;
+  if (v["region"]) {
+    d.region = r.string(v["region"], path + ".region");
+    d.region_where = r.where(v["region"]);
+  }
   if (v["initial"]) {
     d.initial = r.number(v["initial"], path + ".initial");
     if (!(d.initial > 0 && d.initial <= 1))
@@ -289,10 +293,10 @@ void read_optimization(const Reader &r, YAML::Node root, Case &c) {
     r.fail(root["design"], "design: an optimization needs an objective:");
 
   // The optimizer's share of other keys: the constraints' bounds, and design.xdmf's stride
-  // (output.every thins it in a static analysis only: in a dynamic one it counts the motion's
-  // time steps, docs/case-format.md "output").
+  // (output.every counts iterations in a static analysis; in a dynamic one it counts the
+  // motion's time steps and design.xdmf takes its default, docs/case-format.md "output").
   for (const optimize::ResponseSettings &con : c.constraints) c.optimizer.bounds.push_back(con.max);
-  c.optimizer.output_every = dynamic ? 1 : std::max(c.output.every, 1);
+  c.optimizer.output_every = dynamic ? 0 : c.output.every;
 }
 
 } // namespace flexopt::io::detail

@@ -6,8 +6,9 @@
 
 namespace flexopt::io {
 
-FrameSchedule::FrameSchedule(const OutputSettings &output, long long steps, double h)
-    : steps_(std::max(steps, 0LL)), output_(output) {
+FrameSchedule::FrameSchedule(const OutputSettings &output, long long steps, double h,
+                             long long at_most)
+    : steps_(std::max(steps, 0LL)), output_(output), at_most_(at_most) {
   if (output.every > 0) {
     stride_ = output.every;
   } else if (output.interval > 0) {
@@ -25,7 +26,14 @@ FrameSchedule::FrameSchedule(const OutputSettings &output, long long steps, doub
       steps_per_frame_ = r;
     }
   } else {
-    stride_ = std::max(1LL, (steps_ + kDefaultFrames - 1) / kDefaultFrames);
+    const long long target = at_most > 0 ? at_most : kDefaultFrames;
+    stride_ = std::max(1LL, (steps_ + target - 1) / target);
+  }
+  if (at_most > 0 && output.given() && frames() > at_most + 2) {
+    stride_ = std::max(1LL, (steps_ + at_most - 1) / at_most);
+    steps_per_frame_ = 0;
+    interval_below_step_ = false;
+    thinned_ = true;
   }
 }
 
@@ -59,7 +67,12 @@ std::string FrameSchedule::describe() const {
   const long long f = frames();
   const std::string stride =
       stride_ == 1 ? "every step" : "every " + std::to_string(stride_) + " steps";
-  if (output_.every > 0) {
+  if (thinned_) {
+    std::snprintf(buf, sizeof buf,
+                  "%lld frames: %s (output.%s thinned to about %lld frames for an "
+                  "optimization's motion)",
+                  f, stride.c_str(), output_.every > 0 ? "every" : "interval", at_most_);
+  } else if (output_.every > 0) {
     std::snprintf(buf, sizeof buf, "%lld frames: %s (output.every)", f, stride.c_str());
   } else if (output_.interval > 0) {
     if (stride_ > 0)
@@ -74,7 +87,7 @@ std::string FrameSchedule::describe() const {
   } else {
     std::snprintf(buf, sizeof buf,
                   "%lld frames: %s (the default without output:, about %lld per run)", f,
-                  stride.c_str(), kDefaultFrames);
+                  stride.c_str(), at_most_ > 0 ? at_most_ : kDefaultFrames);
   }
   std::string s = buf;
   if (f > 1 && stride_ > 0 && steps_ % stride_ != 0) s += ", and the last state";

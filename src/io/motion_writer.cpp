@@ -2,6 +2,7 @@
 
 #include "flexopt/core/error.hpp"
 #include "flexopt/io/json.hpp"
+#include "h5_overhead.hpp"
 #include "hdf5_check.hpp"
 
 #include <cstdio>
@@ -393,6 +394,12 @@ void MotionWriter::constant_cell_scalar(std::size_t body, const std::string &nam
   m.constants[body].push_back(Field{name, true, false, path});
 }
 
+void MotionWriter::constant_cell_value(std::size_t body, const std::string &name, double value) {
+  const MotionBody &mb = impl_->body(body, "constant_cell_value");
+  const std::vector<double> values(static_cast<std::size_t>(mb.layout.local_cells), value);
+  constant_cell_scalar(body, name, values.data());
+}
+
 std::size_t MotionWriter::steps() const {
   return impl_->steps.size();
 }
@@ -432,26 +439,7 @@ std::string MotionWriter::close() {
   return m.xdmf_final;
 }
 
-namespace {
-
-/// HDF5 metadata per step and body: the group /<body>/step_K (object header, its link in the
-/// body group's symbol table with B-tree and name heap) [bytes, measured: docs/output.md].
-constexpr double kH5GroupBytes = 1145;
-/// HDF5 metadata once per file: superblock, root group, /time [bytes, measured].
-constexpr double kH5FileBytes = 2048;
-/// HDF5 metadata per dataset (object header with dataspace, datatype and layout messages; its
-/// link in the step group) [bytes, measured].
-constexpr double kH5DatasetBytes = 280;
-/// The fixed characters of xdmf_text() per step (spatial collection, Time), per step and body
-/// (Grid, Topology, Geometry) and per node field (Attribute); the names and numbers they hold
-/// are added to them. A time printed with %.17g takes up to about 20 characters.
-constexpr double kXdmfStepChars = 112 + 20, kXdmfBodyChars = 417, kXdmfFieldChars = 195;
-
-double digits(long long v) {
-  return static_cast<double>(std::to_string(v).size());
-}
-
-} // namespace
+using namespace detail;
 
 double estimate_motion_bytes(const std::vector<MotionBody> &bodies,
                              const std::vector<std::vector<std::string>> &node_vectors,

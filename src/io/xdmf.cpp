@@ -2,6 +2,7 @@
 
 #include "flexopt/core/error.hpp"
 #include "flexopt/io/json.hpp"
+#include "h5_overhead.hpp"
 #include "hdf5_check.hpp"
 
 #include <cstdio>
@@ -106,6 +107,36 @@ struct XdmfWriter::Impl {
     return x.str();
   }
 };
+
+std::string human_bytes(double bytes) {
+  char buf[32];
+  if (bytes >= 1e9)
+    std::snprintf(buf, sizeof buf, "%.2f GB", bytes / 1e9);
+  else if (bytes >= 1e6)
+    std::snprintf(buf, sizeof buf, "%.1f MB", bytes / 1e6);
+  else
+    std::snprintf(buf, sizeof buf, "%.0f kB", bytes / 1e3);
+  return buf;
+}
+
+double estimate_xdmf_bytes(const GridLayout &g, const std::string &basename,
+                           const std::vector<std::string> &cell_scalars, long long frames) {
+  using namespace detail;
+  const auto cells = static_cast<double>(g.global_cells),
+             nodes = static_cast<double>(g.global_nodes);
+  const double h5 = static_cast<double>(basename.size()) + 3, k = digits(frames);
+  const double once = kH5FileBytes + kH5GroupBytes + 24 * nodes + 8 * cells * g.nodes_per_cell +
+                      2 * kH5DatasetBytes;
+  // A step: its group and datasets, and its grid in the XDMF text (Grid, Time, Topology and
+  // Geometry with the mesh's sizes, one Attribute per field).
+  double per_frame = kH5GroupBytes + kXdmfStepChars + kXdmfBodyChars + k + 2 * h5 +
+                     2 * digits(g.global_cells) + digits(g.nodes_per_cell) +
+                     digits(g.global_nodes) + static_cast<double>(g.topology_type.size());
+  for (const std::string &f : cell_scalars)
+    per_frame += 8 * cells + kH5DatasetBytes + kXdmfFieldChars + 2 * static_cast<double>(f.size()) +
+                 k + h5 + digits(g.global_cells);
+  return once + static_cast<double>(frames) * per_frame;
+}
 
 XdmfWriter::XdmfWriter(const GridLayout &layout, const std::string &directory,
                        const std::string &basename)

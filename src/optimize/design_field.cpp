@@ -17,7 +17,7 @@ Evaluation::~Evaluation() {
 
 DesignField::DesignField(const mesh::DistributedMesh &m, const DesignSettings &d)
     : mesh_(m), spec_(d) {
-  const auto &region = m.volume_group(d.region, d.where.str() + ": design.region");
+  const auto &region = m.volume_group(d.region, d.region_where.str() + ": design.region");
   is_design_.assign(static_cast<std::size_t>(m.local_elements()), 0);
   for (PetscInt e : region) is_design_[static_cast<std::size_t>(e)] = 1;
   for (PetscInt e = 0; e < m.local_elements(); ++e)
@@ -28,7 +28,7 @@ DesignField::DesignField(const mesh::DistributedMesh &m, const DesignSettings &d
   PetscInt n_local = static_cast<PetscInt>(design_elements_.size());
   MPI_Allreduce(&n_local, &global_design_, 1, MPIU_INT, MPI_SUM, m.comm);
   if (global_design_ == 0)
-    throw Error(d.where.str() + ": design.region '" + d.region + "' has no elements", true);
+    throw Error(d.region_where.str() + ": design.region '" + d.region + "' has no elements", true);
   volume_ = fem::element_volumes(m);
   double local_volume = 0;
   for (PetscInt e : design_elements_) local_volume += volume_[static_cast<std::size_t>(e)];

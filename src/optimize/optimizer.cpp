@@ -110,6 +110,7 @@ public:
   OptimizationResult finish();
 
 private:
+  void plan_design_output(const io::GridLayout &layout);
   void write_history_header();
   void print_header() const;
   void restore_history(const io::RestartData &r, int done);
@@ -143,7 +144,30 @@ private:
   int stage_ = 0, stage_start_ = 1;
   std::vector<double> seconds_list_, split_list_; // per iteration; the split k x nsplit
   Evaluation e_;
+  double t_start_ = wall_time(); ///< the run's start, for the elapsed time
+  /// The seconds the iterations after k will take at the pace of the last few (at most: the
+  /// stop rule may end the run earlier).
+  double eta(int k, double seconds) const {
+    double sum = seconds;
+    int n = 1;
+    for (auto it = seconds_list_.rbegin(); it != seconds_list_.rend() && n < 5; ++it, ++n)
+      sum += *it;
+    return static_cast<double>(std::max(c_.max_iterations - k, 0)) * sum / n;
+  }
 };
+
+/// "42.1s", "3:05", "1:02:03": a duration for the iteration lines.
+std::string clock_text(double s) {
+  char buf[32];
+  const auto t = static_cast<long long>(std::llround(s));
+  if (s < 60)
+    std::snprintf(buf, sizeof buf, "%.1fs", s);
+  else if (t < 3600)
+    std::snprintf(buf, sizeof buf, "%lld:%02lld", t / 60, t % 60);
+  else
+    std::snprintf(buf, sizeof buf, "%lld:%02lld:%02lld", t / 3600, t / 60 % 60, t % 60);
+  return buf;
+}
 
 OptimizationRun::OptimizationRun(MPI_Comm comm, DesignProblem &design, const OptimizerSettings &c,
                                  const std::string &out_dir)
@@ -174,11 +198,40 @@ OptimizationRun::OptimizationRun(MPI_Comm comm, DesignProblem &design, const Opt
   for (auto &v : dg_) FX_PETSC(VecDuplicate(x_, &v));
   FX_PETSC(VecDuplicate(x_, &df0_));
 
-  writer_.emplace(mesh::grid_layout(problem->mesh()), out_dir, "design");
+  const io::GridLayout layout = mesh::grid_layout(problem->mesh());
+  plan_design_output(layout);
+  writer_.emplace(layout, out_dir, "design");
   write_history_header();
   print_header();
   restart_path_ = (std::filesystem::path(out_dir) / "restart.h5").string();
   tags_.assign(problem->design_tags().begin(), problem->design_tags().end());
+}
+
+/// design.xdmf's frames and estimated size, printed before the run; a warning above
+/// kLargeDesignBytes with the output.every that keeps it below.
+void OptimizationRun::plan_design_output(const io::GridLayout &layout) {
+  const std::vector<std::string> fields{"density", "filtered_density", "physical_density"};
+  result_.output_stride = design_output_stride(c_);
+  result_.output_frames = design_output_frames(c_);
+  result_.output_estimated_bytes =
+      io::estimate_xdmf_bytes(layout, "design", fields, result_.output_frames);
+  print0(comm_, "output: design.xdmf: %lld frames (every %d iteration%s%s); about %s\n",
+         result_.output_frames, result_.output_stride, result_.output_stride == 1 ? "" : "s",
+         c_.output_every > 0 ? ", output.every" : ", the default: about 100 per run",
+         io::human_bytes(result_.output_estimated_bytes).c_str());
+  if (result_.output_estimated_bytes <= kLargeDesignBytes) return;
+  const double fixed = io::estimate_xdmf_bytes(layout, "design", fields, 0);
+  const double per_frame = io::estimate_xdmf_bytes(layout, "design", fields, 1) - fixed;
+  const double fit = std::floor((kLargeDesignBytes - fixed) / per_frame);
+  std::string hint = "write fewer frames with output: {every: N} (iterations) in case.yaml";
+  if (fit >= 3)
+    hint += ", e.g. output: {every: " +
+            std::to_string(static_cast<long long>(
+                std::ceil(static_cast<double>(c_.max_iterations) / (fit - 2)))) +
+            "} for at most " + io::human_bytes(kLargeDesignBytes);
+  print0(comm_, "output: warning: design.h5 will take about %s (%lld frames of %s); %s\n",
+         io::human_bytes(result_.output_estimated_bytes).c_str(), result_.output_frames,
+         io::human_bytes(per_frame).c_str(), hint.c_str());
 }
 
 /// history.csv's header and the labels of the seconds' split (docs/theory.md section 11).
@@ -217,7 +270,7 @@ void OptimizationRun::print_header() const {
                .c_str());
   print0(comm_, " %10s", "change");
   for (const std::string &l : split_labels_) print0(comm_, " %8s", l.substr(0, 8).c_str());
-  print0(comm_, " %8s\n", "s");
+  print0(comm_, " %8s %9s %9s\n", "s", "elapsed", "ETA");
 }
 
 void OptimizationRun::read_restart() {
@@ -311,13 +364,17 @@ std::vector<double> OptimizationRun::iteration_split(double seconds) const {
 bool OptimizationRun::iteration(int k, Evaluation &e) {
   DesignProblem *problem = problem_;
   const double t0 = wall_time();
-  if (!betas_.empty()) problem->field().set_beta(betas_[static_cast<std::size_t>(stage_)]);
+  if (!betas_.empty()) {
+    const double beta = betas_[static_cast<std::size_t>(stage_)];
+    problem->field().set_beta(beta);
+    if (result_.beta_stages.empty() || result_.beta_stages.back().second != beta)
+      result_.beta_stages.emplace_back(k, beta);
+  }
   problem->evaluate(x_, true, e);
   if (!std::isfinite(e.objective))
     throw Error("optimize: iteration " + std::to_string(k) + ": the objective is not finite", true);
   if (k == 1) objective_scale_ = std::abs(e.objective) > 0 ? 10.0 / std::abs(e.objective) : 1.0;
-  const int stride = std::max(c_.output_every, 1);
-  const bool write = (k - 1) % stride == 0;
+  const bool write = (k - 1) % result_.output_stride == 0;
   if (write) write_densities(*writer_, problem->field(), k - 1);
 
   FX_PETSC(VecCopy(e.d_objective, df0_));
@@ -352,7 +409,8 @@ void OptimizationRun::record(int k, const Evaluation &e, double change, double s
   for (double v : e.constraints) print0(comm_, " %16.9e", v);
   print0(comm_, " %10.3e", change);
   for (double v : split) print0(comm_, " %8.2f", v);
-  print0(comm_, " %8.2f\n", seconds);
+  print0(comm_, " %8.2f %9s %9s\n", seconds, clock_text(wall_time() - t_start_).c_str(),
+         clock_text(eta(k, seconds)).c_str());
   append_history_row(history_, k, e.objective, e.constraints.data(), e.constraints.size(), change,
                      seconds, split.data(), split.size());
   seconds_list_.push_back(seconds);
@@ -433,6 +491,16 @@ OptimizationResult OptimizationRun::finish() {
 }
 
 } // namespace
+
+int design_output_stride(const OptimizerSettings &settings) {
+  if (settings.output_every > 0) return settings.output_every;
+  return std::max(1, (settings.max_iterations + kDesignFrames - 1) / kDesignFrames);
+}
+
+long long design_output_frames(const OptimizerSettings &settings) {
+  const int stride = design_output_stride(settings);
+  return (std::max(settings.max_iterations, 1) - 1) / stride + 2;
+}
 
 OptimizationResult run_optimization(MPI_Comm comm, DesignProblem &design,
                                     const OptimizerSettings &c, const std::string &out_dir,

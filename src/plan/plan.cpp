@@ -270,6 +270,9 @@ void print_plan(MPI_Comm comm, const Plan &plan) {
            dynamics::model_name(bp.given), what.c_str(), bp.predicted_cost_s);
     if (bp.given != dynamics::BodyModel::Auto && bp.estimated && bp.recommended != bp.model)
       print0(comm, "      the estimates recommend %s\n", dynamics::model_name(bp.recommended));
+    else if (bp.given == dynamics::BodyModel::Ffrf && bp.estimated &&
+             bp.recommended_modes != bp.modes)
+      print0(comm, "      the estimates recommend %d modes\n", bp.recommended_modes);
     for (const std::string &r : bp.reasons) print0(comm, "      %s\n", r.c_str());
     for (const std::string &w : bp.warnings) print0(comm, "      warning: %s\n", w.c_str());
   }
@@ -284,7 +287,9 @@ io::Json plan_json(const Plan &plan) {
     j["given"] = dynamics::model_name(bp.given);
     j["recommended"] = dynamics::model_name(bp.recommended);
     j["modes"] = bp.modes;
+    j["recommended_modes"] = bp.recommended_modes;
     j["geometric_stiffening"] = bp.geometric_stiffening;
+    j["recommended_geometric_stiffening"] = bp.recommended_geometric_stiffening;
     if (bp.mesh_size > 0) j["mesh_size"] = bp.mesh_size;
     io::Json r = io::Json::array();
     for (const auto &s : bp.reasons) r.push_back(s);

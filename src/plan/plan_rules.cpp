@@ -254,16 +254,27 @@ void warn_given_model(const PlanSettings &c, const BodyKed &ked, BodyPlan &bp) {
   // What runs, and where a given model disagrees.
   if (bp.given == BodyModel::Auto) {
     bp.model = bp.recommended;
+    bp.recommended_modes = bp.modes;
+    bp.recommended_geometric_stiffening = bp.geometric_stiffening;
     return;
   }
   bp.model = bp.given;
   const dynamics::ReductionSettings &r = c.scene.bodies[ked.cd->body].reduction;
+  // What runs is what the case gives: its modes and stiffening (the recommendation's are kept in
+  // recommended_modes and recommended_geometric_stiffening).
+  bp.recommended_modes = bp.modes;
+  bp.recommended_geometric_stiffening = bp.geometric_stiffening;
+  if (bp.given == BodyModel::Ffrf) {
+    bp.modes = r.modes;
+    bp.geometric_stiffening = r.geometric_stiffening;
+  }
   if (bp.given == BodyModel::Ffrf && !r.geometric_stiffening && spin_ratio >= 1)
     bp.warnings.push_back(fmt("linear FFRF will diverge at this spin rate: %.3g rad/s is "
                               "%.3g times the first frequency %.4g rad/s (give reduction: "
                               "{geometric_stiffening: true})",
                               est.spin, spin_ratio, w1));
-  else if (bp.given == BodyModel::Ffrf && !r.geometric_stiffening && bp.geometric_stiffening)
+  else if (bp.given == BodyModel::Ffrf && !r.geometric_stiffening &&
+           bp.recommended_geometric_stiffening)
     bp.warnings.push_back(fmt("the spin changes the first frequency by about (spin/w1)^2 = "
                               "%.2g > %g; reduction: {geometric_stiffening: true} takes it in",
                               spin_ratio * spin_ratio, eps));

@@ -1,8 +1,11 @@
 // io::FrameSchedule: which steps of a dynamic run are motion frames (docs/output.md, "Frames"),
-// and the motion file size estimate's arithmetic.
+// the motion file size estimate's arithmetic, and design.xdmf's frames and size for optimize.
 #include "flexopt/io/frame_schedule.hpp"
 #include "flexopt/io/motion_writer.hpp"
+#include "flexopt/io/xdmf.hpp"
+#include "flexopt/optimize/optimizer.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <gtest/gtest.h>
 #include <vector>
@@ -108,6 +111,26 @@ TEST(FrameSchedule, IntervalBelowTheStepGivesEveryStep) {
   EXPECT_FALSE(FrameSchedule(interval(1e-3), 50, 1e-3).interval_below_step()); // T = h
 }
 
+TEST(FrameSchedule, AnOptimizationsMotionTakesAboutAHundredFrames) {
+  const long long steps = 2094; // cases/slider_crank_topopt: one revolution at 20 us
+  const long long cap = FrameSchedule::kOptimizationFrames;
+  const FrameSchedule d(OutputSettings{}, steps, 2e-5, cap); // no output: about 100
+  EXPECT_EQ(d.stride(), 21);
+  EXPECT_EQ(d.frames(), static_cast<long long>(frame_steps(d, steps).size()));
+  EXPECT_LE(d.frames(), cap + 2);
+  const FrameSchedule e(every(10), steps, 2e-5, cap); // output: {every: 10}: 211 frames, thinned
+  EXPECT_EQ(e.stride(), 21);
+  EXPECT_LE(e.frames(), cap + 2);
+  EXPECT_NE(e.describe().find("thinned"), std::string::npos) << e.describe();
+  const FrameSchedule i(interval(3.3e-4), steps, 2e-5, cap); // an interval: thinned as well
+  EXPECT_LE(i.frames(), cap + 2);
+  EXPECT_EQ(i.frames(), static_cast<long long>(frame_steps(i, steps).size()));
+  const FrameSchedule f(every(50), steps, 2e-5, cap); // fewer than the cap: as given
+  EXPECT_EQ(f.stride(), 50);
+  EXPECT_EQ(f.describe().find("thinned"), std::string::npos) << f.describe();
+  EXPECT_EQ(FrameSchedule(every(10), steps, 2e-5).frames(), 211); // simulate: as given
+}
+
 TEST(MotionSizeEstimate, LinearInFramesWith24BytesPerNodeAndField) {
   flexopt::io::MotionBody b;
   b.name = "bar";
@@ -127,4 +150,50 @@ TEST(MotionSizeEstimate, LinearInFramesWith24BytesPerNodeAndField) {
   EXPECT_LE((e1 - e0) / 1000, 24000.0 + 4096);
   EXPECT_GE((f1 - e1) / 1000, 24000.0);
   EXPECT_LE((f1 - e1) / 1000, 24000.0 + 1024);
+}
+
+// design.xdmf of `optimize` (docs/output.md "Design frames"): about 100 frames by default,
+// output.every when given, and the estimate's arithmetic.
+TEST(DesignOutput, AboutAHundredFramesByDefault) {
+  flexopt::optimize::OptimizerSettings s;
+  for (const int n : {1, 12, 100, 101, 400, 1000, 1234}) {
+    s.max_iterations = n;
+    const int stride = flexopt::optimize::design_output_stride(s);
+    const long long frames = flexopt::optimize::design_output_frames(s);
+    // Iterations 1, 1 + stride, ... <= n, and the final design.
+    long long counted = 1;
+    for (int k = 1; k <= n; ++k) counted += (k - 1) % stride == 0;
+    EXPECT_EQ(frames, counted) << n << " iterations";
+    EXPECT_LE(frames, 102) << n << " iterations";
+    EXPECT_GE(frames, std::min(n, 51) + 1) << n << " iterations";
+  }
+  s.max_iterations = 400;
+  s.output_every = 7; // output.every: given, it is the stride
+  EXPECT_EQ(flexopt::optimize::design_output_stride(s), 7);
+  EXPECT_EQ(flexopt::optimize::design_output_frames(s), 57 + 1 + 1); // 1, 8, ..., 400; final
+}
+
+TEST(DesignOutput, A400IterationRunAt212kElementsStaysUnder1GB) {
+  // The Hex8 cantilever of docs/benchmarks.md at 212k elements (128 x 64 x 26 cells).
+  flexopt::io::GridLayout g;
+  g.global_cells = 128LL * 64 * 26;
+  g.global_nodes = 129LL * 65 * 27;
+  g.nodes_per_cell = 8;
+  g.topology_type = "Hexahedron";
+  flexopt::optimize::OptimizerSettings s;
+  s.max_iterations = 400;
+  const std::vector<std::string> fields{"density", "filtered_density", "physical_density"};
+  const long long frames = flexopt::optimize::design_output_frames(s);
+  const double bytes = flexopt::io::estimate_xdmf_bytes(g, "design", fields, frames);
+  EXPECT_LT(bytes, flexopt::optimize::kLargeDesignBytes);
+  // Each frame holds at least its three float64 cell fields, and little more.
+  const double e0 = flexopt::io::estimate_xdmf_bytes(g, "design", fields, 0);
+  const double per_frame = (bytes - e0) / static_cast<double>(frames);
+  EXPECT_GE(per_frame, 24.0 * static_cast<double>(g.global_cells));
+  EXPECT_LE(per_frame, 24.0 * static_cast<double>(g.global_cells) + 4096);
+  // Every iteration, as before the default changed, takes about 2 GB.
+  s.output_every = 1;
+  EXPECT_GT(flexopt::io::estimate_xdmf_bytes(g, "design", fields,
+                                             flexopt::optimize::design_output_frames(s)),
+            2e9);
 }

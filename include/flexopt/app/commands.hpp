@@ -9,7 +9,7 @@
 namespace flexopt::app {
 
 struct Options {
-  std::string command; ///< info | simulate | modes | optimize | check-gradient | plan
+  std::string command; ///< info | simulate | modes | optimize | check-gradient | plan | report
   std::string case_dir;
   std::string out;        ///< output directory; empty: <case>/out
   int count = 10;         ///< modes: number of modes
@@ -21,6 +21,7 @@ struct Options {
   std::string design;     ///< simulate (dynamic): the design of this restart.h5
   bool gradient = false;  ///< simulate (dynamic): also the adjoint gradients
   bool all_auto = false;  ///< plan: estimate every body as if its model were auto (--auto)
+  bool report = true;     ///< optimize, dynamic simulate: write OUT/report/ (--no-report: no)
   /// The plan that resolved the case's `model: auto` bodies (set by run(); null: none), for
   /// summary.json.
   io::Json plan;

@@ -30,8 +30,14 @@ public:
   /// Frames of a run without `output:`: about this many.
   static constexpr long long kDefaultFrames = 200;
 
-  /// The schedule for `output` (Case::output) over `steps` steps of `h` seconds.
-  FrameSchedule(const OutputSettings &output, long long steps, double h);
+  /// Frames of each of an optimization's motion files (motion_initial, motion_final): at most
+  /// about this many, whatever output: asks for the run it describes.
+  static constexpr long long kOptimizationFrames = 100;
+
+  /// The schedule for `output` (Case::output) over `steps` steps of `h` seconds. With
+  /// `at_most` > 0 (an optimization's motions): the default is about `at_most` frames, and a
+  /// rule of `output` that would write more is thinned to every ceil(steps / at_most) steps.
+  FrameSchedule(const OutputSettings &output, long long steps, double h, long long at_most = 0);
 
   /// True if the state after step n (n = 0: the initial state; 0 <= n <= steps) is a frame.
   bool is_frame(long long n) const;
@@ -55,6 +61,8 @@ private:
   long long stride_ = 1;       ///< every-N rule (default, every, and intervals below the step)
   double steps_per_frame_ = 0; ///< interval rule: T / h (> 1); 0 for the every-N rule
   bool interval_below_step_ = false;
+  long long at_most_ = 0; ///< the constructor's at_most
+  bool thinned_ = false;  ///< output's rule gave more than at_most frames
 };
 
 } // namespace flexopt::io

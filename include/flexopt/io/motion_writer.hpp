@@ -72,6 +72,9 @@ public:
   /// written once, to /<body>/<name>, and shown in every step, those begun before and after.
   /// Collective.
   void constant_cell_scalar(std::size_t body, const std::string &name, const double *local_values);
+  /// constant_cell_scalar with one value in every cell (a body outside the design: density 1).
+  /// Collective.
+  void constant_cell_value(std::size_t body, const std::string &name, double value);
   /// Writes /time, closes the HDF5 file, writes the XDMF file and renames both to their final
   /// names. Collective. Returns the path of the XDMF file.
   std::string close();

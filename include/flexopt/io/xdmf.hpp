@@ -24,6 +24,18 @@ struct GridLayout {
   std::string topology_type;         ///< XDMF name: Tetrahedron, Tetrahedron_10, Hexahedron
 };
 
+/// "12.3 MB", "1.76 GB": a size in decimal units, as file managers show them.
+std::string human_bytes(double bytes);
+
+/// Estimated size in bytes of `<basename>.h5` plus `.xdmf` written by XdmfWriter over `layout`
+/// with `frames` steps of the cell scalar fields `cell_scalars` each: the mesh once (float64
+/// coordinates, int64 cell nodes), 8 bytes per cell, field and frame, HDF5's metadata per step
+/// group and dataset (measured constants) and the XDMF text (counted; the mesh's grid repeated
+/// in every step). Linear in `frames`. docs/output.md ("Size") gives its accuracy. Not
+/// collective.
+double estimate_xdmf_bytes(const GridLayout &layout, const std::string &basename,
+                           const std::vector<std::string> &cell_scalars, long long frames);
+
 class XdmfWriter {
 public:
   /// Creates `<directory>/<basename>.h5` (under a temporary name) and writes the mesh. Collective.

@@ -30,12 +30,13 @@ struct DesignSettings {
   /// ACF design body and for a static design under gravity or loads.inertia, linear otherwise.
   MassInterpolation mass = MassInterpolation::Linear;
   FilterType filter_type = FilterType::Helmholtz;
-  double filter_radius = 0; ///< Helmholtz length scale r, or cone radius R [m]; 0: not given
-                            ///< (DesignField derives it from the design elements' size)
-  std::vector<double> beta; ///< Heaviside projection continuation (empty: no projection)
-  double eta = 0.5;         ///< projection threshold
-  int beta_every = 25;      ///< iterations per beta value (continuation)
-  io::Location where;
+  double filter_radius = 0;  ///< Helmholtz length scale r, or cone radius R [m]; 0: not given
+                             ///< (DesignField derives it from the design elements' size)
+  std::vector<double> beta;  ///< Heaviside projection continuation (empty: no projection)
+  double eta = 0.5;          ///< projection threshold
+  int beta_every = 25;       ///< iterations per beta value (continuation)
+  io::Location where;        ///< the design: map
+  io::Location region_where; ///< its region: key (the design: map where none is given)
 };
 
 class DesignField {

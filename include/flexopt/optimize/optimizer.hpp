@@ -4,6 +4,7 @@
 
 #include <mpi.h>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace flexopt::optimize {
@@ -13,10 +14,22 @@ struct OptimizerSettings {
   int max_iterations = 100;
   double move_limit = 0.2;
   double tolerance = 1e-3; ///< stop when the max design change is below
-  /// design.xdmf: the densities every this many iterations (and at the last)
-  int output_every = 1;
+  /// design.xdmf: the densities every this many iterations (and at the last); 0: the default,
+  /// about kDesignFrames frames over max_iterations (design_output_stride)
+  int output_every = 0;
   std::vector<double> bounds; ///< each constraint's upper bound, in the problem's order
 };
+
+/// design.xdmf without output.every: about this many frames over optimizer.max_iterations.
+constexpr int kDesignFrames = 100;
+/// A design.xdmf estimated above this size draws a warning before the run [bytes].
+constexpr double kLargeDesignBytes = 1e9;
+
+/// design.xdmf's stride: output.every when given, else ceil(max_iterations / kDesignFrames).
+int design_output_stride(const OptimizerSettings &settings);
+/// design.xdmf's frames over a run of max_iterations: iterations 1, 1 + stride, ... (the design
+/// that each evaluated) and the final design.
+long long design_output_frames(const OptimizerSettings &settings);
 
 struct OptimizationResult {
   int iterations = 0;
@@ -29,9 +42,15 @@ struct OptimizationResult {
   std::vector<std::vector<double>> seconds_split;
   double volume_fraction = 0; ///< final, of the design region
   bool converged = false;     ///< stopped on optimizer.tolerance
+  /// The projection's continuation: (first iteration, beta) of every stage run, the first one
+  /// included (none without projection)
+  std::vector<std::pair<int, double>> beta_stages;
   std::string stop_reason;
   long long dofs = 0, elements = 0, design_variables = 0;
-  std::string output; ///< design.xdmf path
+  std::string output;                ///< design.xdmf path
+  int output_stride = 1;             ///< design.xdmf's frames: every this many iterations
+  long long output_frames = 0;       ///< planned over max_iterations
+  double output_estimated_bytes = 0; ///< design.h5 + design.xdmf, estimated before the run
 };
 
 /// Runs MMA on `problem` (static or dynamic: the same loop for both), with the projection

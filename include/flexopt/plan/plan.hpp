@@ -43,8 +43,14 @@ struct BodyPlan {
   std::string body;
   dynamics::BodyModel given = dynamics::BodyModel::Auto;        ///< the case's model
   dynamics::BodyModel recommended = dynamics::BodyModel::Rigid; ///< what the estimates choose
-  int modes = 0;                                                ///< ffrf: fixed-interface modes
+  /// ffrf: the fixed-interface modes and geometric stiffening of what runs (the case's for a
+  /// given ffrf body, the recommendation's for auto)
+  int modes = 0;
   bool geometric_stiffening = false;
+  /// ffrf: what the estimates recommend (the fewest modes within accuracy / 2; stiffening where
+  /// (spin / w1)^2 > accuracy), whatever the case gives
+  int recommended_modes = 0;
+  bool recommended_geometric_stiffening = false;
   double mesh_size = 0; ///< acf: the element size the plan chose [m] (0: the case's mesh)
   /// what runs: the given model, or the recommendation for auto
   dynamics::BodyModel model = dynamics::BodyModel::Rigid;
