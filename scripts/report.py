@@ -24,6 +24,7 @@ import shutil
 import subprocess
 import sys
 import tempfile
+import time
 
 import matplotlib
 
@@ -107,9 +108,12 @@ def render(jobs, work):
     path = os.path.join(work, "jobs.json")
     json.dump(jobs, open(path, "w"))
     message = ""
-    # Twice: a fresh Xvfb server is sometimes not ready for ParaView's first connection
-    # ("bad X server connection"; seen once in a few dozen runs).
-    for attempt in range(2):
+    # Up to three times: a fresh Xvfb server is sometimes not ready for ParaView's first
+    # connection ("bad X server connection"; seen twice in a few dozen runs, each time the next
+    # attempt rendered).
+    for attempt in range(3):
+        if attempt:
+            time.sleep(1)
         try:
             p = subprocess.run(cmd + [os.path.join(HERE, "report_render.py"), path], env=clean_env(),
                                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, timeout=600)
