@@ -85,7 +85,10 @@ def display_command():
         return [pvbatch], ""
     xvfb = shutil.which("xvfb-run")
     if xvfb:
-        return [xvfb, "-a", "-s", "-screen 0 1280x1024x24", pvbatch], ""
+        # A display number of this process's own (xvfb-run -a counts up from it): from the
+        # default :99, a report started just after another one's Xvfb exits can find that
+        # server gone ("bad X server connection").
+        return [xvfb, "-a", "-n", str(100 + os.getpid() % 800), "-s", "-screen 0 1280x1024x24", pvbatch], ""
     return None, "no display and no xvfb-run (apt-get install xvfb; scripts/install_deps.sh installs it)"
 
 

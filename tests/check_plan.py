@@ -130,6 +130,18 @@ if bodies:
           f"spin_up_beam as given: {b['model']}, {b['modes']} modes (the case's 8), stiffening "
           f"{b['geometric_stiffening']}; recommended {b['recommended_modes']} modes")
 
+# 3c. simulate repeats the plan's word on a given model that the estimates disagree with: the
+#     flexible slider-crank's rod, given ffrf, is warned that the loads' stress calls for ACF
+#     (the same warning as `flexopt plan`), after the run's results.
+env = {k: v for k, v in os.environ.items() if k != "FLEXOPT_PLAN_CHECK"}
+env["FLEXOPT_REPORT"] = "0"
+r = subprocess.run(["mpirun", "-n", str(a.ranks), a.flexopt, "simulate", case("slider_crank_flexible"), "--out",
+                    os.path.join(a.out, "simulate_given")], capture_output=True, text=True, env=env)
+warned = [ln for ln in r.stdout.splitlines() if ln.startswith("plan: body rod: warning:")]
+check(r.returncode == 0 and warned and "acf" in warned[0] and
+      r.stdout.index(warned[0]) > r.stdout.index("summary.json"),
+      f"simulate of slider_crank_flexible (rod given ffrf) repeats the plan's warning after its results: {warned[:1]}")
+
 # 4. The Kane beam: ACF or stiffened FFRF, never linear FFRF.
 bodies = stiffened["kane_beam"] = plan(case("kane_beam"), "kane_beam")
 if bodies:

@@ -53,6 +53,11 @@ bool report_wanted(const Options &o);
 /// every rank (0: written; the pictures may still be missing, which the report says).
 /// Collective.
 int write_report(const Context &ctx, const std::string &out_dir);
+/// After a dynamic simulate or optimize whose flexible bodies' models are given (none auto): the
+/// plan's estimates, and a line per body where they recommend another model or warn (docs/theory.md
+/// section 12); FLEXOPT_PLAN_CHECK=0 skips it (the test suite). A plan that fails is a note: the
+/// run's results stand. Collective.
+void check_given_models(const Context &ctx, const Options &o, const io::Case &c);
 /// `flexopt report OUT`. Collective.
 int run_report(const Context &ctx, const Options &o);
 

@@ -3,7 +3,9 @@
 #include "app_common.hpp"
 #include "flexopt/core/context.hpp"
 #include "flexopt/core/error.hpp"
+#include "flexopt/plan/plan.hpp"
 
+#include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -63,6 +65,37 @@ int write_report(const Context &ctx, const std::string &out_dir) {
   }
   MPI_Bcast(&status, 1, MPI_INT, 0, ctx.comm());
   return status;
+}
+
+void check_given_models(const Context &ctx, const Options &o, const io::Case &c) {
+  const char *env = std::getenv("FLEXOPT_PLAN_CHECK");
+  if (!c.dynamic() || !o.plan.is_null() || (env && std::string(env) == "0")) return;
+  const bool flexible =
+      std::any_of(c.scene.bodies.begin(), c.scene.bodies.end(), [](const auto &b) {
+        return b.model == dynamics::BodyModel::Ffrf || b.model == dynamics::BodyModel::Acf;
+      });
+  if (!flexible) return;
+  plan::PlanOptions po;
+  po.report = false;
+  plan::Plan p;
+  try {
+    p = plan::make_plan(ctx.comm(), io::plan_settings(c), po);
+  } catch (const Error &e) {
+    if (!e.collective()) throw;
+    print0(ctx.comm(), "plan: note: the estimates of the given models could not be made: %s\n",
+           e.what());
+    return;
+  }
+  for (const plan::BodyPlan &bp : p.bodies) {
+    if (bp.given == dynamics::BodyModel::Auto || !bp.estimated) continue;
+    if (bp.recommended != bp.model)
+      print0(ctx.comm(), "plan: body %s is given model %s; the estimates recommend %s\n",
+             bp.body.c_str(), dynamics::model_name(bp.model), dynamics::model_name(bp.recommended));
+    for (const std::string &w : bp.warnings)
+      print0(ctx.comm(), "plan: body %s: warning: %s\n", bp.body.c_str(), w.c_str());
+  }
+  print0(ctx.comm(), "plan: (flexopt plan %s gives the reasons and numbers; %.1f s)\n",
+         o.case_dir.c_str(), p.seconds);
 }
 
 int run_report(const Context &ctx, const Options &o) {
