@@ -58,6 +58,9 @@ int write_report(const Context &ctx, const std::string &out_dir);
 /// section 12); FLEXOPT_PLAN_CHECK=0 skips it (the test suite). A plan that fails is a note: the
 /// run's results stand. Collective.
 void check_given_models(const Context &ctx, const Options &o, const io::Case &c);
+/// The end of a dynamic simulate or an optimize, after its results are written: the check of
+/// the given models, then the report (a failed report is a warning). Collective.
+void after_run(const Context &ctx, const Options &o, const io::Case &c, const std::string &dir);
 /// `flexopt report OUT`. Collective.
 int run_report(const Context &ctx, const Options &o);
 

@@ -542,12 +542,7 @@ int run_optimize(const Context &ctx, const Options &o, const io::Case &c, double
          "physical_density at 0.5 in ParaView), %s, %s\n",
          r.output.c_str(), r.output_stride, (fs::path(dir) / "history.csv").c_str(),
          (fs::path(dir) / "summary.json").c_str());
-  check_given_models(ctx, o, c);
-  if (report_wanted(o) && write_report(ctx, dir) != 0)
-    print0(ctx.comm(),
-           "optimize: warning: the report failed (the run's results are complete; "
-           "flexopt report %s tries again)\n",
-           dir.c_str());
+  after_run(ctx, o, c, dir);
   return 0;
 }
 

@@ -517,12 +517,7 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
   if (x) FX_PETSC(VecDestroy(&x));
   detail::write_summary(ctx, dir, s, t0);
   print0(ctx.comm(), "wrote %s/summary.json\n", dir.c_str());
-  check_given_models(ctx, o, c);
-  if (report_wanted(o) && write_report(ctx, dir) != 0)
-    print0(ctx.comm(),
-           "simulate: warning: the report failed (the run's results are complete; "
-           "flexopt report %s tries again)\n",
-           dir.c_str());
+  after_run(ctx, o, c, dir);
   return 0;
 }
 

@@ -98,6 +98,15 @@ void check_given_models(const Context &ctx, const Options &o, const io::Case &c)
          o.case_dir.c_str(), p.seconds);
 }
 
+void after_run(const Context &ctx, const Options &o, const io::Case &c, const std::string &dir) {
+  check_given_models(ctx, o, c);
+  if (report_wanted(o) && write_report(ctx, dir) != 0)
+    print0(ctx.comm(),
+           "%s: warning: the report failed (the run's results are complete; flexopt report %s "
+           "tries again)\n",
+           o.command.c_str(), dir.c_str());
+}
+
 int run_report(const Context &ctx, const Options &o) {
   if (!std::filesystem::exists(std::filesystem::path(o.case_dir) / "summary.json"))
     throw Error(o.case_dir + ": no summary.json: `flexopt report OUT` takes the output directory "
