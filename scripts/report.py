@@ -1,8 +1,8 @@
 #!/usr/bin/python3
 """`flexopt report OUT`: the pictures of a finished run, in OUT/report/ (docs/output.md "Report").
 
-  history.png  optimize: objective, constraints and the largest design change against the
-               iteration, the projection's beta stages marked;
+  history.png  optimize: objective, constraints (their bounds dotted) and the largest design
+               change against the iteration, the projection's beta stages marked;
   design.png   optimize: the final design (physical_density >= 0.5) from three viewpoints, and
                for a dynamic case the initial design above it;
   motion.png   a dynamic run: the mechanism (of the final design, for optimize) at 6 instants,
@@ -57,8 +57,11 @@ def plot_history(s, h, png):
     axes[0].set_ylabel("objective")
     axes[0].set_title(f"{s.get('case', '')}: optimization history")
     if cons:
+        bounds = s.get("constraint_bounds") or []
         for i, k in enumerate(cons):
             axes[1].plot(it, h[k], color=f"C{i + 1}", label=k)
+            if i < len(bounds):  # the constraint's max, dotted in its colour
+                axes[1].axhline(bounds[i], color=f"C{i + 1}", lw=0.8, ls=":")
         axes[1].set_ylabel("constraints")
         axes[1].legend(fontsize="small")
     axes[-1].semilogy(it, h["max_change"], color="C7")

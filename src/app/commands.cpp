@@ -500,6 +500,7 @@ int run_optimize(const Context &ctx, const Options &o, const io::Case &c, double
   io::Json cons = io::Json::array();
   for (const auto &row : r.constraints) cons.push_back(io::Json(row));
   s["constraints"] = cons;
+  s["constraint_bounds"] = run_case.optimizer.bounds; // each constraint's max, in the same order
   s["max_change"] = r.max_change;
   io::Json split = io::Json::object();
   for (std::size_t p = 0; p < r.split_names.size(); ++p) {
