@@ -24,6 +24,7 @@
 //          [-gauge orthonormal|frozen] [PETSc options, e.g. -log_view or -eps_view ascii:FILE for
 //          MUMPS's factor statistics]
 #include "flexopt/core/context.hpp"
+#include "harness.hpp"
 #include "flexopt/core/error.hpp"
 #include "flexopt/mesh/distributed_mesh.hpp"
 #include "flexopt/mesh/mesh_data.hpp"
@@ -213,59 +214,47 @@ void run(const mesh::DistributedMesh &m, const Configuration &c, int modes, int 
 } // namespace
 
 int main(int argc, char **argv) {
-  int status = 0;
-  try {
-    Context ctx(&argc, &argv, nullptr);
-    try {
-      PetscReal size = 0;
-      PetscInt modes = 8, repeat = 1;
-      char config[16] = "ab", gauge_name[32] = "orthonormal";
-      PetscBool has_size = PETSC_FALSE;
-      PetscOptionsGetReal(nullptr, nullptr, "-size", &size, &has_size);
-      PetscOptionsGetInt(nullptr, nullptr, "-modes", &modes, nullptr);
-      PetscOptionsGetInt(nullptr, nullptr, "-repeat", &repeat, nullptr);
-      PetscOptionsGetString(nullptr, nullptr, "-config", config, sizeof config, nullptr);
-      PetscOptionsGetString(nullptr, nullptr, "-gauge", gauge_name, sizeof gauge_name, nullptr);
-      const std::string gauge_option(gauge_name);
-      if (gauge_option != "orthonormal" && gauge_option != "frozen")
-        throw Error("-gauge: orthonormal or frozen, not '" + gauge_option + "'", true);
-      const reduce::BasisGauge gauge = gauge_option == "frozen"
-                                           ? reduce::BasisGauge::FrozenCoordinates
-                                           : reduce::BasisGauge::Orthonormal;
-      if (!has_size || size <= 0) throw Error("-size H (mesh size [m]) is required", true);
-      mesh::MeshData data;
-      const std::string geo = std::string(FLEXOPT_SOURCE_DIR) + "/meshes/beam.geo";
-      const bool root = ctx.rank() == 0;
-      const double t0 = MPI_Wtime();
-      run_on_root(PETSC_COMM_WORLD, 0, [&] {
-        data = mesh::read_gmsh(geo, mesh::MeshOptions{size, 2});
-      });
-      const mesh::DistributedMesh m =
-          mesh::distribute_mesh(PETSC_COMM_WORLD, root ? &data : nullptr);
-      data = mesh::MeshData{};
-      if (root)
-        std::fprintf(stderr, "mesh size %g: %lld DOFs, %lld Tet10 elements, %.1f s (Gmsh, METIS)\n",
-                     size, static_cast<long long>(3 * m.global_nodes),
-                     static_cast<long long>(m.global_elements), MPI_Wtime() - t0);
-      const std::string which(config);
-      if (which.find('a') != std::string::npos)
-        run(m,
-            Configuration{
-                "a: clamp + tip, chord", {"clamp", "tip"}, false, reduce::FrameCondition::Chord},
-            static_cast<int>(modes), static_cast<int>(repeat), gauge, size);
-      if (which.find('b') != std::string::npos)
-        run(m,
-            Configuration{
-                "b: clamp, clamped, stiffened", {"clamp"}, true, reduce::FrameCondition::Clamped},
-            static_cast<int>(modes), static_cast<int>(repeat), gauge, size);
-    } catch (const std::exception &e) {
-      if (comm_rank(PETSC_COMM_WORLD) == 0)
-        std::fprintf(stderr, "bench_ffrf_reduction_adjoint: %s\n", e.what());
-      status = 1;
-    }
-  } catch (const std::exception &e) {
-    std::fprintf(stderr, "bench_ffrf_reduction_adjoint: %s\n", e.what());
-    status = 1;
-  }
-  return status;
+  return flexopt::bench::run_bench(argc, argv, "bench_ffrf_reduction_adjoint", [&] {
+    PetscReal size = 0;
+    PetscInt modes = 8, repeat = 1;
+    char config[16] = "ab", gauge_name[32] = "orthonormal";
+    PetscBool has_size = PETSC_FALSE;
+    PetscOptionsGetReal(nullptr, nullptr, "-size", &size, &has_size);
+    PetscOptionsGetInt(nullptr, nullptr, "-modes", &modes, nullptr);
+    PetscOptionsGetInt(nullptr, nullptr, "-repeat", &repeat, nullptr);
+    PetscOptionsGetString(nullptr, nullptr, "-config", config, sizeof config, nullptr);
+    PetscOptionsGetString(nullptr, nullptr, "-gauge", gauge_name, sizeof gauge_name, nullptr);
+    const std::string gauge_option(gauge_name);
+    if (gauge_option != "orthonormal" && gauge_option != "frozen")
+      throw Error("-gauge: orthonormal or frozen, not '" + gauge_option + "'", true);
+    const reduce::BasisGauge gauge = gauge_option == "frozen"
+                                         ? reduce::BasisGauge::FrozenCoordinates
+                                         : reduce::BasisGauge::Orthonormal;
+    if (!has_size || size <= 0) throw Error("-size H (mesh size [m]) is required", true);
+    mesh::MeshData data;
+    const std::string geo = std::string(FLEXOPT_SOURCE_DIR) + "/meshes/beam.geo";
+    const bool root = comm_rank(PETSC_COMM_WORLD) == 0;
+    const double t0 = MPI_Wtime();
+    run_on_root(PETSC_COMM_WORLD, 0, [&] {
+      data = mesh::read_gmsh(geo, mesh::MeshOptions{size, 2});
+    });
+    const mesh::DistributedMesh m =
+        mesh::distribute_mesh(PETSC_COMM_WORLD, root ? &data : nullptr);
+    data = mesh::MeshData{};
+    if (root)
+      std::fprintf(stderr, "mesh size %g: %lld DOFs, %lld Tet10 elements, %.1f s (Gmsh, METIS)\n",
+                   size, static_cast<long long>(3 * m.global_nodes),
+                   static_cast<long long>(m.global_elements), MPI_Wtime() - t0);
+    const std::string which(config);
+    if (which.find('a') != std::string::npos)
+      run(m,
+          Configuration{
+              "a: clamp + tip, chord", {"clamp", "tip"}, false, reduce::FrameCondition::Chord},
+          static_cast<int>(modes), static_cast<int>(repeat), gauge, size);
+    if (which.find('b') != std::string::npos)
+      run(m,
+          Configuration{
+              "b: clamp, clamped, stiffened", {"clamp"}, true, reduce::FrameCondition::Clamped},
+          static_cast<int>(modes), static_cast<int>(repeat), gauge, size);
+  });
 }

@@ -12,6 +12,7 @@
 //
 //   mpirun -n N build/bench_hex8_matvec -geo BOX.geo [-repeat 50]
 #include "flexopt/core/context.hpp"
+#include "harness.hpp"
 #include "flexopt/core/error.hpp"
 #include "flexopt/fem/assembly.hpp"
 #include "flexopt/fem/matrix_free.hpp"
@@ -110,26 +111,14 @@ void run(const std::string &geo, int repeat) {
 } // namespace
 
 int main(int argc, char **argv) {
-  int status = 0;
-  try {
-    Context ctx(&argc, &argv, nullptr);
-    try {
-      char geo[PETSC_MAX_PATH_LEN] = "";
-      PetscInt repeat = 50;
-      PetscBool has_geo = PETSC_FALSE;
-      PetscOptionsGetString(nullptr, nullptr, "-geo", geo, sizeof geo, &has_geo);
-      PetscOptionsGetInt(nullptr, nullptr, "-repeat", &repeat, nullptr);
-      if (!has_geo) throw Error("-geo BOX.geo (a transfinite Hex8 box) is required", true);
-      if (repeat < 1) throw Error("-repeat: at least 1", true);
-      run(geo, static_cast<int>(repeat));
-    } catch (const std::exception &e) {
-      if (comm_rank(PETSC_COMM_WORLD) == 0)
-        std::fprintf(stderr, "bench_hex8_matvec: %s\n", e.what());
-      status = 1;
-    }
-  } catch (const std::exception &e) {
-    std::fprintf(stderr, "bench_hex8_matvec: %s\n", e.what());
-    status = 1;
-  }
-  return status;
+  return flexopt::bench::run_bench(argc, argv, "bench_hex8_matvec", [&] {
+    char geo[PETSC_MAX_PATH_LEN] = "";
+    PetscInt repeat = 50;
+    PetscBool has_geo = PETSC_FALSE;
+    PetscOptionsGetString(nullptr, nullptr, "-geo", geo, sizeof geo, &has_geo);
+    PetscOptionsGetInt(nullptr, nullptr, "-repeat", &repeat, nullptr);
+    if (!has_geo) throw Error("-geo BOX.geo (a transfinite Hex8 box) is required", true);
+    if (repeat < 1) throw Error("-repeat: at least 1", true);
+    run(geo, static_cast<int>(repeat));
+  });
 }

@@ -7,6 +7,7 @@
 //
 //   mpirun -n N build/bench_motion_output -out DIR [-steps 200] [-big_steps 20]
 #include "flexopt/core/context.hpp"
+#include "harness.hpp"
 #include "flexopt/core/error.hpp"
 #include "flexopt/io/motion_writer.hpp"
 #include "flexopt/io/xdmf.hpp"
@@ -96,32 +97,20 @@ void time_motion(const std::vector<io::MotionBody> &bodies, int steps, const cha
 } // namespace
 
 int main(int argc, char **argv) {
-  int status = 0;
-  try {
-    Context ctx(&argc, &argv, nullptr);
-    try {
-      char dir[PETSC_MAX_PATH_LEN] = ".";
-      PetscInt steps = 200, big_steps = 20;
-      PetscOptionsGetString(nullptr, nullptr, "-out", dir, sizeof dir, nullptr);
-      PetscOptionsGetInt(nullptr, nullptr, "-steps", &steps, nullptr);
-      PetscOptionsGetInt(nullptr, nullptr, "-big_steps", &big_steps, nullptr);
-      if (steps < 10 || big_steps < 10) throw Error("-steps, -big_steps: at least 10", true);
-      const MPI_Comm comm = PETSC_COMM_WORLD;
-      std::vector<io::MotionBody> small;
-      for (int b = 0; b < 3; ++b) // 3 bodies x 1000 nodes (9 x 9 x 9 cells)
-        small.push_back({"body" + std::to_string(b), block_layout(comm, 9, 9, 9, 0.2 * b)});
-      time_motion(small, static_cast<int>(steps), "3 bodies x 1000 nodes", dir, "motion_small");
-      // 1 body x 100 000 nodes (99 x 99 x 9 cells: 100 x 100 x 10 nodes).
-      time_motion({{"big", block_layout(comm, 99, 99, 9, 0.0)}}, static_cast<int>(big_steps),
-                  "1 body x 100000 nodes", dir, "motion_big");
-    } catch (const std::exception &e) {
-      if (comm_rank(PETSC_COMM_WORLD) == 0)
-        std::fprintf(stderr, "bench_motion_output: %s\n", e.what());
-      status = 1;
-    }
-  } catch (const std::exception &e) {
-    std::fprintf(stderr, "bench_motion_output: %s\n", e.what());
-    status = 1;
-  }
-  return status;
+  return flexopt::bench::run_bench(argc, argv, "bench_motion_output", [&] {
+    char dir[PETSC_MAX_PATH_LEN] = ".";
+    PetscInt steps = 200, big_steps = 20;
+    PetscOptionsGetString(nullptr, nullptr, "-out", dir, sizeof dir, nullptr);
+    PetscOptionsGetInt(nullptr, nullptr, "-steps", &steps, nullptr);
+    PetscOptionsGetInt(nullptr, nullptr, "-big_steps", &big_steps, nullptr);
+    if (steps < 10 || big_steps < 10) throw Error("-steps, -big_steps: at least 10", true);
+    const MPI_Comm comm = PETSC_COMM_WORLD;
+    std::vector<io::MotionBody> small;
+    for (int b = 0; b < 3; ++b) // 3 bodies x 1000 nodes (9 x 9 x 9 cells)
+      small.push_back({"body" + std::to_string(b), block_layout(comm, 9, 9, 9, 0.2 * b)});
+    time_motion(small, static_cast<int>(steps), "3 bodies x 1000 nodes", dir, "motion_small");
+    // 1 body x 100 000 nodes (99 x 99 x 9 cells: 100 x 100 x 10 nodes).
+    time_motion({{"big", block_layout(comm, 99, 99, 9, 0.0)}}, static_cast<int>(big_steps),
+                "1 body x 100000 nodes", dir, "motion_big");
+  });
 }

@@ -6,7 +6,7 @@
 namespace flexopt::adjoint::detail {
 
 DensePass::DensePass(DynamicProblem &p, bool gradients)
-    : p_(p), gradients_(gradients), integrator_(p.scene_, p.integration_) {}
+    : PassRun(p, gradients) {}
 
 void DensePass::sample(const dynamics::State &s) {
   const dynamics::Mechanism &mech = p_.scene_.mechanism;
@@ -40,33 +40,20 @@ void DensePass::sample(const dynamics::State &s) {
 }
 
 void DensePass::forward() {
-  // The records the backward sweep needs go to the store, all of them or those of the binomial
-  // schedule's first descent; every main step's sensor samples.
+  // Every main step's samples; the records the backward sweep needs go to the store, all of
+  // them or those of the binomial schedule's first descent.
   const dynamics::GeneralizedAlpha &ga = integrator_.dense();
   record_ = StepRecord{ga.initial_state(p_.scene_.q0, p_.scene_.v0, 0.0, nullptr, &trace_), {}};
-  s0_ = record_.state;
-  if (gradients_) {
-    keep_ = p_.plan_checkpoints(schedule_);
-    store_ = p_.settings_.adjoint.storage == CheckpointStorage::Disk
-                 ? disk_store(p_.checkpoint_file())
-                 : memory_store();
-    store_->put(0, record_);
-  }
   const std::size_t nr = p_.specs_.size();
   p_.ev_.samples.assign(nr, {});
   p_.ev_.sensor_frames.assign(nr, {});
   p_.ev_.strain_kbar.assign(nr, Matrix());
   strain_value_.assign(nr, 0.0);
-  sample(record_.state);
-  if (p_.observer_) p_.observer_(0, dynamics::StepInfo{}, &record_.state, nullptr);
+  run_forward(
+      ga,
+      [&](bool disk) { return disk ? disk_store(p_.checkpoint_file()) : memory_store(); },
+      [&](const dynamics::State &s) { sample(s); });
   const double h = p_.settings_.time.step;
-  dynamics::run_steps(ga, p_.steps_, h, record_, &p_.ev_.substep_sizes,
-                      [&](long long j, const dynamics::StepInfo &info) {
-                        sample(record_.state);
-                        if (gradients_ && keep_[static_cast<std::size_t>(j)])
-                          store_->put(j, record_);
-                        if (p_.observer_) p_.observer_(j, info, &record_.state, nullptr);
-                      });
   // The responses on the time grid.
   p_.ev_.sampled.assign(nr, SampledResponse{});
   for (std::size_t i = 0; i < nr; ++i) {

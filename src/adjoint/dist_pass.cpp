@@ -17,7 +17,7 @@ std::unique_ptr<Pass> make_pass(DynamicProblem &p, bool gradients) {
 }
 
 DistPass::DistPass(DynamicProblem &p, bool gradients)
-    : p_(p), gradients_(gradients), integrator_(p.scene_, p.integration_), da_(integrator_.dist()),
+    : PassRun(p, gradients), da_(integrator_.dist()),
       acf_(p.acf_design_ >= 0), design_(static_cast<std::size_t>(acf_ ? p.acf_design_ : 0)) {
   body_ = acf_ ? p_.scene_.acf[design_].get() : nullptr;
   G_ = Matrix::Zero(10, static_cast<Eigen::Index>(p_.specs_.size()));
@@ -73,23 +73,12 @@ void DistPass::forward() {
           strain_body_[i] = p_.scene_.bodies[b].acf;
   p_.ev_.samples.assign(nr, {});
   energy_.assign(nr, {});
-  if (gradients_) {
-    keep_ = p_.plan_checkpoints(schedule_);
-    store_ = p_.settings_.adjoint.storage == CheckpointStorage::Disk
-                 ? dist_disk_store(p_.checkpoint_file(), da_)
-                 : dist_memory_store();
-  }
-  sample(record_.state);
-  s0_ = record_.state;
-  if (gradients_) store_->put(0, record_);
-  if (p_.observer_) p_.observer_(0, dynamics::StepInfo{}, nullptr, &record_.state);
-  dynamics::run_steps(da_, p_.steps_, h, record_, &p_.ev_.substep_sizes,
-                      [&](long long j, const dynamics::StepInfo &info) {
-                        sample(record_.state);
-                        if (gradients_ && keep_[static_cast<std::size_t>(j)])
-                          store_->put(j, record_);
-                        if (p_.observer_) p_.observer_(j, info, nullptr, &record_.state);
-                      });
+  run_forward(
+      da_,
+      [&](bool disk) {
+        return disk ? dist_disk_store(p_.checkpoint_file(), da_) : dist_memory_store();
+      },
+      [&](const dynamics::DistState &s) { sample(s); });
   const auto N = static_cast<std::size_t>(p_.steps_);
   p_.ev_.sampled.assign(nr, SampledResponse{});
   for (std::size_t i = 0; i < nr; ++i) {

@@ -10,6 +10,7 @@
 #include "flexopt/adjoint/dynamic_problem.hpp"
 
 #include <memory>
+#include <type_traits>
 #include <vector>
 
 namespace flexopt::adjoint::detail {
@@ -30,7 +31,61 @@ public:
 /// The pass of the scene of `p` on its backend. Collective.
 std::unique_ptr<Pass> make_pass(DynamicProblem &p, bool gradients);
 
-class DensePass : public Pass {
+/// What the passes of both backends hold for one evaluation, on their kind of state: the
+/// problem, the integrator, the consistent start and what it did (section 9.2), the running
+/// record, and the checkpoints of the backward sweep; and the forward loop itself.
+template <class State, class Trace> class PassRun : public Pass {
+protected:
+  using RecordT = Record<State>;
+  using StoreT = Store<RecordT>;
+  PassRun(DynamicProblem &p, bool gradients)
+      : p_(p), gradients_(gradients), integrator_(p.scene_, p.integration_) {}
+
+  /// The forward run (section 9.4) from record_, which holds the consistent start: s0_ set, the
+  /// checkpoint store opened by `open_store(disk)` when gradients follow (with the records of
+  /// step 0 and of the schedule's first descent), `sample(state)` at every main step and the
+  /// problem's observer told. `alpha` is the backend's integrator.
+  template <class Alpha, class OpenStore, class Sample>
+  void run_forward(const Alpha &alpha, OpenStore &&open_store, Sample &&sample) {
+    s0_ = record_.state;
+    if (gradients_) {
+      keep_ = p_.plan_checkpoints(schedule_);
+      store_ = open_store(p_.settings_.adjoint.storage == CheckpointStorage::Disk);
+      store_->put(0, record_);
+    }
+    sample(record_.state);
+    observe(0, dynamics::StepInfo{});
+    dynamics::run_steps(alpha, p_.steps_, p_.settings_.time.step, record_,
+                        &p_.ev_.substep_sizes,
+                        [&](long long j, const dynamics::StepInfo &info) {
+                          sample(record_.state);
+                          if (gradients_ && keep_[static_cast<std::size_t>(j)])
+                            store_->put(j, record_);
+                          observe(j, info);
+                        });
+  }
+
+  DynamicProblem &p_;
+  const bool gradients_;
+  const dynamics::Integrator integrator_;
+  Trace trace_; ///< what the start did to the velocities (section 9.2)
+  RecordT record_;
+  State s0_;
+  std::unique_ptr<BinomialSchedule> schedule_;
+  std::vector<char> keep_;
+  std::unique_ptr<StoreT> store_;
+
+private:
+  void observe(long long j, const dynamics::StepInfo &info) const {
+    if (!p_.observer_) return;
+    if constexpr (std::is_same_v<State, dynamics::State>)
+      p_.observer_(j, info, &record_.state, nullptr);
+    else
+      p_.observer_(j, info, nullptr, &record_.state);
+  }
+};
+
+class DensePass : public PassRun<dynamics::State, dynamics::StartTrace> {
 public:
   DensePass(DynamicProblem &p, bool gradients);
   void forward() override;
@@ -45,20 +100,11 @@ private:
   /// Main step j recomputed from the record of step j - 1 along the forward run's substeps.
   StepRecord recompute(const StepRecord &previous, long long j) const;
 
-  DynamicProblem &p_;
-  const bool gradients_;
-  const dynamics::Integrator integrator_;
-  dynamics::StartTrace trace_; ///< what the start did to the velocities (section 9.2)
-  StepRecord record_;
-  dynamics::State s0_;
-  std::unique_ptr<BinomialSchedule> schedule_;
-  std::vector<char> keep_;
-  std::unique_ptr<CheckpointStore> store_;
   std::vector<double> strain_value_; ///< per response: its strain energy integral
   long long sampled_steps_ = 0;
 };
 
-class DistPass : public Pass {
+class DistPass : public PassRun<dynamics::DistState, dynamics::DistStartTrace> {
 public:
   DistPass(DynamicProblem &p, bool gradients);
   ~DistPass() override;
@@ -91,19 +137,10 @@ private:
                       const std::vector<double> &velocity);
   void add_small_mass_terms(const Matrix &mus, const Vector &velocity);
 
-  DynamicProblem &p_;
-  const bool gradients_;
-  const dynamics::Integrator integrator_;
   const dynamics::DistributedAlpha &da_;
   const bool acf_;           ///< the design body is ACF (else rigid, in the small part)
   const std::size_t design_; ///< its index among the ACF bodies
   bodies::AcfBody *body_ = nullptr;
-  dynamics::DistStartTrace trace_; ///< what the start did to the velocities (section 9.2)
-  DistRecord record_;
-  dynamics::DistState s0_;
-  std::unique_ptr<BinomialSchedule> schedule_;
-  std::vector<char> keep_;
-  std::unique_ptr<DistCheckpointStore> store_;
   std::vector<int> strain_body_;              ///< per response: the ACF body of its energy
   std::vector<std::vector<double>> energy_;   ///< per strain response: U_n
   std::vector<double> energy_steps_;          ///< the design body's U_e, per step

@@ -26,6 +26,7 @@
 namespace flexopt::adjoint {
 
 namespace detail {
+template <class State, class Trace> class PassRun;
 class DensePass;
 class DistPass;
 } // namespace detail
@@ -179,6 +180,7 @@ public:
   long long recomputed_steps() const { return recomputed_; }
 
 private:
+  template <class State, class Trace> friend class detail::PassRun;
   friend class detail::DensePass;
   friend class detail::DistPass;
   DynamicProblem() = default;
