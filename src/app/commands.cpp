@@ -145,6 +145,28 @@ std::vector<double> owner_field(const mesh::DistributedMesh &m) {
                              static_cast<double>(comm_rank(m.comm)));
 }
 
+/// info: the sensors on body `b` (mesh m) whose point must lie in its mesh, located now rather
+/// than after a run's set-up: on a static body and on FFRF and ACF bodies an error naming the
+/// sensor's line, on a body whose model the plan chooses a warning (a flexible model will need
+/// the point inside); a rigid body's points may lie anywhere. Collective.
+void check_sensor_points(const Context &ctx, const io::Case &c, const dynamics::BodyDescription &b,
+                         const mesh::DistributedMesh &m) {
+  for (const dynamics::SensorDescription &s : c.scene.sensors) {
+    if (s.body != b.name || !s.joint.empty()) continue;
+    if (c.dynamic() && b.model == dynamics::BodyModel::Rigid) continue;
+    const std::string where = s.where.str() + ": sensor '" + s.name + "' point";
+    try {
+      fem::locate(m, s.point, where);
+    } catch (const Error &e) { // thrown on every rank: locate agrees on the owner collectively
+      if (!c.dynamic() || b.model != dynamics::BodyModel::Auto) throw;
+      print0(ctx.comm(),
+             "  warning: %s; body '%s' is model auto: if the plan chooses ffrf or acf, the run "
+             "stops there\n",
+             e.what(), b.name.c_str());
+    }
+  }
+}
+
 int run_info(const Context &ctx, const Options &o, const io::Case &c, double t0) {
   const std::string dir = output_directory(ctx, o);
   io::Json s = base_summary(ctx, o, c);
@@ -230,6 +252,7 @@ int run_info(const Context &ctx, const Options &o, const io::Case &c, double t0)
       jb["fixed_modes"] = b.reduction.modes;
       jb["frame"] = dynamics::frame_name(b.reduction.frame);
     }
+    check_sensor_points(ctx, c, b, m);
     bodies.push_back(jb);
     total_dofs += 3LL * m.global_nodes;
     total_elements += m.global_elements;
