@@ -21,7 +21,7 @@ PACKAGES=(
   python3 python3-yaml python3-numpy python3-scipy python3-h5py
   python3-paraview   # tests open the XDMF output with ParaView's own reader
   paraview           # pvbatch: `flexopt report` renders the designs and the motion
-  xvfb xauth         # xvfb-run: that rendering where there is no display
+  xvfb               # Xvfb: that rendering where there is no display
   python3-matplotlib # `flexopt report`'s plots; scripts/study_ffrf_vs_acf.py
 )
 if [ "${1:-}" = "--tests" ]; then

@@ -11,7 +11,7 @@
                the run's time split and links to the XDMF files.
 
 The plots are drawn with matplotlib; the 3D pictures are rendered by ParaView (pvbatch, with
-scripts/report_render.py) on the display, or under Xvfb (xvfb-run) where there is none. If
+scripts/report_render.py) on the display, or on an Xvfb server of its own where there is none. If
 rendering is impossible the report says why, on the terminal and in index.html, and still
 writes the plots and the page. Usage: report.py OUT [--no-render]. Exit status 0 if the report
 was written (rendering or not), 1 if OUT holds no summary.json of a run.
@@ -20,6 +20,7 @@ import csv
 import html
 import json
 import os
+import select
 import shutil
 import subprocess
 import sys
@@ -79,20 +80,63 @@ def plot_history(s, h, png):
     plt.close(fig)
 
 
-def display_command():
-    """How to run pvbatch here: on the display, under xvfb-run, or (None, why) not at all."""
-    pvbatch = shutil.which("pvbatch")
-    if not pvbatch:
-        return None, "pvbatch (ParaView) is not installed (scripts/install_deps.sh installs it)"
-    if os.environ.get("DISPLAY"):
-        return [pvbatch], ""
-    xvfb = shutil.which("xvfb-run")
-    if xvfb:
-        # A display number of this process's own (xvfb-run -a counts up from it): from the
-        # default :99, a report started just after another one's Xvfb exits can find that
-        # server gone ("bad X server connection").
-        return [xvfb, "-a", "-n", str(100 + os.getpid() % 800), "-s", "-screen 0 1280x1024x24", pvbatch], ""
-    return None, "no display and no xvfb-run (apt-get install xvfb; scripts/install_deps.sh installs it)"
+class Display:
+    """Where pvbatch draws: the session's display, or an Xvfb server of the report's own.
+
+    Xvfb runs with -noreset: by default an X server resets itself when its last client
+    disconnects, and pvbatch connects twice (its capability check, then the render window), so
+    the second connection could arrive during that reset and be dropped ("bad X server
+    connection"; 8 of 10 renders under a CPU load of 4 busy processes on 2 cores, 0 of 20 with
+    -noreset; xvfb-run, used before, starts Xvfb without it). -displayfd makes the server pick a
+    free display number itself and report it once it accepts connections."""
+
+    def __init__(self):
+        self.server = None
+        self.name = os.environ.get("DISPLAY", "")
+        self.why = ""
+        if not shutil.which("pvbatch"):
+            self.why = "pvbatch (ParaView) is not installed (scripts/install_deps.sh installs it)"
+        elif not self.name and not shutil.which("Xvfb"):
+            self.why = "no display and no Xvfb (apt-get install xvfb; scripts/install_deps.sh installs it)"
+
+    def __enter__(self):
+        if self.why or self.name:
+            return self
+        read, write = os.pipe()
+        try:
+            self.server = subprocess.Popen(
+                ["Xvfb", "-displayfd", str(write), "-screen", "0", "1280x1024x24", "-nolisten", "tcp",
+                 "-noreset"],
+                pass_fds=(write,), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        except OSError as e:
+            self.why = f"Xvfb failed to start: {e}"
+            return self
+        finally:
+            os.close(write)
+        number = b""
+        deadline = time.time() + 30
+        while not number.endswith(b"\n") and time.time() < deadline:
+            ready, _, _ = select.select([read], [], [], max(0.0, deadline - time.time()))
+            chunk = os.read(read, 16) if ready else b""
+            if not chunk:
+                break
+            number += chunk
+        os.close(read)
+        if number.strip().isdigit():
+            self.name = ":" + number.strip().decode()
+        else:
+            self.why = "Xvfb did not report a display within 30 s"
+        return self
+
+    def __exit__(self, *exc):
+        if self.server is not None:
+            self.server.terminate()
+            try:
+                self.server.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                self.server.kill()
+                self.server.wait()
+        return False
 
 
 def clean_env():
@@ -108,32 +152,24 @@ def expected_pictures(jobs):
 
 def render(jobs, work):
     """Runs the jobs (report_render.py); returns (ok, message): ok when every picture exists."""
-    cmd, why = display_command()
-    if cmd is None:
-        return False, why
     path = os.path.join(work, "jobs.json")
     json.dump(jobs, open(path, "w"))
-    message = ""
-    # Up to three times: a fresh Xvfb server is sometimes not ready for ParaView's first
-    # connection ("bad X server connection"; seen twice in a few dozen runs, each time the next
-    # attempt rendered).
-    for attempt in range(3):
-        if attempt:
-            time.sleep(1)
+    with Display() as display:
+        if display.why:
+            return False, display.why
+        env = dict(clean_env(), DISPLAY=display.name)
         try:
-            p = subprocess.run(cmd + [os.path.join(HERE, "report_render.py"), path], env=clean_env(),
+            p = subprocess.run(["pvbatch", os.path.join(HERE, "report_render.py"), path], env=env,
                                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, timeout=600)
         except (OSError, subprocess.TimeoutExpired) as e:
             return False, f"pvbatch failed to run: {e}"
-        missing = [f for f in expected_pictures(jobs) if not os.path.isfile(f)]
-        if p.returncode == 0 and not missing:
-            return True, ""
-        lines = [ln.strip() for ln in p.stdout.splitlines() if "ERR|" in ln or "report_render:" in ln]
-        lines = lines or [ln for ln in p.stdout.splitlines() if ln.strip() and "0x" not in ln][-4:]
-        message = "pvbatch failed (exit %d, %d of %d pictures missing): %s" % (
-            p.returncode, len(missing), len(expected_pictures(jobs)), " | ".join(lines[-4:]))
-        print(f"report: attempt {attempt + 1}: {message}", file=sys.stderr)
-    return False, message
+    missing = [f for f in expected_pictures(jobs) if not os.path.isfile(f)]
+    if p.returncode == 0 and not missing:
+        return True, ""
+    lines = [ln.strip() for ln in p.stdout.splitlines() if "ERR|" in ln or "report_render:" in ln]
+    lines = lines or [ln for ln in p.stdout.splitlines() if ln.strip() and "0x" not in ln][-4:]
+    return False, "pvbatch failed (exit %d, %d of %d pictures missing): %s" % (
+        p.returncode, len(missing), len(expected_pictures(jobs)), " | ".join(lines[-4:]))
 
 
 def compose(pngs, titles, out_png, rows=1, below=None, title=None, panel=(3.2, 2.6), below_rows=1):

@@ -8,8 +8,8 @@
     every picture (the page's own count, data-images-loaded = n/n after the load event);
   - `flexopt report` on a directory without summary.json fails with a message, exit non-zero.
 Chromium (Debian's chromium) is needed for the browser check: where it is absent the check is
-skipped with a message (scripts/install_deps.sh installs it). ParaView renders under xvfb-run
-where there is no display; a run where rendering is impossible writes the plots and says so,
+skipped with a message (scripts/install_deps.sh installs it). ParaView renders on an Xvfb server
+of the report's own where there is no display; a run where rendering is impossible writes the plots and says so,
 which this test counts as a failure (install_deps.sh installs ParaView and Xvfb).
 Usage: check_report.py FLEXOPT SOURCE OUT
 """
