@@ -34,6 +34,8 @@ import subprocess
 import sys
 
 import yaml
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import mpi_job  # noqa: E402 (after the path to scripts/)
 
 
 def select(summary, path):
@@ -237,7 +239,7 @@ def main():
         cmd = ["mpirun", "-n", str(args.ranks), args.flexopt, run["command"], args.case, "--out", out]
         cmd += [str(a) for a in run.get("args", [])]
         print("$ " + " ".join(cmd), flush=True)
-        proc = subprocess.run(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        proc = mpi_job.run(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
         sys.stdout.write(proc.stdout)
         if proc.returncode != 0:
             print(f"FAIL: flexopt exited with {proc.returncode}")

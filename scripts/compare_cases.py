@@ -46,6 +46,8 @@ import shutil
 import subprocess
 import sys
 import time
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import mpi_job  # noqa: E402 (after the path to scripts/)
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 IGNORE_RE = re.compile(r"((?<!_rad)_s$|seconds|(^|_)wall($|_)|time_per|per_second|timing|memory"
@@ -98,7 +100,7 @@ def run_one(args, case, command, out_root):
         f.flush()
         start = time.monotonic()
         try:
-            rc = subprocess.run(cmd, cwd=REPO, env=env, stdout=f, stderr=subprocess.STDOUT).returncode
+            rc = mpi_job.run(cmd, cwd=REPO, env=env, stdout=f, stderr=subprocess.STDOUT).returncode
         except OSError as e:  # mpirun not found, ...
             rc = f"error: {e}"
         seconds = time.monotonic() - start

@@ -13,6 +13,8 @@ import subprocess
 import sys
 
 from check_case import select
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import mpi_job  # noqa: E402 (after the path to scripts/)
 
 
 def run(flexopt, ranks, case, command, out, extra):
@@ -20,7 +22,7 @@ def run(flexopt, ranks, case, command, out, extra):
                OMPI_MCA_rmaps_base_oversubscribe="1")
     cmd = ["mpirun", "-n", str(ranks), flexopt, command, case, "--out", out] + extra
     print("$ " + " ".join(cmd), flush=True)
-    proc = subprocess.run(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    proc = mpi_job.run(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     sys.stdout.write(proc.stdout)
     if proc.returncode != 0:
         sys.exit(f"flexopt failed on {ranks} rank(s) (exit {proc.returncode})")

@@ -4,6 +4,8 @@ import os
 import subprocess
 import sys
 import time
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import mpi_job  # noqa: E402 (after the path to scripts/)
 
 ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
            OMPI_MCA_rmaps_base_oversubscribe="1")
@@ -16,7 +18,7 @@ def run_flexopt(flexopt, ranks, cmd_args, log):
     print("$ " + " ".join(cmd), flush=True)
     t0 = time.time()
     with open(log, "w") as f:
-        r = subprocess.run(cmd, stdout=f, stderr=subprocess.STDOUT, env=ENV)
+        r = mpi_job.run(cmd, stdout=f, stderr=subprocess.STDOUT, env=ENV)
     if r.returncode != 0:
         sys.exit(f"study: failed ({r.returncode}); see {log}")
     return time.time() - t0

@@ -57,6 +57,7 @@ import numpy as np
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from case_variants import case_dict, chord_deflection, write_case  # noqa: E402
 from study_run import ENV  # noqa: E402
+import mpi_job  # noqa: E402
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 LOADED = 0.5  # other load [cores] from which a run counts as timed on a busy machine
@@ -162,7 +163,7 @@ def run(args, scene, name, c, command="simulate"):
     log = os.path.join(d, "log.txt")
     stalled = None
     with open(log, "w") as f:
-        proc = subprocess.Popen(cmd, stdout=f, stderr=subprocess.STDOUT, env=ENV)
+        proc = mpi_job.start(cmd, stdout=f, stderr=subprocess.STDOUT, env=ENV)
         while True:
             try:
                 proc.wait(timeout=5)
@@ -176,7 +177,7 @@ def run(args, scene, name, c, command="simulate"):
             per_step = float(re.search(r"Newton ([0-9.]+)/step", lines[-1]).group(1)) if lines else 0
             if per_step > STALL_ITERATIONS or waited > HARD_LIMIT:
                 stalled = lines[-1].strip() if lines else "no progress line"
-                proc.terminate()  # mpirun forwards SIGTERM to the ranks
+                mpi_job.kill_session(proc.pid, grace=10)  # mpirun and every rank
                 proc.wait()
         rc = None if stalled else proc.returncode
     wall = time.monotonic() - t0

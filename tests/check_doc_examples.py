@@ -24,6 +24,8 @@ import sys
 import textwrap
 
 import yaml
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "scripts"))
+import mpi_job  # noqa: E402 (after the path to scripts/)
 
 flexopt, source, out = sys.argv[1:4]
 env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
@@ -108,7 +110,7 @@ for doc in ("docs/case-format.md", "README.md"):
         d = os.path.join(out, f"{os.path.basename(doc).split('.')[0]}_{line}")
         os.makedirs(d)
         yaml.safe_dump(case, open(os.path.join(d, "case.yaml"), "w"), sort_keys=False)
-        p = subprocess.run(["mpirun", "-n", "1", flexopt, "info", d, "--out", os.path.join(d, "out")], env=env,
+        p = mpi_job.run(["mpirun", "-n", "1", flexopt, "info", d, "--out", os.path.join(d, "out")], env=env,
                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, timeout=300)
         ok = p.returncode == 0
         print(("ok    " if ok else "FAIL  ") + f"{what}: flexopt info exits {p.returncode}")

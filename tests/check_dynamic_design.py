@@ -21,6 +21,8 @@ import sys
 
 import h5py
 import numpy as np
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "scripts"))
+import mpi_job  # noqa: E402 (after the path to scripts/)
 
 flexopt, source, out, ranks = sys.argv[1:5]
 case = os.path.join(source, "tests", "gradient", "rigid_pendulum")
@@ -39,7 +41,7 @@ def check(ok, what):
 
 def run(name, *args):
     d = os.path.join(out, name)
-    p = subprocess.run(["mpirun", "-n", ranks, flexopt, "simulate", case, "--out", d, *args], env=env,
+    p = mpi_job.run(["mpirun", "-n", ranks, flexopt, "simulate", case, "--out", d, *args], env=env,
                        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, timeout=600)
     print(p.stdout[-3000:])
     if p.returncode != 0:
@@ -87,7 +89,7 @@ with h5py.File(os.path.join(dg, "gradient.h5"), "r") as f:
 # `optimize` runs the same MMA loop on the dynamic problem: 8 iterations lower the tracking
 # error and keep every constraint.
 od = os.path.join(out, "optimize")
-p = subprocess.run(["mpirun", "-n", ranks, flexopt, "optimize", case, "--out", od, "--max-iterations",
+p = mpi_job.run(["mpirun", "-n", ranks, flexopt, "optimize", case, "--out", od, "--max-iterations",
                     "8"], env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                    timeout=600)
 print(p.stdout[-2500:])
@@ -101,7 +103,7 @@ if p.returncode == 0:
           f"optimize: last constraints {cons[-1]} within {bounds}")
     check(os.path.exists(os.path.join(od, "restart.h5")), "optimize: restart.h5 written")
 cantilever = os.path.join(source, "cases", "cantilever")
-p = subprocess.run(["mpirun", "-n", ranks, flexopt, "simulate", cantilever, "--out",
+p = mpi_job.run(["mpirun", "-n", ranks, flexopt, "simulate", cantilever, "--out",
                     os.path.join(out, "static"), "--gradient"], env=env, stdout=subprocess.PIPE,
                    stderr=subprocess.STDOUT, text=True, timeout=600)
 check(p.returncode != 0 and "--gradient applies to `flexopt simulate` of a dynamic case" in p.stdout,

@@ -29,6 +29,8 @@ import json
 import os
 import subprocess
 import sys
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "scripts"))
+import mpi_job  # noqa: E402 (after the path to scripts/)
 
 args = sys.argv[1:]
 fd_step = []
@@ -48,7 +50,7 @@ FROM_STEP = float(order_arg.split("@")[1]) if "@" in order_arg else float("inf")
 design = ["--design", sys.argv[7]] if len(sys.argv) > 7 else []
 env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
            OMPI_MCA_rmaps_base_oversubscribe="1")
-p = subprocess.run(["mpirun", "-n", ranks, flexopt, "check-gradient", case, "--out", out] + design + fd_step, env=env,
+p = mpi_job.run(["mpirun", "-n", ranks, flexopt, "check-gradient", case, "--out", out] + design + fd_step, env=env,
                    stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, timeout=600)
 print(p.stdout)
 if p.returncode != 0:

@@ -19,11 +19,13 @@ import json
 import os
 import subprocess
 import sys
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "scripts"))
+import mpi_job  # noqa: E402 (after the path to scripts/)
 
 flexopt, case, out, ranks = sys.argv[1:5]
 env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
            OMPI_MCA_rmaps_base_oversubscribe="1")
-p = subprocess.run(["mpirun", "-n", ranks, flexopt, "check-gradient", case, "--out", out,
+p = mpi_job.run(["mpirun", "-n", ranks, flexopt, "check-gradient", case, "--out", out,
                     "-ksp_rtol", "1e-4"], env=env, stdout=subprocess.PIPE,
                    stderr=subprocess.STDOUT, text=True, timeout=600)
 print(p.stdout)

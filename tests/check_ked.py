@@ -18,9 +18,11 @@ at least 2.5 from the first to the second (4 expected: the difference is O(r)).
 
 usage: check_ked.py FLEXOPT CASES OUT [--ranks N]
 """
-import argparse, json, os, re, shutil, subprocess, sys
+import argparse, json, os, re, shutil, sys
 
 import numpy as np
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "scripts"))
+import mpi_job  # noqa: E402 (after the path to scripts/)
 
 p = argparse.ArgumentParser()
 p.add_argument("flexopt")
@@ -40,7 +42,7 @@ def check(cond, what):
 def run(args):
     cmd = ["mpirun", "-n", str(a.ranks), a.flexopt] + args
     print("$ " + " ".join(cmd), flush=True)
-    r = subprocess.run(cmd, capture_output=True, text=True)
+    r = mpi_job.run(cmd, capture_output=True, text=True)
     if r.returncode != 0:
         print(r.stdout[-3000:], r.stderr[-3000:])
         sys.exit(1)

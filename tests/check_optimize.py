@@ -16,6 +16,8 @@ import json
 import os
 import subprocess
 import sys
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "scripts"))
+import mpi_job  # noqa: E402 (after the path to scripts/)
 
 flexopt, case, out = sys.argv[1:4]
 env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
@@ -23,7 +25,7 @@ env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIR
 runs = {}
 for n in (1, 2):
     d = os.path.join(out, f"np{n}")
-    p = subprocess.run(["mpirun", "-n", str(n), flexopt, "optimize", case, "--out", d], env=env,
+    p = mpi_job.run(["mpirun", "-n", str(n), flexopt, "optimize", case, "--out", d], env=env,
                        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, timeout=600)
     print(p.stdout)
     if p.returncode != 0:

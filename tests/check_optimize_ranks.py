@@ -12,6 +12,9 @@ import shutil
 import subprocess
 import sys
 
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "scripts"))
+import mpi_job  # noqa: E402 (after the path to scripts/)
+
 flexopt, case, out, n, tol = sys.argv[1], sys.argv[2], sys.argv[3], int(sys.argv[4]), float(sys.argv[5])
 env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
            OMPI_MCA_rmaps_base_oversubscribe="1")
@@ -19,7 +22,7 @@ shutil.rmtree(out, ignore_errors=True)
 runs = {}
 for ranks in (1, 2):
     d = os.path.join(out, f"np{ranks}")
-    p = subprocess.run(["mpirun", "-n", str(ranks), flexopt, "optimize", case, "--out", d, "--max-iterations", str(n)],
+    p = mpi_job.run(["mpirun", "-n", str(ranks), flexopt, "optimize", case, "--out", d, "--max-iterations", str(n)],
                        env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, timeout=1800)
     print(p.stdout[-3000:])
     if p.returncode != 0:

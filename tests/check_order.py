@@ -13,6 +13,8 @@ import subprocess
 import sys
 
 import yaml
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "scripts"))
+import mpi_job  # noqa: E402 (after the path to scripts/)
 
 flexopt, case, out = sys.argv[1:4]
 env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
@@ -29,7 +31,7 @@ def tip_at_end(h, rho):
     c["time"] = dict(base["time"], step=h, rho_inf=rho)
     with open(os.path.join(d, "case.yaml"), "w") as f:
         yaml.safe_dump(c, f)
-    p = subprocess.run([flexopt, "simulate", d, "--out", os.path.join(d, "out")], env=env,
+    p = mpi_job.run([flexopt, "simulate", d, "--out", os.path.join(d, "out")], env=env,
                        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, timeout=600)
     if p.returncode != 0:
         print(p.stdout)

@@ -32,6 +32,7 @@ import h5py
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "scripts"))
 from case_variants import write_variant  # noqa: E402
+import mpi_job  # noqa: E402
 
 FLEXOPT, SRC, OUT = sys.argv[1], sys.argv[2], sys.argv[3]
 H = 1.0e-3  # time.step of cases/pendulum
@@ -65,7 +66,7 @@ def simulate(d):
     """Runs flexopt simulate on 2 ranks; returns (exit status, output)."""
     cmd = ["mpirun", "-n", "2", FLEXOPT, "simulate", d, "--out", os.path.join(d, "out")]
     print("$ " + " ".join(cmd), flush=True)
-    p = subprocess.run(cmd, env=ENV, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+    p = mpi_job.run(cmd, env=ENV, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                        timeout=600)
     return p.returncode, p.stdout
 

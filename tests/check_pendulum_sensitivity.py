@@ -35,6 +35,8 @@ import sys
 
 import h5py
 import numpy as np
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "scripts"))
+import mpi_job  # noqa: E402 (after the path to scripts/)
 
 flexopt, source, out, ranks = sys.argv[1:5]
 case_dir = os.path.join(source, "tests", "dynamics", "pendulum_sensitivity")
@@ -59,7 +61,7 @@ def run(h):
     text = text.replace("../../../meshes/", os.path.join(source, "meshes") + "/")
     text = text.replace("step: 2.0e-3", f"step: {h!r}")
     open(os.path.join(d, "case.yaml"), "w").write(text)
-    p = subprocess.run(["mpirun", "-n", ranks, flexopt, "simulate", d, "--gradient", "--out",
+    p = mpi_job.run(["mpirun", "-n", ranks, flexopt, "simulate", d, "--gradient", "--out",
                         os.path.join(d, "out")], env=env, stdout=subprocess.PIPE,
                        stderr=subprocess.STDOUT, text=True, timeout=600)
     print(p.stdout[-1500:])

@@ -23,11 +23,12 @@ an axial force on the slider, and `optimize` with an auto design body (and its -
 
 usage: check_plan.py FLEXOPT CASES OUT [--ranks N]
 """
-import argparse, json, os, re, shutil, subprocess, sys
+import argparse, json, os, re, shutil, sys
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "scripts"))
 from case_variants import case_dict, write_case  # noqa: E402
 import yaml  # noqa: E402
+import mpi_job  # noqa: E402
 
 p = argparse.ArgumentParser()
 p.add_argument("flexopt")
@@ -49,7 +50,7 @@ def plan(case_dir, name, auto=True):
     if auto:
         cmd.append("--auto")
     print("$ " + " ".join(cmd), flush=True)
-    r = subprocess.run(cmd, capture_output=True, text=True)
+    r = mpi_job.run(cmd, capture_output=True, text=True)
     print(r.stdout[-4000:])
     if r.returncode != 0:
         print(r.stderr[-4000:])
@@ -135,7 +136,7 @@ if bodies:
 #     (the same warning as `flexopt plan`), after the run's results.
 env = {k: v for k, v in os.environ.items() if k != "FLEXOPT_PLAN_CHECK"}
 env["FLEXOPT_REPORT"] = "0"
-r = subprocess.run(["mpirun", "-n", str(a.ranks), a.flexopt, "simulate", case("slider_crank_flexible"), "--out",
+r = mpi_job.run(["mpirun", "-n", str(a.ranks), a.flexopt, "simulate", case("slider_crank_flexible"), "--out",
                     os.path.join(a.out, "simulate_given")], capture_output=True, text=True, env=env)
 warned = [ln for ln in r.stdout.splitlines() if ln.startswith("plan: body rod: warning:")]
 check(r.returncode == 0 and warned and "acf" in warned[0] and
@@ -222,7 +223,7 @@ for name, d in (("given", case("slider_crank_rigid")), ("auto", auto)):
     out = os.path.join(a.out, "simulate_" + name)
     cmd = ["mpirun", "-n", str(a.ranks), a.flexopt, "simulate", d, "--out", out]
     print("$ " + " ".join(cmd), flush=True)
-    r = subprocess.run(cmd, capture_output=True, text=True)
+    r = mpi_job.run(cmd, capture_output=True, text=True)
     check(r.returncode == 0, f"simulate ({name}) exits 0")
     if r.returncode == 0:
         runs[name] = (json.load(open(os.path.join(out, "summary.json"))), r.stdout)
@@ -277,7 +278,7 @@ def optimize(*extra):
     """`flexopt optimize` of d: the completed process and its summary.json (None if it failed)."""
     cmd = ["mpirun", "-n", str(a.ranks), a.flexopt, "optimize", d, "--out", os.path.join(d, "out"), *extra]
     print("$ " + " ".join(cmd), flush=True)
-    r = subprocess.run(cmd, capture_output=True, text=True)
+    r = mpi_job.run(cmd, capture_output=True, text=True)
     if r.returncode != 0:
         print(r.stdout[-3000:] + r.stderr[-2000:])
         return r, None

@@ -27,6 +27,7 @@ ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..")
 sys.path.insert(0, os.path.join(ROOT, "scripts"))
 from case_variants import without_optimization  # noqa: E402
 from study_run import ENV  # noqa: E402
+import mpi_job  # noqa: E402
 
 # tests/check_slider_crank_acf.py: the published x3(0.1) and the beam model's q1(0.1).
 BEAM_REFERENCE = """source: >-
@@ -67,7 +68,7 @@ def main():
         cmd = [sys.executable, os.path.join(ROOT, "scripts", "check_case.py"), d, "--flexopt", a.flexopt,
                "--out", os.path.join(d, "out")]
         print("$ " + " ".join(cmd), flush=True)
-        r = subprocess.run(cmd, env=ENV, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        r = mpi_job.run(cmd, env=ENV, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
         picks = [l.strip() for l in r.stdout.splitlines() if l.startswith("plan: body")]
         print("\n".join(picks + [l for l in r.stdout.splitlines() if "PASS" in l or "FAIL" in l]), flush=True)
         if r.returncode != 0:

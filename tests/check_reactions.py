@@ -20,9 +20,11 @@ at a 0.1 ms step, so this check is for rigid scenes.)
 
 usage: check_reactions.py FLEXOPT SCENE OUT [--ranks N]
 """
-import argparse, json, os, shutil, subprocess, sys
+import argparse, json, os, shutil, sys
 
 import numpy as np
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "scripts"))
+import mpi_job  # noqa: E402 (after the path to scripts/)
 
 p = argparse.ArgumentParser()
 p.add_argument("flexopt")
@@ -34,7 +36,7 @@ a = p.parse_args()
 os.makedirs(a.out, exist_ok=True)
 cmd = ["mpirun", "-n", str(a.ranks), a.flexopt, "simulate", a.scene, "--out", os.path.join(a.out, "run")]
 print(" ".join(cmd), flush=True)
-subprocess.run(cmd, check=True)
+mpi_job.run(cmd, check=True)
 s = json.load(open(os.path.join(a.out, "run", "summary.json")))["sensors"]
 
 def series(name):

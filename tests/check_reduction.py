@@ -11,6 +11,8 @@ import json
 import os
 import subprocess
 import sys
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "scripts"))
+import mpi_job  # noqa: E402 (after the path to scripts/)
 
 flexopt, case, out = sys.argv[1:4]
 env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
@@ -18,7 +20,7 @@ env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIR
 runs = {}
 for ranks in (1, 2):
     d = os.path.join(out, f"np{ranks}")
-    p = subprocess.run(["mpirun", "-n", str(ranks), flexopt, "modes", case, "--body", "beam",
+    p = mpi_job.run(["mpirun", "-n", str(ranks), flexopt, "modes", case, "--body", "beam",
                         "--count", "6", "--out", d], env=env, stdout=subprocess.PIPE,
                        stderr=subprocess.STDOUT, text=True, timeout=600)
     print(p.stdout)

@@ -21,6 +21,8 @@ import sys
 
 import matplotlib.image as mpimg
 import numpy as np
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "scripts"))
+import mpi_job  # noqa: E402 (after the path to scripts/)
 
 flexopt, source, out = sys.argv[1:4]
 env = {k: v for k, v in os.environ.items() if k != "FLEXOPT_REPORT"}
@@ -36,7 +38,7 @@ def expect(cond, what):
 
 
 def run(args, ranks=2):
-    p = subprocess.run(["mpirun", "-n", str(ranks), flexopt] + args, env=env, stdout=subprocess.PIPE,
+    p = mpi_job.run(["mpirun", "-n", str(ranks), flexopt] + args, env=env, stdout=subprocess.PIPE,
                        stderr=subprocess.STDOUT, text=True, timeout=1200)
     print(p.stdout[-3000:], flush=True)
     return p.returncode, p.stdout

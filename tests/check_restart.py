@@ -21,7 +21,6 @@ R = 1.
 import json
 import os
 import shutil
-import signal
 import subprocess
 import sys
 import time
@@ -30,6 +29,7 @@ import h5py
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "scripts"))
 from case_variants import write_variant  # noqa: E402
+import mpi_job  # noqa: E402
 
 args, replace = sys.argv[1:], []
 while "--replace" in args:
@@ -52,7 +52,7 @@ def command(ranks, d, *args):
 
 
 def run(ranks, d, *args, ok=True):
-    p = subprocess.run(command(ranks, d, *args), env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+    p = mpi_job.run(command(ranks, d, *args), env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
                        text=True, timeout=1200)
     print(p.stdout[-2000:])
     if ok and p.returncode != 0:
@@ -90,32 +90,6 @@ def iterations_done(path):
         return 0
 
 
-def kill_session(sid):
-    """SIGKILL to every process of session SID: mpirun and its ranks. Open MPI puts each rank in
-    its own process group (killpg on mpirun's group leaves the ranks running, and they would go
-    on writing restart.h5 while the restarted run reads it), but they stay in mpirun's session."""
-    while True:
-        members = []
-        for pid in os.listdir("/proc"):
-            if not pid.isdigit():
-                continue
-            try:
-                with open(f"/proc/{pid}/stat") as f:
-                    fields = f.read().rsplit(")", 1)[1].split()
-            except OSError:
-                continue
-            if int(fields[3]) == sid and fields[0] != "Z":  # field 6 of stat: the session
-                members.append(int(pid))
-        if not members:
-            return
-        for pid in members:
-            try:
-                os.kill(pid, signal.SIGKILL)
-            except ProcessLookupError:
-                pass
-        time.sleep(0.05)
-
-
 run(R, "straight", "--max-iterations", str(N))
 run(R, "split", "--max-iterations", "5")
 shutil.copytree(os.path.join(out, "split"), os.path.join(out, "split_other"))
@@ -129,12 +103,12 @@ compare(summary("straight"), summary("split_other"), 1e-8,
 # --restart.
 killed = os.path.join(out, "killed")
 os.makedirs(killed)
-p = subprocess.Popen(command(R, "killed", "--max-iterations", str(N)), env=env, stdout=subprocess.DEVNULL,
-                     stderr=subprocess.DEVNULL, start_new_session=True)
+p = mpi_job.start(command(R, "killed", "--max-iterations", str(N)), env=env, stdout=subprocess.DEVNULL,
+                  stderr=subprocess.DEVNULL)
 deadline = time.time() + 1200
 while iterations_done(os.path.join(killed, "restart.h5")) < 3 and p.poll() is None and time.time() < deadline:
     time.sleep(0.005)
-kill_session(p.pid)
+mpi_job.kill_session(p.pid)  # mpirun and every rank (mpi_job.py says why)
 p.wait()
 done = iterations_done(os.path.join(killed, "restart.h5"))
 print(f"killed the run with SIGKILL after restart point {done}")

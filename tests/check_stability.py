@@ -35,6 +35,7 @@ sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."
 from case_variants import finish, write_case  # noqa: E402
 from stability_scenes import acf_slider_crank, as_acf, kane_ffrf, soft_pendulum  # noqa: E402
 from study_run import ENV  # noqa: E402
+import mpi_job  # noqa: E402
 
 failures = []
 
@@ -49,7 +50,7 @@ def flexopt(a, command, d, *extra):
     out = os.path.join(d, "out_" + command)
     cmd = ["mpirun", "-n", "2", a.flexopt, command, d, "--out", out] + list(extra)
     print("$ " + " ".join(cmd), flush=True)
-    r = subprocess.run(cmd, env=ENV, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    r = mpi_job.run(cmd, env=ENV, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     print(r.stdout[-3000:])
     if r.returncode != 0:
         sys.exit(f"FAIL: {' '.join(cmd)} exits {r.returncode}")

@@ -14,6 +14,8 @@ import subprocess
 import sys
 
 import yaml
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "scripts"))
+import mpi_job  # noqa: E402 (after the path to scripts/)
 
 
 def main():
@@ -33,7 +35,7 @@ def main():
            "--out", args.out] + [str(a) for a in expect.get("args", [])]
     print("$ " + " ".join(cmd), flush=True)
     try:
-        proc = subprocess.run(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+        proc = mpi_job.run(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                               timeout=args.timeout)
     except subprocess.TimeoutExpired:
         print(f"FAIL: no exit within {args.timeout} s (a hang)")

@@ -8,6 +8,8 @@ import re
 import subprocess
 import sys
 import tempfile
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "scripts"))
+import mpi_job  # noqa: E402 (after the path to scripts/)
 
 FLEXOPT, SOURCE = sys.argv[1], sys.argv[2]
 ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
@@ -18,7 +20,7 @@ failures = []
 
 def run(args, ranks=None):
     cmd = (["mpirun", "-n", str(ranks)] if ranks else []) + [FLEXOPT] + args
-    p = subprocess.run(cmd, env=ENV, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, timeout=300)
+    p = mpi_job.run(cmd, env=ENV, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, timeout=300)
     return p.returncode, p.stdout, p.stderr
 
 
@@ -151,7 +153,7 @@ with tempfile.TemporaryDirectory() as tmp:
         with open(os.path.join(case, "beam.msh"), "w") as f:
             f.write(text)
         out_dir = os.path.join(case, "out")
-        p = subprocess.run(["mpirun", "-n", "2", FLEXOPT, "info", case, "--out", out_dir], env=ENV,
+        p = mpi_job.run(["mpirun", "-n", "2", FLEXOPT, "info", case, "--out", out_dir], env=ENV,
                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, timeout=120)
         errors = [l for l in p.stdout.splitlines() if l.startswith("flexopt: error")]
         return p.returncode, errors, os.path.exists(os.path.join(out_dir, "summary.json"))
