@@ -9,6 +9,7 @@
 #include "flexopt/io/json.hpp"
 #include "flexopt/io/restart.hpp"
 #include "flexopt/io/xdmf.hpp"
+#include "flexopt/optimize/design_file.hpp"
 #include "flexopt/mesh/grid_layout.hpp"
 #include "flexopt/mesh/load.hpp"
 #include "flexopt/optimize/optimizer.hpp"
@@ -34,10 +35,12 @@ namespace detail {
 void load_design(MPI_Comm comm, const io::Case &c, optimize::DesignProblem &design,
                  const std::string &file, Vec x) {
   const std::vector<std::uint64_t> tags(design.design_tags().begin(), design.design_tags().end());
+  optimize::check_design_file(design.field(), file);
   const io::RestartData r = io::read_restart(comm, file, tags);
   const auto it = r.fields.find("x");
   if (it == r.fields.end())
     throw Error(file + ": no design field 'x' (--design takes the restart.h5 of a run)", true);
+  optimize::check_design_values(design.field(), it->second, file, "x");
   PetscScalar *a;
   FX_PETSC(VecGetArray(x, &a));
   std::copy(it->second.begin(), it->second.end(), a);

@@ -3,6 +3,7 @@
 #include "flexopt/core/context.hpp"
 #include "flexopt/core/error.hpp"
 
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <hdf5.h>
@@ -65,6 +66,43 @@ template <class T> std::vector<T> read_all(hid_t file, const std::string &name, 
   return v;
 }
 
+/// A string attribute `name` = `value` of the file's root. Collective (the same on every rank).
+void write_label(hid_t file, const std::string &name, const std::string &value) {
+  hid_t type = H5Tcopy(H5T_C_S1);
+  H5Tset_size(type, std::max<std::size_t>(1, value.size()));
+  hid_t space = H5Screate(H5S_SCALAR);
+  hid_t attr = H5Acreate2(file, name.c_str(), type, space, H5P_DEFAULT, H5P_DEFAULT);
+  if (attr < 0) throw Error("restart file: creating the label " + name + " failed");
+  const std::string padded = value.empty() ? std::string(1, '\0') : value;
+  check(H5Awrite(attr, type, padded.data()), "writing the label " + name);
+  H5Aclose(attr);
+  H5Sclose(space);
+  H5Tclose(type);
+}
+
+/// H5Aiterate2's visit: a fixed-length string attribute into the map `data`.
+herr_t collect_label(hid_t location, const char *name, const H5A_info_t *, void *data) {
+  auto &labels = *static_cast<std::map<std::string, std::string> *>(data);
+  hid_t attr = H5Aopen(location, name, H5P_DEFAULT);
+  if (attr < 0) return 0;
+  hid_t type = H5Aget_type(attr);
+  if (H5Tget_class(type) == H5T_STRING && H5Tis_variable_str(type) <= 0) {
+    std::string value(H5Tget_size(type), '\0');
+    if (H5Aread(attr, type, value.data()) >= 0) labels[name] = value.substr(0, value.find('\0'));
+  }
+  H5Tclose(type);
+  H5Aclose(attr);
+  return 0;
+}
+
+/// Every string attribute of the file's root.
+std::map<std::string, std::string> read_labels(hid_t file) {
+  std::map<std::string, std::string> labels;
+  hsize_t index = 0;
+  H5Aiterate2(file, H5_INDEX_NAME, H5_ITER_INC, &index, collect_label, &labels);
+  return labels;
+}
+
 } // namespace
 
 void write_restart(MPI_Comm comm, const std::string &path, const RestartData &data) {
@@ -77,6 +115,7 @@ void write_restart(MPI_Comm comm, const std::string &path, const RestartData &da
   if (file < 0) throw Error("cannot create restart file '" + tmp + "'", true);
   H5Gclose(H5Gcreate2(file, "/fields", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT));
   H5Gclose(H5Gcreate2(file, "/arrays", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT));
+  for (const auto &[name, value] : data.labels) write_label(file, name, value);
   write_slab(file, "/tags", H5T_NATIVE_UINT64, H5T_STD_U64LE, data.tags.data(), global, start, n);
   for (const auto &[name, values] : data.fields)
     write_slab(file, "/fields/" + name, H5T_NATIVE_DOUBLE, H5T_IEEE_F64LE, values.data(), global,
@@ -94,19 +133,37 @@ void write_restart(MPI_Comm comm, const std::string &path, const RestartData &da
   });
 }
 
-RestartData read_restart(MPI_Comm comm, const std::string &path,
-                         const std::vector<std::uint64_t> &tags) {
+namespace {
+
+/// `path` opened for reading on every rank; collective errors for a missing or unreadable file.
+hid_t open_existing(MPI_Comm comm, const std::string &path) {
   int exists = 0;
   if (comm_rank(comm) == 0) exists = std::filesystem::is_regular_file(path) ? 1 : 0;
   MPI_Bcast(&exists, 1, MPI_INT, 0, comm);
   if (!exists) throw Error(path + ": restart file not found (run without --restart first)", true);
   hid_t file = open_parallel(comm, path, false);
   if (file < 0) throw Error(path + ": cannot open the restart file", true);
+  return file;
+}
+
+} // namespace
+
+std::map<std::string, std::string> read_restart_labels(MPI_Comm comm, const std::string &path) {
+  hid_t file = open_existing(comm, path);
+  auto labels = read_labels(file);
+  H5Fclose(file);
+  return labels;
+}
+
+RestartData read_restart(MPI_Comm comm, const std::string &path,
+                         const std::vector<std::uint64_t> &tags) {
+  hid_t file = open_existing(comm, path);
   RestartData out;
   out.tags = tags;
   int ok = 1;
   std::string message;
   try {
+    out.labels = read_labels(file);
     const auto all_tags = read_all<std::uint64_t>(file, "/tags", H5T_NATIVE_UINT64);
     std::unordered_map<std::uint64_t, std::size_t> where;
     for (std::size_t k = 0; k < all_tags.size(); ++k) where[all_tags[k]] = k;

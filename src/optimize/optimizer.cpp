@@ -6,6 +6,7 @@
 #include "flexopt/io/restart.hpp"
 #include "flexopt/io/xdmf.hpp"
 #include "flexopt/mesh/grid_layout.hpp"
+#include "flexopt/optimize/design_file.hpp"
 #include "flexopt/optimize/mma.hpp"
 #include "flexopt/optimize/topology_problem.hpp"
 
@@ -137,6 +138,7 @@ private:
   std::vector<std::string> split_labels_;
   std::size_t nsplit_ = 0;
   std::string restart_path_;
+  std::map<std::string, std::string> fingerprint_; ///< of the design, in every restart point
   std::vector<std::uint64_t> tags_;
   int first_ = 1;
   // Projection continuation: stage index into design.projection.beta and its first iteration.
@@ -274,7 +276,10 @@ void OptimizationRun::print_header() const {
 }
 
 void OptimizationRun::read_restart() {
+  check_design_file(problem_->field(), restart_path_);
   const io::RestartData r = io::read_restart(comm_, restart_path_, tags_);
+  for (const char *name : {"x", "xold1", "xold2"}) // MMA's asymptotes low, upp leave [0, 1]
+    check_design_values(problem_->field(), r.fields.at(name), restart_path_, name);
   const auto &meta =
       r.arrays.at("meta"); // iteration, objective scale, m, beta stage, its first iteration
   const int done = static_cast<int>(meta.at(0));
@@ -439,6 +444,8 @@ void OptimizationRun::write_restart_point(int k, double change, bool &last_stage
   // complete file).
   io::RestartData rd;
   rd.tags = tags_;
+  if (fingerprint_.empty()) fingerprint_ = design_fingerprint(problem_->field());
+  rd.labels = fingerprint_;
   rd.fields["x"] = local_values(x_);
   const Mma::State st = mma_->state();
   rd.fields["xold1"] = local_values(st.xold1);

@@ -14,6 +14,9 @@ struct RestartData {
   std::vector<std::uint64_t> tags;                   ///< this rank's elements
   std::map<std::string, std::vector<double>> fields; ///< aligned with tags
   std::map<std::string, std::vector<double>> arrays; ///< the same on every rank
+  /// Short texts, the same on every rank (attributes of the file's root): the fingerprint of
+  /// the design the file belongs to (optimize::design_fingerprint).
+  std::map<std::string, std::string> labels;
 };
 
 /// Writes `data` to `path` atomically (path.tmp, then renamed). Collective.
@@ -24,5 +27,9 @@ void write_restart(MPI_Comm comm, const std::string &path, const RestartData &da
 /// one of the tags. Collective.
 RestartData read_restart(MPI_Comm comm, const std::string &path,
                          const std::vector<std::uint64_t> &tags);
+
+/// The labels of `path` alone (before its fields are matched to this run's elements). Throws
+/// as read_restart for a missing or unreadable file. Collective.
+std::map<std::string, std::string> read_restart_labels(MPI_Comm comm, const std::string &path);
 
 } // namespace flexopt::io

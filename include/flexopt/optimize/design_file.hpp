@@ -1,0 +1,32 @@
+#pragma once
+/// \file Files that carry a design (restart.h5, read by `--restart` and `--design`): the
+/// fingerprint that ties them to the case's design field, and the checks made before one is
+/// used (issue 42): a file from another case or mesh, or with densities that are not finite or
+/// outside [0, 1], is refused naming what differs or the element and its value.
+#include "flexopt/io/restart.hpp"
+#include "flexopt/optimize/design_field.hpp"
+
+#include <map>
+#include <string>
+#include <vector>
+
+namespace flexopt::optimize {
+
+/// design_body, design_region, design_elements (the global count) and design_positions (a
+/// hash of every design element's Gmsh tag and centroid, independent of the rank count and of
+/// the elements' order). Collective.
+std::map<std::string, std::string> design_fingerprint(const DesignField &field);
+
+/// Refuses (a collective flexopt::Error naming `path` and what differs) the file `path` when its
+/// fingerprint is not the field's; a file without one (written before fingerprints) passes with
+/// a warning. Call it before io::read_restart, which would stop at the first element it misses.
+/// Collective.
+void check_design_file(const DesignField &field, const std::string &path);
+
+/// Refuses values (one per local design variable, aligned with field.design_tags()) that are
+/// not finite or lie outside [0, 1]: a collective flexopt::Error naming `path`, the field
+/// `what`, the element's Gmsh tag (the lowest such tag) and its value. Collective.
+void check_design_values(const DesignField &field, const std::vector<double> &values,
+                         const std::string &path, const std::string &what);
+
+} // namespace flexopt::optimize
