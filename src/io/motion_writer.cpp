@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <hdf5.h>
+#include <optional>
 #include <sstream>
 
 namespace flexopt::io {
@@ -15,6 +16,7 @@ namespace flexopt::io {
 namespace {
 
 using detail::h5check;
+using detail::unwritable_reason;
 using detail::h5id;
 
 /// Text for an XML attribute value or element content.
@@ -83,6 +85,17 @@ struct MotionWriter::Impl {
   std::vector<Step> steps;
   std::vector<std::vector<Field>> constants; ///< per body: fields shown in every step
   bool closed = false;
+  std::optional<detail::SpaceGuard> space; ///< of h5_tmp's file system
+
+  /// Error path (also when the writer's constructor throws, which runs no writer destructor):
+  /// drop the incomplete file so nothing valid-looking remains.
+  ~Impl() {
+    release_properties();
+    if (!closed && file >= 0) {
+      H5Fclose(file);
+      if (rank == 0) std::remove(h5_tmp.c_str());
+    }
+  }
 
   /// Creates a dataset [global_rows x cols] (1D if cols == 1) and writes this rank's rows
   /// [start, start + rows) into it. The creation is collective; the write is independent (a
@@ -90,6 +103,7 @@ struct MotionWriter::Impl {
   /// write for these contiguous blocks. `data` may be null when rows == 0.
   void write_rows(const std::string &path, hid_t mem_type, hid_t file_type, const void *data,
                   long long global_rows, long long start, long long rows, int cols) {
+    space->require(global_rows * cols * 8);
     const int rank_dims = cols == 1 ? 1 : 2;
     hsize_t gdims[2] = {static_cast<hsize_t>(global_rows), static_cast<hsize_t>(cols)};
     hid_t fspace = h5id(H5Screate_simple(rank_dims, gdims, nullptr), "H5Screate_simple");
@@ -232,6 +246,7 @@ MotionWriter::MotionWriter(const std::vector<MotionBody> &bodies, const std::str
   m.h5_final = (dir / (basename + ".h5")).string();
   m.h5_tmp = m.h5_final + ".tmp";
   m.xdmf_final = (dir / (basename + ".xdmf")).string();
+  m.space.emplace(m.comm, m.h5_tmp);
 
   // Names: the same on every rank, so these errors are collective.
   for (std::size_t b = 0; b < bodies.size(); ++b) {
@@ -296,7 +311,7 @@ MotionWriter::MotionWriter(const std::vector<MotionBody> &bodies, const std::str
   int created = m.file >= 0 ? 1 : 0, any_created = 0;
   MPI_Allreduce(&created, &any_created, 1, MPI_INT, MPI_MAX, m.comm);
   if (!any_created)
-    throw Error("cannot create '" + m.h5_tmp + "' (is the output directory writable?)", true);
+    throw Error("cannot create '" + m.h5_tmp + "': " + unwritable_reason(m.comm, m.h5_tmp), true);
   if (!created) abort_local("cannot create '" + m.h5_tmp + "' on this rank");
 
   m.dxpl = h5id(H5Pcreate(H5P_DATASET_XFER), "H5Pcreate");
@@ -328,15 +343,7 @@ MotionWriter::MotionWriter(const std::vector<MotionBody> &bodies, const std::str
   }
 }
 
-MotionWriter::~MotionWriter() {
-  if (!impl_) return;
-  impl_->release_properties();
-  if (!impl_->closed && impl_->file >= 0) {
-    // Error path: drop the incomplete file so nothing valid-looking remains.
-    H5Fclose(impl_->file);
-    if (impl_->rank == 0) std::remove(impl_->h5_tmp.c_str());
-  }
-}
+MotionWriter::~MotionWriter() = default;
 
 void MotionWriter::begin_step(double time) {
   Impl &m = *impl_;

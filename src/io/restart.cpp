@@ -2,6 +2,7 @@
 
 #include "flexopt/core/context.hpp"
 #include "flexopt/core/error.hpp"
+#include "hdf5_check.hpp"
 
 #include <algorithm>
 #include <cstdio>
@@ -111,8 +112,15 @@ void write_restart(MPI_Comm comm, const std::string &path, const RestartData &da
   MPI_Exscan(&n, &start, 1, MPI_LONG_LONG, MPI_SUM, comm);
   if (comm_rank(comm) == 0) start = 0;
   MPI_Allreduce(&n, &global, 1, MPI_LONG_LONG, MPI_SUM, comm);
+  long long bytes = global * 8 * static_cast<long long>(1 + data.fields.size());
+  for (const auto &entry : data.arrays) bytes += 8 * static_cast<long long>(entry.second.size());
+  detail::SpaceGuard(comm, tmp).require(bytes); // before any collective write (hdf5_check.hpp)
   hid_t file = open_parallel(comm, tmp, true);
-  if (file < 0) throw Error("cannot create restart file '" + tmp + "'", true);
+  if (file < 0)
+    throw Error("cannot create restart file '" + tmp + "': " +
+                    detail::unwritable_reason(comm, tmp) +
+                    " (the previous restart.h5, if any, is intact)",
+                true);
   H5Gclose(H5Gcreate2(file, "/fields", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT));
   H5Gclose(H5Gcreate2(file, "/arrays", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT));
   for (const auto &[name, value] : data.labels) write_label(file, name, value);

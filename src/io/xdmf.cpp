@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <hdf5.h>
+#include <optional>
 #include <sstream>
 
 namespace flexopt::io {
@@ -15,6 +16,7 @@ namespace flexopt::io {
 namespace {
 
 using detail::h5check;
+using detail::unwritable_reason;
 using detail::h5id;
 
 struct Field {
@@ -37,10 +39,23 @@ struct XdmfWriter::Impl {
   hid_t file = -1;
   std::vector<Step> steps;
   bool closed = false;
+  std::optional<detail::SpaceGuard> space; ///< of h5_tmp's file system
+
+  /// Error path (also when the writer's constructor throws, which runs no writer destructor):
+  /// drop the incomplete file so nothing valid-looking remains.
+  ~Impl() {
+    if (!closed && file >= 0) {
+      H5Fclose(file);
+      int rank = 0;
+      MPI_Comm_rank(layout.comm, &rank);
+      if (rank == 0) std::remove(h5_tmp.c_str());
+    }
+  }
 
   /// Writes a 2D dataset [global_rows x cols] of which this rank holds rows [start, start+rows).
   void write_rows(const std::string &path, hid_t mem_type, hid_t file_type, const void *data,
                   long long global_rows, long long start, long long rows, int cols) {
+    space->require(global_rows * cols * 8);
     hsize_t gdims[2] = {static_cast<hsize_t>(global_rows), static_cast<hsize_t>(cols)};
     hid_t fspace = h5id(H5Screate_simple(cols == 1 ? 1 : 2, gdims, nullptr), "H5Screate_simple");
     hid_t lcpl = h5id(H5Pcreate(H5P_LINK_CREATE), "H5Pcreate");
@@ -147,27 +162,21 @@ XdmfWriter::XdmfWriter(const GridLayout &layout, const std::string &directory,
   m.basename = basename;
   m.h5_final = (std::filesystem::path(directory) / (basename + ".h5")).string();
   m.h5_tmp = m.h5_final + ".tmp";
+  m.space.emplace(layout.comm, m.h5_tmp);
   hid_t fapl = h5id(H5Pcreate(H5P_FILE_ACCESS), "H5Pcreate");
   h5check(H5Pset_fapl_mpio(fapl, layout.comm, MPI_INFO_NULL), "H5Pset_fapl_mpio");
   m.file = H5Fcreate(m.h5_tmp.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, fapl);
   H5Pclose(fapl);
   if (m.file < 0)
-    throw Error("cannot create '" + m.h5_tmp + "' (is the output directory writable?)", true);
+    throw Error("cannot create '" + m.h5_tmp + "': " + unwritable_reason(layout.comm, m.h5_tmp),
+                true);
   m.write_rows("/mesh/geometry", H5T_NATIVE_DOUBLE, H5T_IEEE_F64LE, layout.owned_coordinates.data(),
                layout.global_nodes, layout.node_start, layout.owned_nodes, 3);
   m.write_rows("/mesh/topology", H5T_NATIVE_LLONG, H5T_STD_I64LE, layout.cell_nodes.data(),
                layout.global_cells, layout.cell_start, layout.local_cells, layout.nodes_per_cell);
 }
 
-XdmfWriter::~XdmfWriter() {
-  if (impl_ && !impl_->closed && impl_->file >= 0) {
-    // Error path: drop the incomplete file so nothing valid-looking remains.
-    H5Fclose(impl_->file);
-    int rank = 0;
-    MPI_Comm_rank(impl_->layout.comm, &rank);
-    if (rank == 0) std::remove(impl_->h5_tmp.c_str());
-  }
-}
+XdmfWriter::~XdmfWriter() = default;
 
 void XdmfWriter::begin_step(double time) {
   impl_->steps.push_back(Step{time, {}});
