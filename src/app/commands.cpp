@@ -84,6 +84,17 @@ std::string output_directory(const Context &ctx, const Options &o) {
     if (ec || !fs::is_directory(dir)) throw Error("cannot create output directory '" + dir + "'");
     // A stale summary from an earlier run must not pass for this run's result.
     fs::remove(fs::path(dir) / "summary.json", ec);
+    // The incomplete files of a run that was killed (every writer writes NAME.tmp and renames
+    // it when complete): removed, and named.
+    std::string stale;
+    for (const auto &entry : fs::directory_iterator(dir, ec))
+      if (entry.is_regular_file() && entry.path().extension() == ".tmp") {
+        stale += (stale.empty() ? "" : ", ") + entry.path().filename().string();
+        fs::remove(entry.path(), ec);
+      }
+    if (!stale.empty())
+      std::printf("output: removed %s in %s, left by an interrupted run\n", stale.c_str(),
+                  dir.c_str());
   });
   return dir;
 }
