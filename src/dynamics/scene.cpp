@@ -448,10 +448,50 @@ public:
       const auto [A, B] = joint_attachments(j);
       joint_equation_[j.name] = static_cast<int>(mech_.equations.size());
       const double gap = (A.world - B.world).norm();
+      if (j.type != JointType::Prismatic) gaps_.emplace_back(&j, gap);
       if (gap > max_gap_ && (j.type != JointType::Prismatic)) max_gap_ = gap, gap_joint_ = j.name;
       for (Equation &e : joint_equations(j.type, A, B, v3(j.axis),
                                          "joint " + j.name + " (" + joint_type_name(j.type) + ")"))
         mech_.equations.push_back(std::move(e));
+    }
+  }
+
+  /// Refuses a joint whose interfaces the initial placement puts apart by more than a tenth of
+  /// the larger body it joins (an angle given in degrees, a position off by a body's length):
+  /// the consistent start would close such a gap by moving bodies far from where the case put
+  /// them, or, for an FFRF body, by a huge "elastic" displacement. Collective.
+  void check_gaps(MPI_Comm comm) const {
+    std::vector<double> lo, hi; // every body's bounding box, min then max of x, y, z
+    for (const mesh::DistributedMesh &m : scene_.meshes)
+      for (int d = 0; d < 3; ++d) {
+        double a = std::numeric_limits<double>::max(), b = -a;
+        for (std::size_t k = static_cast<std::size_t>(d); k < m.coordinates.size(); k += 3)
+          a = std::min(a, m.coordinates[k]), b = std::max(b, m.coordinates[k]);
+        lo.push_back(a), hi.push_back(b);
+      }
+    MPI_Allreduce(MPI_IN_PLACE, lo.data(), static_cast<int>(lo.size()), MPI_DOUBLE, MPI_MIN, comm);
+    MPI_Allreduce(MPI_IN_PLACE, hi.data(), static_cast<int>(hi.size()), MPI_DOUBLE, MPI_MAX, comm);
+    const auto size = [&](const std::string &body) {
+      const auto it = body_index_.find(body);
+      if (it == body_index_.end()) return 0.0; // the ground
+      double s2 = 0;
+      for (std::size_t d = 0; d < 3; ++d) {
+        const double e = hi[3 * it->second + d] - lo[3 * it->second + d];
+        s2 += e * e;
+      }
+      return std::sqrt(s2);
+    };
+    for (const auto &[j, gap] : gaps_) {
+      const double sa = size(j->a), sb = size(j->b), s = std::max(sa, sb);
+      if (gap <= 0.1 * s) continue;
+      char buf[400];
+      std::snprintf(buf, sizeof buf,
+                    ": joint '%s': its interfaces are %.3g m apart in the initial placement, more "
+                    "than a tenth of the larger body it joins ('%s' %.3g m, '%s' %.3g m across): "
+                    "place the bodies where the joint holds them (bodies[].initial position and "
+                    "angle; angles are in radians)",
+                    j->name.c_str(), gap, j->a.c_str(), sa, j->b.c_str(), sb);
+      throw Error(j->where.str() + buf, true);
     }
   }
 
@@ -611,6 +651,7 @@ private:
   std::map<std::string, int> joint_equation_; ///< a joint's first equation (the coincidence)
   double snap_scale_ = 1, max_snap_ = 0, max_gap_ = 0;
   std::string snap_joint_, gap_joint_;
+  std::vector<std::pair<const JointDescription *, double>> gaps_; ///< not prismatic
 };
 
 /// Finalizes the scene's mechanism: the rigid sensors' empty mode matrices sized, the
@@ -647,7 +688,10 @@ void connect(MPI_Comm comm, const SceneDescription &c, Scene &scene, bool report
   k.add_normalizations();
   k.add_drivers();
   k.add_joints();
-  if (report) k.report_gaps(comm);
+  if (report) {
+    k.check_gaps(comm);
+    k.report_gaps(comm);
+  }
   if (c.gravity) mech.gravity = v3(*c.gravity);
   k.add_forces();
   finish_mechanism(scene, k.bind_sensors());
