@@ -18,6 +18,7 @@
 #include "flexopt/mesh/grid_layout.hpp"
 
 #include <cmath>
+#include <limits>
 #include <cstdio>
 #include <filesystem>
 #include <sstream>
@@ -32,6 +33,10 @@ constexpr double kRedundantDriftTolerance = 1e-8;
 
 /// Size of motion.h5 above which the run warns before it starts [bytes].
 constexpr double kLargeMotionBytes = 1e9;
+/// The linear FFRF model's range: an elastic displacement of 5 % of a body's size (a beam's
+/// end rotation about 1.5 times that, 0.075 rad: its square, the order of the neglected
+/// geometric terms, near the default accuracy 1e-2).
+constexpr double kLinearRange = 0.05;
 
 /// True if case body b writes an elastic_displacement field with its positions: an FFRF body
 /// with modes, or an ACF body with interfaces (dynamics::Integrator::positions).
@@ -81,6 +86,10 @@ private:
   void after_step(long long n, const dynamics::StepInfo &info);
   void observe(long long j, const dynamics::StepInfo &info);
   io::Json bodies_json() const;
+  /// The FFRF bodies' largest elastic displacement over the frames against the linear model's
+  /// range (kLinearRange of the body's size; docs/theory.md section 7.7): a warning in the log
+  /// and in summary.json.
+  void check_linear_range();
 
   const Context &ctx_;
   const io::Case &c_;
@@ -97,6 +106,7 @@ private:
   double motion_bytes_ = 0;
   std::vector<double> out_t_, frame_t_, energy_;
   std::vector<std::vector<bodies::Vec3>> sensor_values_;
+  std::vector<double> elastic_max_; ///< per body: the largest |elastic displacement| of a node
   double max_violation_ = 0;
   dynamics::Vector all_;
   long long newton_total_ = 0, factorizations_total_ = 0;
@@ -245,11 +255,53 @@ void MotionRun::frame(double t) {
   frame_t_.push_back(t);
   writer_->begin_step(t);
   std::vector<double> elastic;
+  elastic_max_.resize(c_.scene.bodies.size(), 0.0);
   for (std::size_t b = 0; b < c_.scene.bodies.size(); ++b) {
     const auto x = run_->positions(b, elastic);
     writer_->positions(b, x.data());
-    if (!elastic.empty()) writer_->node_vector(b, "elastic_displacement", elastic.data());
+    if (elastic.empty()) continue;
+    writer_->node_vector(b, "elastic_displacement", elastic.data());
+    for (std::size_t k = 0; k + 2 < elastic.size(); k += 3)
+      elastic_max_[b] = std::max(elastic_max_[b], std::hypot(elastic[k], elastic[k + 1], elastic[k + 2]));
   }
+}
+
+void MotionRun::check_linear_range() {
+  const std::size_t nb = c_.scene.bodies.size();
+  elastic_max_.resize(nb, 0.0);
+  std::vector<double> lo(3 * nb, std::numeric_limits<double>::max()), hi(3 * nb, -lo[0]);
+  for (std::size_t b = 0; b < nb; ++b) {
+    const auto &xyz = scene_.meshes[b].coordinates;
+    for (std::size_t k = 0; k < xyz.size(); ++k)
+      lo[3 * b + k % 3] = std::min(lo[3 * b + k % 3], xyz[k]),
+                     hi[3 * b + k % 3] = std::max(hi[3 * b + k % 3], xyz[k]);
+  }
+  const int n3 = static_cast<int>(3 * nb), n = static_cast<int>(nb);
+  MPI_Allreduce(MPI_IN_PLACE, lo.data(), n3, MPI_DOUBLE, MPI_MIN, ctx_.comm());
+  MPI_Allreduce(MPI_IN_PLACE, hi.data(), n3, MPI_DOUBLE, MPI_MAX, ctx_.comm());
+  MPI_Allreduce(MPI_IN_PLACE, elastic_max_.data(), n, MPI_DOUBLE, MPI_MAX, ctx_.comm());
+  io::Json warnings = io::Json::array(), largest = io::Json::object();
+  bool any = false;
+  for (std::size_t b = 0; b < nb; ++b) {
+    if (scene_.bodies[b].acf >= 0 || elastic_max_[b] == 0) continue; // ACF: nonlinear
+    const double size = std::hypot(hi[3 * b] - lo[3 * b], hi[3 * b + 1] - lo[3 * b + 1],
+                                   hi[3 * b + 2] - lo[3 * b + 2]);
+    largest[c_.scene.bodies[b].name] = elastic_max_[b];
+    if (elastic_max_[b] <= kLinearRange * size) continue;
+    char buf[400];
+    std::snprintf(buf, sizeof buf,
+                  "body '%s' (ffrf): elastic displacement up to %.3g m, %.0f %% of its size %.3g m, "
+                  "beyond the linear FFRF model's range (%.0f %%: elastic rotations near 0.1 rad); "
+                  "its results are not to be trusted: check the placement and the loads, or use "
+                  "model: acf",
+                  c_.scene.bodies[b].name.c_str(), elastic_max_[b], 100 * elastic_max_[b] / size,
+                  size, 100 * kLinearRange);
+    print0(ctx_.comm(), "integrate: warning: %s\n", buf);
+    warnings.push_back(std::string(buf));
+    any = true;
+  }
+  s_["elastic_displacement_max"] = largest; // FFRF bodies, over the frames
+  if (any) s_["warnings"] = warnings;
 }
 
 void MotionRun::after_step(long long n, const dynamics::StepInfo &info) {
@@ -456,6 +508,7 @@ void MotionRun::finish() {
   }
   s_["sensors"] = sensors;
   s_["bodies"] = bodies_json();
+  check_linear_range();
   print0(ctx_.comm(),
          "integrate: %lld steps in %.3f s (%.0f steps/s), %lld Newton iterations (max %d per "
          "step) on %lld factorized matrices, max constraint violation %.3e, energy %.9g -> "
