@@ -282,24 +282,6 @@ void DynamicProblem::pull_back(optimize::Evaluation &out) {
     }
     field_->pull_back(grad_physical_, out.gradient(i));
   }
-  // A response that the densities cannot move (a kinematic response of a fully driven rigid
-  // mechanism, say) has a gradient of round-off: say so once, rather than let an optimizer
-  // stall on it silently.
-  if (!zero_gradient_warned_) {
-    for (std::size_t i = 0; i < nr; ++i) {
-      PetscReal g = 0;
-      FX_PETSC(VecNorm(out.gradient(i), NORM_INFINITY, &g));
-      const double value = out.value(i);
-      if (g <= 1e-12 * std::max(std::abs(value), 1e-300)) {
-        print0(m.comm,
-               "adjoint: warning: %s does not depend on the densities (max |dPsi/dx| = %.2e, "
-               "value %.6g): a kinematic response of a mechanism whose motion the drivers fix, "
-               "or a body the design does not reach\n",
-               names_[i].c_str(), static_cast<double>(g), value);
-        zero_gradient_warned_ = true;
-      }
-    }
-  }
 }
 
 void DynamicProblem::set_rigid_design() {
@@ -392,6 +374,14 @@ std::vector<optimize::Timing> DynamicProblem::timings() const {
   t.push_back({"adjoint", "adjoint", ev_.adjoint_s});
   if (ffrf_design_) t.push_back({"reduction_adjoint", "red.adj", ev_.reduction_adjoint_s});
   return t;
+}
+
+double DynamicProblem::round_off_level(std::size_t i) const {
+  const optimize::ResponseSettings &r = *specs_[i];
+  const double level = 1e-12 * scene_.length_scale;
+  if (r.type == optimize::ResponseType::TrackingError) return level * level;
+  if (r.type != optimize::ResponseType::Sensor) return 0;
+  return r.measure == optimize::SensorMeasure::MeanSquare ? level * level : level;
 }
 
 void DynamicProblem::describe(io::Json &s) const {

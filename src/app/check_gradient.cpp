@@ -85,6 +85,13 @@ int run_check_gradient(const Context &ctx, const Options &o, const io::Case &c, 
   const optimize::GradientCheckResult check =
       optimize::check_gradient(*problem, x0, optimize::GradientCheckOptions{o.fd_step}, base);
   const std::string gradient_file = detail::write_gradients(*problem, base, dir);
+  io::Json warnings = io::Json::array();
+  bool warned = false;
+  for (const std::string &w : optimize::stuck_responses(*problem, base)) {
+    print0(ctx.comm(), "check-gradient: warning: %s\n", w.c_str());
+    warnings.push_back(w);
+    warned = true;
+  }
   io::Json s = detail::base_summary(ctx, o, c);
   s["taylor"] = check.taylor;
   s["fd"] = check.fd;
@@ -96,6 +103,7 @@ int run_check_gradient(const Context &ctx, const Options &o, const io::Case &c, 
   s["solver_limits"] = limit_list;
   s["solver_limited"] = !limits.empty();
   s["noise_measured"] = check.noise_measured;
+  if (warned) s["warnings"] = warnings;
   s["noise_above_round_off"] = check.noise_above_round_off;
   problem->describe(s);
   FX_PETSC(VecDestroy(&x0));

@@ -553,6 +553,11 @@ int run_optimize(const Context &ctx, const Options &o, const io::Case &c, double
   s["converged"] = r.converged;
   s["restarted"] = o.restart;
   s["stop_reason"] = r.stop_reason;
+  if (!r.warnings.empty()) {
+    io::Json w = io::Json::array();
+    for (const std::string &line : r.warnings) w.push_back(line);
+    s["warnings"] = w;
+  }
   s["output"] = r.output;
   io::Json design_output = io::Json::object();
   design_output["every"] = r.output_stride;

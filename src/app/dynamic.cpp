@@ -107,6 +107,7 @@ private:
   std::vector<double> out_t_, frame_t_, energy_;
   std::vector<std::vector<bodies::Vec3>> sensor_values_;
   std::vector<double> elastic_max_; ///< per body: the largest |elastic displacement| of a node
+  std::vector<std::string> warnings_; ///< summary.json `warnings`
   double max_violation_ = 0;
   dynamics::Vector all_;
   long long newton_total_ = 0, factorizations_total_ = 0;
@@ -280,8 +281,7 @@ void MotionRun::check_linear_range() {
   MPI_Allreduce(MPI_IN_PLACE, lo.data(), n3, MPI_DOUBLE, MPI_MIN, ctx_.comm());
   MPI_Allreduce(MPI_IN_PLACE, hi.data(), n3, MPI_DOUBLE, MPI_MAX, ctx_.comm());
   MPI_Allreduce(MPI_IN_PLACE, elastic_max_.data(), n, MPI_DOUBLE, MPI_MAX, ctx_.comm());
-  io::Json warnings = io::Json::array(), largest = io::Json::object();
-  bool any = false;
+  io::Json largest = io::Json::object();
   for (std::size_t b = 0; b < nb; ++b) {
     if (scene_.bodies[b].acf >= 0 || elastic_max_[b] == 0) continue; // ACF: nonlinear
     const double size = std::hypot(hi[3 * b] - lo[3 * b], hi[3 * b + 1] - lo[3 * b + 1],
@@ -297,11 +297,9 @@ void MotionRun::check_linear_range() {
                   c_.scene.bodies[b].name.c_str(), elastic_max_[b], 100 * elastic_max_[b] / size,
                   size, 100 * kLinearRange);
     print0(ctx_.comm(), "integrate: warning: %s\n", buf);
-    warnings.push_back(std::string(buf));
-    any = true;
+    warnings_.emplace_back(buf);
   }
   s_["elastic_displacement_max"] = largest; // FFRF bodies, over the frames
-  if (any) s_["warnings"] = warnings;
 }
 
 void MotionRun::after_step(long long n, const dynamics::StepInfo &info) {
@@ -413,6 +411,10 @@ void MotionRun::run_design(adjoint::DynamicProblem &design, Vec x, bool gradient
   for (const auto &n : names) rn.push_back(n);
   s_["response_names"] = rn;
   if (gradient) {
+    for (const std::string &w : optimize::stuck_responses(design, e)) {
+      print0(ctx_.comm(), "gradient: warning: %s\n", w.c_str());
+      warnings_.push_back(w);
+    }
     const std::string file = detail::write_gradients(design, e, dir_);
     io::Json a = io::Json::object();
     design.describe(a);
@@ -509,6 +511,11 @@ void MotionRun::finish() {
   s_["sensors"] = sensors;
   s_["bodies"] = bodies_json();
   check_linear_range();
+  if (!warnings_.empty()) {
+    io::Json w = io::Json::array();
+    for (const std::string &line : warnings_) w.push_back(line);
+    s_["warnings"] = w;
+  }
   print0(ctx_.comm(),
          "integrate: %lld steps in %.3f s (%.0f steps/s), %lld Newton iterations (max %d per "
          "step) on %lld factorized matrices, max constraint violation %.3e, energy %.9g -> "

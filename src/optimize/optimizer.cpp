@@ -378,7 +378,13 @@ bool OptimizationRun::iteration(int k, Evaluation &e) {
   problem->evaluate(x_, true, e);
   if (!std::isfinite(e.objective))
     throw Error("optimize: iteration " + std::to_string(k) + ": the objective is not finite", true);
-  if (k == 1) objective_scale_ = std::abs(e.objective) > 0 ? 10.0 / std::abs(e.objective) : 1.0;
+  if (k == 1) {
+    objective_scale_ = std::abs(e.objective) > 0 ? 10.0 / std::abs(e.objective) : 1.0;
+    for (const std::string &w : stuck_responses(*problem, e)) {
+      print0(comm_, "optimize: warning: %s\n", w.c_str());
+      result_.warnings.push_back(w);
+    }
+  }
   const bool write = (k - 1) % result_.output_stride == 0;
   if (write) write_densities(*writer_, problem->field(), k - 1);
 

@@ -138,6 +138,9 @@ public:
   /// dofs, elements, design_variables, steps, forward_s, adjoint_s, checkpoints,
   /// recomputed_steps, checkpoint_bytes, evaluations.
   void describe(io::Json &summary) const override;
+  /// 1e-12 L for a sensor response's final value or KS maximum, (1e-12 L)^2 for its mean square
+  /// and a tracking error (L the scene's length scale); 0 for the others.
+  double round_off_level(std::size_t i) const override;
   /// 1e-12: every step is solved to Newton's tolerance 1e-12 (relative increment), whose error
   /// reaches the responses (measured remainders of the Taylor test clean to 1e-14 relative).
   /// 1e-8 with an FFRF design body: the lowest eigenpairs of the body's assembled K, M are
@@ -259,7 +262,6 @@ private:
   /// Per response: the FFRF body (mechanism index) whose strain energy it integrates, or -1.
   std::vector<int> strain_body_;
   bool filter_limited_ = false;       ///< the user's options loosen the filter's solves
-  bool zero_gradient_warned_ = false; ///< the warning of a design-independent response, once
   // Figures over the run (describe, timings).
   long long evaluations_ = 0;
   /// Wall times of the last evaluation with gradients (forward, backward sweep), of all

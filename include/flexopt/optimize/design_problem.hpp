@@ -94,11 +94,25 @@ public:
   /// Richardson extrapolation; L > 1: L + 1 steps, and per response the extrapolation that
   /// agrees best with the next, where truncation and noise balance).
   virtual int fd_levels() const { return 1; }
+  /// The size below which response i's value is round-off, a response that cannot move
+  /// (stuck_responses): for a sensor response 1e-12 L (L the scene's length scale), squared
+  /// for a mean square and a tracking error. 0: none known.
+  virtual double round_off_level(std::size_t i) const {
+    (void)i;
+    return 0;
+  }
 
   Vec create_design_vector() const { return field().create_design_vector(); }
   void initial_design(Vec x) const { field().initial_design(x); }
   PetscInt design_size() const { return field().design_size(); }
   const std::vector<std::size_t> &design_tags() const { return field().design_tags(); }
 };
+
+/// The responses of evaluation e (with gradients) that cannot guide a design, one sentence each
+/// naming the response and why: a gradient at most 1e-12 of the value everywhere (or zero),
+/// or a value below the
+/// problem's round_off_level (an elastic_displacement sensor on an interface that defines its
+/// body's frame is zero by construction). Collective.
+std::vector<std::string> stuck_responses(const DesignProblem &p, const Evaluation &e);
 
 } // namespace flexopt::optimize

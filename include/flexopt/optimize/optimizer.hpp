@@ -46,6 +46,8 @@ struct OptimizationResult {
   /// included (none without projection)
   std::vector<std::pair<int, double>> beta_stages;
   std::string stop_reason;
+  /// What the first evaluation found of the responses (stuck_responses), also printed.
+  std::vector<std::string> warnings;
   long long dofs = 0, elements = 0, design_variables = 0;
   std::string output;                ///< design.xdmf path
   int output_stride = 1;             ///< design.xdmf's frames: every this many iterations
