@@ -9,6 +9,7 @@
 #include "flexopt/adjoint/dist_sweep.hpp"
 #include "flexopt/adjoint/dynamic_problem.hpp"
 
+#include <algorithm>
 #include <memory>
 #include <type_traits>
 #include <vector>
@@ -50,8 +51,11 @@ protected:
     s0_ = record_.state;
     if (gradients_) {
       keep_ = p_.plan_checkpoints(schedule_);
-      store_ = open_store(p_.settings_.adjoint.storage == CheckpointStorage::Disk);
+      const bool disk = p_.settings_.adjoint.storage == CheckpointStorage::Disk;
+      store_ = open_store(disk);
       store_->put(0, record_);
+      if (!disk)
+        p_.check_checkpoint_memory(store_->bytes(), std::count(keep_.begin(), keep_.end(), 1));
     }
     sample(record_.state);
     observe(0, dynamics::StepInfo{});

@@ -228,6 +228,12 @@ private:
   std::vector<char> plan_checkpoints(std::unique_ptr<BinomialSchedule> &schedule) const;
   /// This rank's checkpoint file of `storage: disk`.
   std::string checkpoint_file() const;
+  /// Once per run, before the forward run stores its states in memory: `states` records of
+  /// `bytes` each on this rank (the first one measured) against the memory available on each
+  /// node (MemAvailable); prints the estimate, and refuses (a collective flexopt::Error naming
+  /// adjoint.checkpoints with the N that fits, or storage: disk) above 80 % of it. Collective.
+  void check_checkpoint_memory(long long bytes, long long states);
+  bool checkpoint_memory_checked_ = false;
   /// The value of response i at the last evaluation.
   double response_value(std::size_t i) const;
 

@@ -1,0 +1,61 @@
+#!/usr/bin/python3
+"""Memory bounds before the run (issue 42): the states a dynamic optimization keeps for its
+backward sweep are measured (the first one stored) and counted before the forward run; above
+80 % of the memory a node reports they are refused with the adjoint.checkpoints that fits.
+cases/first_link (2095 states of about 3 kB per node), one iteration, with the node's available
+memory given as 4 MB (FLEXOPT_MEMORY_AVAILABLE stands in for MemAvailable):
+  - `checkpoints: all` (the default): refused, one message naming adjoint.checkpoints and an N;
+  - that N written into the case: the iteration runs;
+  - `storage: disk`: the iteration runs (nothing is kept in memory).
+Usage: check_memory_bounds.py FLEXOPT SOURCE OUT
+"""
+import os
+import re
+import shutil
+import subprocess
+import sys
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "scripts"))
+import mpi_job  # noqa: E402 (after the path to scripts/)
+from case_variants import write_variant  # noqa: E402
+
+flexopt, source, out = sys.argv[1], sys.argv[2], sys.argv[3]
+shutil.rmtree(out, ignore_errors=True)
+first = os.path.join(source, "cases", "first_link")
+env = dict(mpi_job.ENV, FLEXOPT_MEMORY_AVAILABLE=str(4_000_000))
+failures = []
+
+
+def expect(cond, what):
+    print(("ok    " if cond else "FAIL  ") + what, flush=True)
+    if not cond:
+        failures.append(what)
+
+
+def optimize(name, adjoint=None):
+    extra = [("optimizer: {", f"adjoint: {adjoint}\noptimizer: {{")] if adjoint else []
+    case = write_variant(first, os.path.join(out, name + "_case"), extra, optimization=True)
+    p = mpi_job.run(["mpirun", "-n", "2", flexopt, "optimize", case, "--out", os.path.join(out, name),
+                     "--max-iterations", "1"], env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                    text=True, timeout=600)
+    return p.returncode, p.stdout
+
+
+rc, log = optimize("all")
+errors = [ln for ln in log.splitlines() if "error" in ln]
+m = re.search(r"adjoint: \{checkpoints: (\d+)\}", errors[0]) if len(errors) == 1 else None
+print(errors[0] if errors else "no error")
+expect(rc != 0 and m is not None and "adjoint.checkpoints" in errors[0],
+       "checkpoints: all above the memory: refused with one message and the N that fits")
+if m:
+    rc, log = optimize("suggested", "{checkpoints: %s}" % m.group(1))
+    line = [ln for ln in log.splitlines() if ln.startswith("adjoint:")]
+    print(line[0] if line else "")
+    expect(rc == 0, f"checkpoints: {m.group(1)} (the suggestion): the iteration runs")
+rc, log = optimize("disk", "{storage: disk}")
+expect(rc == 0, "storage: disk: the iteration runs")
+
+if failures:
+    print("FAIL: " + "; ".join(failures))
+    sys.exit(1)
+print("ok: the adjoint's states are bounded before the run")
