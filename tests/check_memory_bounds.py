@@ -7,6 +7,9 @@ memory given as 4 MB (FLEXOPT_MEMORY_AVAILABLE stands in for MemAvailable):
   - `checkpoints: all` (the default): refused, one message naming adjoint.checkpoints and an N;
   - that N written into the case: the iteration runs;
   - `storage: disk`: the iteration runs (nothing is kept in memory).
+The cone filter's weights likewise, before they are computed: cases/cantilever_topopt (8192
+elements, R = 2.56 h: about 70 weights per element, 16 MB on a node) with 20 MB available is
+refused naming design.filter and type: helmholtz.
 Usage: check_memory_bounds.py FLEXOPT SOURCE OUT
 """
 import os
@@ -54,6 +57,15 @@ if m:
     expect(rc == 0, f"checkpoints: {m.group(1)} (the suggestion): the iteration runs")
 rc, log = optimize("disk", "{storage: disk}")
 expect(rc == 0, "storage: disk: the iteration runs")
+
+p = mpi_job.run(["mpirun", "-n", "2", flexopt, "optimize", os.path.join(source, "cases", "cantilever_topopt"),
+                 "--out", os.path.join(out, "cone"), "--max-iterations", "1"],
+                env=dict(mpi_job.ENV, FLEXOPT_MEMORY_AVAILABLE=str(20_000_000)), stdout=subprocess.PIPE,
+                stderr=subprocess.STDOUT, text=True, timeout=600)
+errors = [ln for ln in p.stdout.splitlines() if "error" in ln]
+print(errors[0] if errors else "no error")
+expect(p.returncode != 0 and len(errors) == 1 and "design.filter" in errors[0] and "helmholtz" in errors[0],
+       "a cone filter above the memory: refused before its weights, naming design.filter")
 
 if failures:
     print("FAIL: " + "; ".join(failures))

@@ -3,13 +3,12 @@
 #include "flexopt/core/context.hpp"
 #include "flexopt/core/error.hpp"
 #include "flexopt/core/log.hpp"
+#include "flexopt/core/memory.hpp"
 #include "flexopt/io/xdmf.hpp"
 #include "passes.hpp"
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
-#include <cstdlib>
 #include <limits>
 #include <sstream>
 
@@ -312,55 +311,25 @@ DynamicProblem::plan_checkpoints(std::unique_ptr<BinomialSchedule> &schedule) co
   return keep;
 }
 
-namespace {
-
-/// MemAvailable of this machine [bytes] (/proc/meminfo), or -1 where it cannot be read;
-/// FLEXOPT_MEMORY_AVAILABLE (bytes) stands in for it (tests of the refusal).
-long long memory_available() {
-  if (const char *given = std::getenv("FLEXOPT_MEMORY_AVAILABLE")) return std::atoll(given);
-  std::FILE *f = std::fopen("/proc/meminfo", "r");
-  if (!f) return -1;
-  char line[256];
-  long long kib = -1;
-  while (std::fgets(line, sizeof line, f))
-    if (std::sscanf(line, "MemAvailable: %lld kB", &kib) == 1) break;
-  std::fclose(f);
-  return kib < 0 ? -1 : kib * 1024;
-}
-
-} // namespace
-
 void DynamicProblem::check_checkpoint_memory(long long bytes, long long states) {
   if (checkpoint_memory_checked_) return;
   checkpoint_memory_checked_ = true;
-  // Per node: the ranks that share its memory.
-  MPI_Comm node;
-  MPI_Comm_split_type(mesh().comm, MPI_COMM_TYPE_SHARED, 0, MPI_INFO_NULL, &node);
-  long long per_state = 0, available = 0;
-  MPI_Allreduce(&bytes, &per_state, 1, MPI_LONG_LONG, MPI_SUM, node);
-  int node_rank = 0;
-  MPI_Comm_rank(node, &node_rank);
-  if (node_rank == 0) available = memory_available();
-  MPI_Bcast(&available, 1, MPI_LONG_LONG, 0, node);
-  MPI_Comm_free(&node);
-  // The node that fits the fewest states decides, the same on every rank.
-  long long fit = available > 0 && per_state > 0 ? (available * 8 / 10) / per_state : states;
-  MPI_Allreduce(MPI_IN_PLACE, &fit, 1, MPI_LONG_LONG, MPI_MIN, mesh().comm);
-  long long node_bytes = per_state * states;
-  MPI_Allreduce(MPI_IN_PLACE, &node_bytes, 1, MPI_LONG_LONG, MPI_MAX, mesh().comm);
+  const NodeMemory per_state = node_memory(mesh().comm, bytes);
+  const NodeMemory all{per_state.bytes * states, per_state.available};
   print0(mesh().comm,
          "adjoint: %lld states kept in memory for the backward sweep, %s each on a node: %s "
          "(%s available)\n",
-         states, io::human_bytes(static_cast<double>(per_state)).c_str(),
-         io::human_bytes(static_cast<double>(node_bytes)).c_str(),
-         available > 0 ? io::human_bytes(static_cast<double>(available)).c_str() : "unknown");
-  if (fit >= states) return;
-  // Half of what would fit leaves room for the rest of the run.
-  const long long suggest = std::max<long long>(2, fit / 2);
+         states, io::human_bytes(static_cast<double>(per_state.bytes)).c_str(),
+         io::human_bytes(static_cast<double>(all.bytes)).c_str(),
+         all.available > 0 ? io::human_bytes(static_cast<double>(all.available)).c_str()
+                           : "unknown");
+  if (all.fits(0.8)) return;
+  // Half of the memory for the states leaves room for the rest of the run.
+  const long long suggest = std::max<long long>(2, all.available / 2 / std::max(1LL, per_state.bytes));
   const io::Location &at = settings_.adjoint.where;
   throw Error((at.line > 0 ? at.str() + ": " : std::string()) + "adjoint.checkpoints: the " +
                   std::to_string(states) + " states to keep need " +
-                  io::human_bytes(static_cast<double>(node_bytes)) +
+                  io::human_bytes(static_cast<double>(all.bytes)) +
                   " on a node, above 80 % of the memory available there: set adjoint: "
                   "{checkpoints: " +
                   std::to_string(suggest) +

@@ -2,12 +2,14 @@
 
 #include "flexopt/core/error.hpp"
 #include "flexopt/core/log.hpp"
+#include "flexopt/core/memory.hpp"
 #include "flexopt/fem/element.hpp"
 #include "flexopt/optimize/helmholtz_filter.hpp"
 
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <sstream>
 #include <unordered_map>
@@ -43,6 +45,33 @@ std::vector<Point> local_points(const mesh::DistributedMesh &mesh) {
                                         c.z(), v};
   }
   return pts;
+}
+
+/// Refuses, before any weight is computed, a cone filter whose weights would take more than
+/// 80 % of a node's available memory: per element about (4/3) pi R^3 / V neighbours (V this
+/// rank's mean element volume), each held as a (column, weight) pair while the rows are built
+/// and again in the AIJ matrix. Collective.
+void check_cone_memory(const mesh::DistributedMesh &mesh, const std::vector<Point> &mine,
+                       double radius) {
+  double volume = 0;
+  for (const Point &p : mine) volume += p.volume;
+  const double mean = mine.empty() ? 1.0 : volume / static_cast<double>(mine.size());
+  const double per_element =
+      std::min(4.0 / 3.0 * M_PI * radius * radius * radius / mean,
+               static_cast<double>(mesh.global_elements));
+  const double pair = sizeof(PetscInt) + sizeof(double);
+  const auto bytes = static_cast<long long>(static_cast<double>(mine.size()) * per_element *
+                                            (pair + sizeof(std::pair<PetscInt, double>)));
+  const NodeMemory need = node_memory(mesh.comm, bytes);
+  if (need.fits(0.8)) return;
+  char buf[400];
+  std::snprintf(buf, sizeof buf,
+                "design.filter: the cone filter of radius %g m would hold about %.0f weights per "
+                "element, %.3g GB on a node, above 80 %% of the %.3g GB available there: use "
+                "type: helmholtz (its cost does not grow with the radius) or a smaller radius",
+                radius, per_element, static_cast<double>(need.bytes) / 1e9,
+                static_cast<double>(need.available) / 1e9);
+  throw Error(buf, true);
 }
 
 /// The elements of other ranks whose centroids lie within `radius` of this rank's bounding
@@ -106,6 +135,7 @@ std::unique_ptr<ConeFilter> ConeFilter::create(const mesh::DistributedMesh &mesh
   f->radius_ = radius;
   const PetscInt ne = mesh.local_elements();
   const std::vector<Point> mine = local_points(mesh);
+  check_cone_memory(mesh, mine, radius);
   std::vector<Point> all = mine;
   const std::vector<Point> remote = remote_points(mesh.comm, mine, radius);
   all.insert(all.end(), remote.begin(), remote.end());
