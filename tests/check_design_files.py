@@ -21,21 +21,14 @@ import sys
 import h5py
 import numpy as np
 
-sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "scripts"))
-import mpi_job  # noqa: E402 (after the path to scripts/)
+from check_common import expect, failures, finish  # noqa: F401 (also the path to scripts/)
+import mpi_job  # noqa: E402
 from case_variants import write_variant  # noqa: E402
 
 flexopt, source, out = sys.argv[1], sys.argv[2], sys.argv[3]
 beam = os.path.join(source, "tests", "optimize", "beam")
 shutil.rmtree(out, ignore_errors=True)
 os.makedirs(out)
-failures = []
-
-
-def expect(cond, what):
-    print(("ok    " if cond else "FAIL  ") + what, flush=True)
-    if not cond:
-        failures.append(what)
 
 
 def flexopt_run(command, case, d, *args):
@@ -121,7 +114,4 @@ with h5py.File(path, "r+") as f:
 rc, text = flexopt_run("optimize", beam, "old", "--max-iterations", "4", "--restart")
 expect(rc == 0 and "carries no design fingerprint" in text, "a file without a fingerprint: used with a warning")
 
-if failures:
-    print("FAIL: " + "; ".join(failures))
-    sys.exit(1)
-print("ok: design files are checked before use")
+finish("design files are checked before use")

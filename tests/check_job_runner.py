@@ -16,14 +16,13 @@ import subprocess
 import sys
 import time
 
-sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "scripts"))
-import mpi_job  # noqa: E402 (after the path to scripts/)
+from check_common import expect, failures, finish  # noqa: F401 (also the path to scripts/)
+import mpi_job  # noqa: E402
 
 flexopt, source, out = sys.argv[1], sys.argv[2], sys.argv[3]
 case = os.path.join(source, "cases", "spin_up_beam_acf")
 shutil.rmtree(out, ignore_errors=True)
 os.makedirs(out)
-failures = []
 
 
 def left_over(tag):
@@ -89,7 +88,4 @@ if left:
     for pid in left:
         os.kill(pid, 9)
 
-if failures:
-    print("FAIL: " + "; ".join(failures))
-    sys.exit(1)
-print("ok: a timed-out job leaves no process")
+finish("a timed-out job leaves no process")

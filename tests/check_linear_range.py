@@ -13,20 +13,13 @@ import shutil
 import subprocess
 import sys
 
-sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "scripts"))
-import mpi_job  # noqa: E402 (after the path to scripts/)
+from check_common import expect, failures, finish  # noqa: F401 (also the path to scripts/)
+import mpi_job  # noqa: E402
 from case_variants import write_variant  # noqa: E402
 
 flexopt, source, out = sys.argv[1], sys.argv[2], sys.argv[3]
 shutil.rmtree(out, ignore_errors=True)
 pendulum = os.path.join(source, "cases", "flexible_pendulum")
-failures = []
-
-
-def expect(cond, what):
-    print(("ok    " if cond else "FAIL  ") + what, flush=True)
-    if not cond:
-        failures.append(what)
 
 
 def simulate(name, replace):
@@ -53,7 +46,4 @@ print(f"soft bar (E 2e7): largest elastic displacement {largest:.3g} m; " + (lin
 expect(largest > 0.05 and len(lines) == 1 and "'bar'" in lines[0] and len(s.get("warnings", [])) == 1,
        "the soft bar: one warning naming the body, in the log and in summary.json")
 
-if failures:
-    print("FAIL: " + "; ".join(failures))
-    sys.exit(1)
-print("ok: the linear FFRF range is watched")
+finish("the linear FFRF range is watched")

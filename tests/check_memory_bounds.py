@@ -19,21 +19,14 @@ import shutil
 import subprocess
 import sys
 
-sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "scripts"))
-import mpi_job  # noqa: E402 (after the path to scripts/)
+from check_common import expect, failures, finish  # noqa: F401 (also the path to scripts/)
+import mpi_job  # noqa: E402
 from case_variants import write_variant  # noqa: E402
 
 flexopt, source, out = sys.argv[1], sys.argv[2], sys.argv[3]
 shutil.rmtree(out, ignore_errors=True)
 first = os.path.join(source, "cases", "first_link")
 env = dict(mpi_job.ENV, FLEXOPT_MEMORY_AVAILABLE=str(4_000_000))
-failures = []
-
-
-def expect(cond, what):
-    print(("ok    " if cond else "FAIL  ") + what, flush=True)
-    if not cond:
-        failures.append(what)
 
 
 def optimize(name, adjoint=None):
@@ -70,7 +63,4 @@ print(errors[0] if errors else "no error")
 expect(p.returncode != 0 and len(errors) == 1 and "design.filter" in errors[0] and "helmholtz" in errors[0],
        "a cone filter above the memory: refused before its weights, naming design.filter")
 
-if failures:
-    print("FAIL: " + "; ".join(failures))
-    sys.exit(1)
-print("ok: the adjoint's states are bounded before the run")
+finish("the adjoint's states are bounded before the run")

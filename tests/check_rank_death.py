@@ -22,20 +22,13 @@ import time
 
 import h5py
 
-sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "scripts"))
-import mpi_job  # noqa: E402 (after the path to scripts/)
+from check_common import expect, failures, finish  # noqa: F401 (also the path to scripts/)
+import mpi_job  # noqa: E402
 from case_variants import write_variant  # noqa: E402
 
 flexopt, source, out = sys.argv[1], sys.argv[2], sys.argv[3]
 shutil.rmtree(out, ignore_errors=True)
 os.makedirs(out)
-failures = []
-
-
-def expect(cond, what):
-    print(("ok    " if cond else "FAIL  ") + what, flush=True)
-    if not cond:
-        failures.append(what)
 
 
 def ranks(job):
@@ -121,7 +114,4 @@ rod = write_variant(os.path.join(source, "cases", "slider_crank_topopt"), os.pat
 d = kill_one("optimize", "optimize", rod, 0, lambda d: iteration(os.path.join(d, "restart.h5")) >= 1)
 expect(iteration(os.path.join(d, "restart.h5")) >= 1, "optimize: restart.h5 is intact after the kill")
 
-if failures:
-    print("FAIL: " + "; ".join(failures))
-    sys.exit(1)
-print("ok: a lost rank ends the job")
+finish("a lost rank ends the job")

@@ -11,20 +11,13 @@ import shutil
 import subprocess
 import sys
 
-sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "scripts"))
-import mpi_job  # noqa: E402 (after the path to scripts/)
+from check_common import expect, failures, finish  # noqa: F401 (also the path to scripts/)
+import mpi_job  # noqa: E402
 from case_variants import write_variant  # noqa: E402
 
 flexopt, source, out = sys.argv[1], sys.argv[2], sys.argv[3]
 shutil.rmtree(out, ignore_errors=True)
 first = os.path.join(source, "cases", "first_link")
-failures = []
-
-
-def expect(cond, what):
-    print(("ok    " if cond else "FAIL  ") + what, flush=True)
-    if not cond:
-        failures.append(what)
 
 
 def optimize(name, replace):
@@ -50,7 +43,4 @@ print(lines[0] if lines else "no warning")
 expect(len(lines) == 1 and "does not depend on the design" in lines[0] and len(s.get("warnings", [])) == 1,
        "the driven crank's position: one warning naming constraint1, in the log and in summary.json")
 
-if failures:
-    print("FAIL: " + "; ".join(failures))
-    sys.exit(1)
-print("ok: responses that cannot move are named")
+finish("responses that cannot move are named")

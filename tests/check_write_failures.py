@@ -23,19 +23,12 @@ import time
 
 import h5py
 
-sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "scripts"))
-import mpi_job  # noqa: E402 (after the path to scripts/)
+from check_common import expect, failures, finish  # noqa: F401 (also the path to scripts/)
+import mpi_job  # noqa: E402
 
 flexopt, source, out = sys.argv[1], sys.argv[2], sys.argv[3]
 beam = os.path.join(source, "tests", "optimize", "beam")
 small = os.path.join(out, "small")
-failures = []
-
-
-def expect(cond, what):
-    print(("ok    " if cond else "FAIL  ") + what, flush=True)
-    if not cond:
-        failures.append(what)
 
 
 def command(d, *args):
@@ -115,7 +108,4 @@ print(f"directory removed: exit {job.returncode}; " + (e[0] if e else "no error 
 expect(job.returncode != 0 and len(e) == 1 and "No such file or directory" in e[0],
        "directory removed: non-zero exit, one message naming the file and the OS's reason")
 
-if failures:
-    print("FAIL: " + "; ".join(failures))
-    sys.exit(1)
-print("ok: write failures stop the run cleanly")
+finish("write failures stop the run cleanly")
