@@ -258,10 +258,12 @@ int main(int argc, char **argv) {
       status = flexopt::app::run(ctx, opts);
     } catch (const flexopt::Error &e) {
       if (e.collective()) {
-        if (ctx.rank() == 0) std::fprintf(stderr, "flexopt: error: %s\n", e.what());
+        if (ctx.rank() == 0)
+          std::fprintf(stderr, "flexopt: error: %s\n", flexopt::printable(e.what()).c_str());
         status = 1;
       } else {
-        std::fprintf(stderr, "flexopt: error on rank %d: %s\n", ctx.rank(), e.what());
+        std::fprintf(stderr, "flexopt: error on rank %d: %s\n", ctx.rank(),
+                     flexopt::printable(e.what()).c_str());
         std::fflush(stderr);
         MPI_Abort(ctx.comm(), 1);
       }
@@ -271,7 +273,7 @@ int main(int argc, char **argv) {
       MPI_Abort(ctx.comm(), 1);
     }
   } catch (const std::exception &e) {
-    std::fprintf(stderr, "flexopt: error: %s\n", e.what());
+    std::fprintf(stderr, "flexopt: error: %s\n", flexopt::printable(e.what()).c_str());
     return 1;
   }
   return status;

@@ -23,6 +23,10 @@ private:
   bool collective_;
 };
 
+/// `message` fit for a terminal: bytes that are not valid UTF-8 (a mutated or binary file's
+/// text quoted in a message) and control characters other than newline and tab become '?'.
+std::string printable(const std::string &message);
+
 /// Reports an error that only this rank has detected and ends the whole job at once
 /// (MPI_Abort, exit status 1 on every rank). It does not throw: unwinding the stack would run
 /// destructors that make collective calls (closing a parallel HDF5 file, destroying PETSc
