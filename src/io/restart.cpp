@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <hdf5.h>
+#include <functional>
 #include <unordered_map>
 
 namespace flexopt::io {
@@ -18,11 +19,10 @@ void check(herr_t status, const std::string &what) {
   if (status < 0) throw Error("restart file: " + what + " failed");
 }
 
-hid_t open_parallel(MPI_Comm comm, const std::string &path, bool create) {
+hid_t create_parallel(MPI_Comm comm, const std::string &path) {
   hid_t fapl = H5Pcreate(H5P_FILE_ACCESS);
   H5Pset_fapl_mpio(fapl, comm, MPI_INFO_NULL);
-  hid_t f = create ? H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, fapl)
-                   : H5Fopen(path.c_str(), H5F_ACC_RDONLY, fapl);
+  hid_t f = H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, fapl);
   H5Pclose(fapl);
   return f;
 }
@@ -115,7 +115,7 @@ void write_restart(MPI_Comm comm, const std::string &path, const RestartData &da
   long long bytes = global * 8 * static_cast<long long>(1 + data.fields.size());
   for (const auto &entry : data.arrays) bytes += 8 * static_cast<long long>(entry.second.size());
   detail::SpaceGuard(comm, tmp).require(bytes); // before any collective write (hdf5_check.hpp)
-  hid_t file = open_parallel(comm, tmp, true);
+  hid_t file = create_parallel(comm, tmp);
   if (file < 0)
     throw Error("cannot create restart file '" + tmp + "': " +
                     detail::unwritable_reason(comm, tmp) +
@@ -143,79 +143,157 @@ void write_restart(MPI_Comm comm, const std::string &path, const RestartData &da
 
 namespace {
 
-/// `path` opened for reading on every rank; collective errors for a missing or unreadable file.
-hid_t open_existing(MPI_Comm comm, const std::string &path) {
-  int exists = 0;
-  if (comm_rank(comm) == 0) exists = std::filesystem::is_regular_file(path) ? 1 : 0;
-  MPI_Bcast(&exists, 1, MPI_INT, 0, comm);
-  if (!exists) throw Error(path + ": restart file not found (run without --restart first)", true);
-  hid_t file = open_parallel(comm, path, false);
-  if (file < 0) throw Error(path + ": cannot open the restart file", true);
-  return file;
+/// A restart file as rank 0 reads it.
+struct Contents {
+  std::map<std::string, std::string> labels;
+  std::vector<std::uint64_t> tags;
+  std::map<std::string, std::vector<double>> fields, arrays;
+};
+
+/// The names of the datasets in `group`.
+std::vector<std::string> dataset_names(hid_t file, const char *group) {
+  hid_t g = H5Gopen2(file, group, H5P_DEFAULT);
+  if (g < 0) throw Error(std::string("group ") + group + " is missing");
+  hsize_t count = 0;
+  H5Gget_num_objs(g, &count);
+  std::vector<std::string> names;
+  for (hsize_t i = 0; i < count; ++i) {
+    char name[256] = "";
+    H5Gget_objname_by_idx(g, i, name, sizeof name);
+    names.emplace_back(name);
+  }
+  H5Gclose(g);
+  return names;
+}
+
+/// Rank 0's read of `path` with HDF5's serial driver, its own error printing off: a damaged file
+/// gives a flexopt::Error here, never a collective HDF5 call that one rank leaves (a hang).
+Contents read_on_root(const std::string &path, bool labels_only) {
+  H5E_auto2_t handler = nullptr;
+  void *data = nullptr;
+  H5Eget_auto2(H5E_DEFAULT, &handler, &data);
+  H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
+  hid_t file = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  Contents c;
+  std::string message;
+  if (file < 0) {
+    message = "cannot open the restart file (not an HDF5 file, or damaged)";
+  } else {
+    try {
+      c.labels = read_labels(file);
+      if (!labels_only) {
+        c.tags = read_all<std::uint64_t>(file, "/tags", H5T_NATIVE_UINT64);
+        for (const std::string &name : dataset_names(file, "/fields")) {
+          c.fields[name] = read_all<double>(file, "/fields/" + name, H5T_NATIVE_DOUBLE);
+          if (c.fields[name].size() != c.tags.size())
+            throw Error("field " + name + " has " + std::to_string(c.fields[name].size()) +
+                        " values for " + std::to_string(c.tags.size()) + " elements (damaged)");
+        }
+        for (const std::string &name : dataset_names(file, "/arrays"))
+          c.arrays[name] = read_all<double>(file, "/arrays/" + name, H5T_NATIVE_DOUBLE);
+      }
+    } catch (const std::exception &e) {
+      message = e.what();
+    }
+    H5Fclose(file);
+  }
+  H5Eset_auto2(H5E_DEFAULT, handler, data);
+  if (!message.empty()) throw Error(message);
+  return c;
+}
+
+void bcast_text(MPI_Comm comm, std::string &s) {
+  long long n = static_cast<long long>(s.size());
+  MPI_Bcast(&n, 1, MPI_LONG_LONG, 0, comm);
+  s.resize(static_cast<std::size_t>(n));
+  MPI_Bcast(s.data(), static_cast<int>(n), MPI_CHAR, 0, comm);
+}
+
+template <class T> void bcast_values(MPI_Comm comm, std::vector<T> &v, MPI_Datatype type) {
+  long long n = static_cast<long long>(v.size());
+  MPI_Bcast(&n, 1, MPI_LONG_LONG, 0, comm);
+  v.resize(static_cast<std::size_t>(n));
+  if (n > 0) MPI_Bcast(v.data(), static_cast<int>(n), type, 0, comm);
+}
+
+template <class V> void bcast_map(MPI_Comm comm, std::map<std::string, V> &m,
+                                  const std::function<void(V &)> &value) {
+  std::vector<std::string> keys;
+  for (const auto &entry : m) keys.push_back(entry.first);
+  long long n = static_cast<long long>(keys.size());
+  MPI_Bcast(&n, 1, MPI_LONG_LONG, 0, comm);
+  keys.resize(static_cast<std::size_t>(n));
+  for (std::string &k : keys) {
+    bcast_text(comm, k);
+    value(m[k]);
+  }
+}
+
+/// `path` read by rank 0 and sent to every rank; collective errors for a missing, unreadable or
+/// damaged file.
+Contents load(MPI_Comm comm, const std::string &path, bool labels_only) {
+  int state = 0; // 0 read, 1 missing, 2 unreadable
+  std::string message;
+  Contents c;
+  if (comm_rank(comm) == 0) {
+    if (!std::filesystem::is_regular_file(path)) {
+      state = 1;
+    } else {
+      try {
+        c = read_on_root(path, labels_only);
+      } catch (const std::exception &e) {
+        state = 2;
+        message = e.what();
+      }
+    }
+  }
+  MPI_Bcast(&state, 1, MPI_INT, 0, comm);
+  if (state == 1)
+    throw Error(path + ": restart file not found (run without --restart first)", true);
+  bcast_text(comm, message);
+  if (state == 2) throw Error(path + ": " + message, true);
+  bcast_map<std::string>(comm, c.labels, [&](std::string &v) { bcast_text(comm, v); });
+  bcast_values(comm, c.tags, MPI_UINT64_T);
+  for (auto *m : {&c.fields, &c.arrays})
+    bcast_map<std::vector<double>>(comm, *m,
+                                   [&](std::vector<double> &v) { bcast_values(comm, v, MPI_DOUBLE); });
+  return c;
 }
 
 } // namespace
 
 std::map<std::string, std::string> read_restart_labels(MPI_Comm comm, const std::string &path) {
-  hid_t file = open_existing(comm, path);
-  auto labels = read_labels(file);
-  H5Fclose(file);
-  return labels;
+  return load(comm, path, true).labels;
 }
 
 RestartData read_restart(MPI_Comm comm, const std::string &path,
                          const std::vector<std::uint64_t> &tags) {
-  hid_t file = open_existing(comm, path);
+  Contents c = load(comm, path, false);
   RestartData out;
   out.tags = tags;
-  int ok = 1;
-  std::string message;
-  try {
-    out.labels = read_labels(file);
-    const auto all_tags = read_all<std::uint64_t>(file, "/tags", H5T_NATIVE_UINT64);
-    std::unordered_map<std::uint64_t, std::size_t> where;
-    for (std::size_t k = 0; k < all_tags.size(); ++k) where[all_tags[k]] = k;
-    std::vector<std::size_t> index(tags.size());
-    for (std::size_t k = 0; k < tags.size(); ++k) {
-      auto it = where.find(tags[k]);
-      if (it == where.end())
-        throw Error("element " + std::to_string(tags[k]) +
-                    " is not in the restart file (was it written for another mesh?)");
+  out.labels = std::move(c.labels);
+  out.arrays = std::move(c.arrays);
+  std::unordered_map<std::uint64_t, std::size_t> where;
+  for (std::size_t k = 0; k < c.tags.size(); ++k) where[c.tags[k]] = k;
+  std::vector<std::size_t> index(tags.size());
+  long long missing = -1;
+  for (std::size_t k = 0; k < tags.size() && missing < 0; ++k) {
+    const auto it = where.find(tags[k]);
+    if (it == where.end())
+      missing = static_cast<long long>(tags[k]);
+    else
       index[k] = it->second;
-    }
-    for (const char *group : {"/fields", "/arrays"}) {
-      hid_t g = H5Gopen2(file, group, H5P_DEFAULT);
-      if (g < 0) throw Error(std::string("group ") + group + " is missing");
-      hsize_t count = 0;
-      H5Gget_num_objs(g, &count);
-      std::vector<std::string> names;
-      for (hsize_t i = 0; i < count; ++i) {
-        char name[256];
-        H5Gget_objname_by_idx(g, i, name, sizeof name);
-        names.emplace_back(name);
-      }
-      H5Gclose(g);
-      for (const auto &name : names) {
-        auto values = read_all<double>(file, std::string(group) + "/" + name, H5T_NATIVE_DOUBLE);
-        if (std::string(group) == "/arrays") {
-          out.arrays[name] = std::move(values);
-        } else {
-          auto &f = out.fields[name];
-          f.resize(tags.size());
-          for (std::size_t k = 0; k < tags.size(); ++k) f[k] = values[index[k]];
-        }
-      }
-    }
-  } catch (const std::exception &e) {
-    ok = 0;
-    message = e.what();
   }
-  H5Fclose(file);
-  int all_ok = 0;
-  MPI_Allreduce(&ok, &all_ok, 1, MPI_INT, MPI_MIN, comm);
-  if (!all_ok)
-    throw Error(path + ": " + (message.empty() ? std::string("unreadable restart file") : message),
+  MPI_Allreduce(MPI_IN_PLACE, &missing, 1, MPI_LONG_LONG, MPI_MAX, comm);
+  if (missing >= 0)
+    throw Error(path + ": element " + std::to_string(missing) +
+                    " is not in the restart file (written for another mesh, or damaged)",
                 true);
+  for (auto &[name, values] : c.fields) {
+    auto &f = out.fields[name];
+    f.resize(tags.size());
+    for (std::size_t k = 0; k < tags.size(); ++k) f[k] = values[index[k]];
+  }
   return out;
 }
 

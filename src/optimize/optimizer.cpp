@@ -104,6 +104,7 @@ public:
 
   /// Continues after the iterations stored in restart.h5 (docs/theory-mma.md §7).
   void read_restart();
+  void check_restart_contents(const io::RestartData &r) const;
   /// Runs the iterations up to the limit or the stop rule.
   void iterate();
   /// The final evaluation, design.xdmf's last step and history.csv; the result. Destroys the
@@ -275,9 +276,34 @@ void OptimizationRun::print_header() const {
   print0(comm_, " %8s %9s %9s\n", "s", "elapsed", "ETA");
 }
 
+/// Every field and array a restart needs, with its size (the same on every rank: rank 0 read
+/// the file): a damaged file is refused here, not by an exception deep in the restore.
+void OptimizationRun::check_restart_contents(const io::RestartData &r) const {
+  const auto damaged = [&](const std::string &what) {
+    throw Error(restart_path_ + ": damaged restart file: " + what, true);
+  };
+  for (const char *name : {"x", "xold1", "xold2", "low", "upp"})
+    if (r.fields.count(name) == 0) damaged(std::string("no field ") + name);
+  const auto meta = r.arrays.find("meta");
+  if (meta == r.arrays.end() || meta->second.size() < 5) damaged("no meta array of 5 values");
+  const double done = meta->second[0];
+  if (!(done >= 1 && done < 1e9 && done == std::floor(done))) damaged("its iteration count");
+  if (!(meta->second[1] > 0 && std::isfinite(meta->second[1]))) damaged("its objective scale");
+  const auto n = static_cast<std::size_t>(done);
+  for (const char *name : {"objective", "max_change", "seconds"}) {
+    const auto it = r.arrays.find(name);
+    if (it == r.arrays.end() || it->second.size() < n) damaged(std::string("array ") + name);
+  }
+  const auto con = r.arrays.find("constraints");
+  if (con == r.arrays.end() || con->second.size() < n * m_) damaged("array constraints");
+  const double stage = meta->second[3], start = meta->second[4];
+  if (!(stage >= 0 && stage < 1e6 && start >= 0 && start <= done)) damaged("its continuation stage");
+}
+
 void OptimizationRun::read_restart() {
   check_design_file(problem_->field(), restart_path_);
   const io::RestartData r = io::read_restart(comm_, restart_path_, tags_);
+  check_restart_contents(r);
   for (const char *name : {"x", "xold1", "xold2"}) // MMA's asymptotes low, upp leave [0, 1]
     check_design_values(problem_->field(), r.fields.at(name), restart_path_, name);
   const auto &meta =
