@@ -1,5 +1,5 @@
-"""What the fault tests (tests/check_*.py of CTest label `faults`) share: the path to scripts/
-(mpi_job, case_variants), one line per check, and the exit status.
+"""What check scripts share: the path to scripts/ (mpi_job, case_variants), one line per check,
+the exit status (case_variants.finish), and the iteration a restart.h5 holds.
 
     from check_common import expect, finish
     expect(rc != 0, "refused")       # prints "ok    refused" or "FAIL  refused"
@@ -9,6 +9,7 @@ import os
 import sys
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "scripts"))
+import case_variants  # noqa: E402
 
 failures = []
 
@@ -21,7 +22,17 @@ def expect(cond, what):
 
 
 def finish(passed):
-    if failures:
-        print("FAIL: " + "; ".join(failures))
-        sys.exit(1)
-    print("ok: " + passed)
+    """Exits 1 naming every failed check, or prints `passed` and exits 0."""
+    if not failures:
+        print("ok: " + passed)
+    case_variants.finish(failures)
+
+
+def restart_iteration(path):
+    """The iteration restart.h5 at `path` holds (0: none yet, being replaced, or unreadable)."""
+    import h5py
+    try:
+        with h5py.File(path, "r") as f:
+            return int(f["arrays/meta"][0])
+    except (OSError, KeyError):
+        return 0

@@ -22,7 +22,7 @@ import time
 
 import h5py
 
-from check_common import expect, failures, finish  # noqa: F401 (also the path to scripts/)
+from check_common import expect, failures, finish, restart_iteration  # noqa: F401 (also the path to scripts/)
 import mpi_job  # noqa: E402
 from case_variants import write_variant  # noqa: E402
 
@@ -46,13 +46,6 @@ def ranks(job):
                     found[int(e.split(b"=")[1])] = pid
     return found
 
-
-def iteration(path):
-    try:
-        with h5py.File(path, "r") as f:
-            return int(f["arrays/meta"][0])
-    except (OSError, KeyError):
-        return 0
 
 
 def kill_one(name, command, case, rank, ready, *args):
@@ -111,7 +104,7 @@ expect(had and p.returncode == 0 and "removed motion.h5.tmp" in p.stdout and
        "the next run in that directory removes the stale motion.h5.tmp and says so")
 rod = write_variant(os.path.join(source, "cases", "slider_crank_topopt"), os.path.join(out, "rod_case"),
                     [("mesh: {size: 0.005, order: 2}", "mesh: {size: 0.01, order: 2}")], optimization=True)
-d = kill_one("optimize", "optimize", rod, 0, lambda d: iteration(os.path.join(d, "restart.h5")) >= 1)
-expect(iteration(os.path.join(d, "restart.h5")) >= 1, "optimize: restart.h5 is intact after the kill")
+d = kill_one("optimize", "optimize", rod, 0, lambda d: restart_iteration(os.path.join(d, "restart.h5")) >= 1)
+expect(restart_iteration(os.path.join(d, "restart.h5")) >= 1, "optimize: restart.h5 is intact after the kill")
 
 finish("a lost rank ends the job")

@@ -29,6 +29,7 @@ import h5py
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "scripts"))
 from case_variants import write_variant  # noqa: E402
+from check_common import restart_iteration  # noqa: E402
 import mpi_job  # noqa: E402
 
 args, replace = sys.argv[1:], []
@@ -81,15 +82,6 @@ def compare(a, b, tol, what):
         failures.append(what)
 
 
-def iterations_done(path):
-    """The iteration restart.h5 holds (0: none yet or being replaced)."""
-    try:
-        with h5py.File(path, "r") as f:
-            return int(f["arrays/meta"][0])
-    except (OSError, KeyError):
-        return 0
-
-
 run(R, "straight", "--max-iterations", str(N))
 run(R, "split", "--max-iterations", "5")
 shutil.copytree(os.path.join(out, "split"), os.path.join(out, "split_other"))
@@ -106,11 +98,11 @@ os.makedirs(killed)
 p = mpi_job.start(command(R, "killed", "--max-iterations", str(N)), env=env, stdout=subprocess.DEVNULL,
                   stderr=subprocess.DEVNULL)
 deadline = time.time() + 1200
-while iterations_done(os.path.join(killed, "restart.h5")) < 3 and p.poll() is None and time.time() < deadline:
+while restart_iteration(os.path.join(killed, "restart.h5")) < 3 and p.poll() is None and time.time() < deadline:
     time.sleep(0.005)
 mpi_job.kill_session(p.pid)  # mpirun and every rank (mpi_job.py says why)
 p.wait()
-done = iterations_done(os.path.join(killed, "restart.h5"))
+done = restart_iteration(os.path.join(killed, "restart.h5"))
 print(f"killed the run with SIGKILL after restart point {done}")
 if done >= N:
     failures.append("the run ended before it could be killed")

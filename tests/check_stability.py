@@ -37,13 +37,7 @@ from stability_scenes import acf_slider_crank, as_acf, kane_ffrf, soft_pendulum 
 from study_run import ENV  # noqa: E402
 import mpi_job  # noqa: E402
 
-failures = []
-
-
-def check(ok, what):
-    print(("ok   " if ok else "FAIL ") + what, flush=True)
-    if not ok:
-        failures.append(what)
+from check_common import expect as check, failures  # noqa: E402
 
 
 def flexopt(a, command, d, *extra):
