@@ -24,12 +24,12 @@
 //          [-gauge orthonormal|frozen] [PETSc options, e.g. -log_view or -eps_view ascii:FILE for
 //          MUMPS's factor statistics]
 #include "flexopt/core/context.hpp"
-#include "harness.hpp"
 #include "flexopt/core/error.hpp"
 #include "flexopt/mesh/distributed_mesh.hpp"
 #include "flexopt/mesh/mesh_data.hpp"
 #include "flexopt/reduce/flexible_reduction.hpp"
 #include "flexopt/reduce/reduction_adjoint.hpp"
+#include "harness.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -238,8 +238,7 @@ int main(int argc, char **argv) {
     run_on_root(PETSC_COMM_WORLD, 0, [&] {
       data = mesh::read_gmsh(geo, mesh::MeshOptions{size, 2});
     });
-    const mesh::DistributedMesh m =
-        mesh::distribute_mesh(PETSC_COMM_WORLD, root ? &data : nullptr);
+    const mesh::DistributedMesh m = mesh::distribute_mesh(PETSC_COMM_WORLD, root ? &data : nullptr);
     data = mesh::MeshData{};
     if (root)
       std::fprintf(stderr, "mesh size %g: %lld DOFs, %lld Tet10 elements, %.1f s (Gmsh, METIS)\n",

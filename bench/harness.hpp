@@ -3,10 +3,9 @@
 /// error reported once (by rank 0 when the communicator is up) with a non-zero exit.
 #include "flexopt/core/context.hpp"
 
-#include <petscsys.h>
-
 #include <cstdio>
 #include <exception>
+#include <petscsys.h>
 
 namespace flexopt::bench {
 

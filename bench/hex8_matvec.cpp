@@ -12,12 +12,12 @@
 //
 //   mpirun -n N build/bench_hex8_matvec -geo BOX.geo [-repeat 50]
 #include "flexopt/core/context.hpp"
-#include "harness.hpp"
 #include "flexopt/core/error.hpp"
 #include "flexopt/fem/assembly.hpp"
 #include "flexopt/fem/matrix_free.hpp"
 #include "flexopt/mesh/distributed_mesh.hpp"
 #include "flexopt/mesh/mesh_data.hpp"
+#include "harness.hpp"
 
 #include <cmath>
 #include <cstdio>

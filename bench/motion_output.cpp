@@ -7,10 +7,10 @@
 //
 //   mpirun -n N build/bench_motion_output -out DIR [-steps 200] [-big_steps 20]
 #include "flexopt/core/context.hpp"
-#include "harness.hpp"
 #include "flexopt/core/error.hpp"
 #include "flexopt/io/motion_writer.hpp"
 #include "flexopt/io/xdmf.hpp"
+#include "harness.hpp"
 
 #include <algorithm>
 #include <cstdio>

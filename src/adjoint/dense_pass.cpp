@@ -5,8 +5,7 @@
 
 namespace flexopt::adjoint::detail {
 
-DensePass::DensePass(DynamicProblem &p, bool gradients)
-    : PassRun(p, gradients) {}
+DensePass::DensePass(DynamicProblem &p, bool gradients) : PassRun(p, gradients) {}
 
 void DensePass::sample(const dynamics::State &s) {
   const dynamics::Mechanism &mech = p_.scene_.mechanism;
@@ -50,8 +49,7 @@ void DensePass::forward() {
   p_.ev_.strain_kbar.assign(nr, Matrix());
   strain_value_.assign(nr, 0.0);
   run_forward(
-      ga,
-      [&](bool disk) { return disk ? disk_store(p_.checkpoint_file()) : memory_store(); },
+      ga, [&](bool disk) { return disk ? disk_store(p_.checkpoint_file()) : memory_store(); },
       [&](const dynamics::State &s) { sample(s); });
   const double h = p_.settings_.time.step;
   // The responses on the time grid.

@@ -17,8 +17,8 @@ std::unique_ptr<Pass> make_pass(DynamicProblem &p, bool gradients) {
 }
 
 DistPass::DistPass(DynamicProblem &p, bool gradients)
-    : PassRun(p, gradients), da_(integrator_.dist()),
-      acf_(p.acf_design_ >= 0), design_(static_cast<std::size_t>(acf_ ? p.acf_design_ : 0)) {
+    : PassRun(p, gradients), da_(integrator_.dist()), acf_(p.acf_design_ >= 0),
+      design_(static_cast<std::size_t>(acf_ ? p.acf_design_ : 0)) {
   body_ = acf_ ? p_.scene_.acf[design_].get() : nullptr;
   G_ = Matrix::Zero(10, static_cast<Eigen::Index>(p_.specs_.size()));
 }

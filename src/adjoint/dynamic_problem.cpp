@@ -325,7 +325,8 @@ void DynamicProblem::check_checkpoint_memory(long long bytes, long long states) 
                            : "unknown");
   if (all.fits(0.8)) return;
   // Half of the memory for the states leaves room for the rest of the run.
-  const long long suggest = std::max<long long>(2, all.available / 2 / std::max(1LL, per_state.bytes));
+  const long long suggest =
+      std::max<long long>(2, all.available / 2 / std::max(1LL, per_state.bytes));
   const io::Location &at = settings_.adjoint.where;
   throw Error((at.line > 0 ? at.str() + ": " : std::string()) + "adjoint.checkpoints: the " +
                   std::to_string(states) + " states to keep need " +

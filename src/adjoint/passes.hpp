@@ -59,8 +59,7 @@ protected:
     }
     sample(record_.state);
     observe(0, dynamics::StepInfo{});
-    dynamics::run_steps(alpha, p_.steps_, p_.settings_.time.step, record_,
-                        &p_.ev_.substep_sizes,
+    dynamics::run_steps(alpha, p_.steps_, p_.settings_.time.step, record_, &p_.ev_.substep_sizes,
                         [&](long long j, const dynamics::StepInfo &info) {
                           sample(record_.state);
                           if (gradients_ && keep_[static_cast<std::size_t>(j)])

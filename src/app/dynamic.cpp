@@ -18,9 +18,9 @@
 #include "flexopt/mesh/grid_layout.hpp"
 
 #include <cmath>
-#include <limits>
 #include <cstdio>
 #include <filesystem>
+#include <limits>
 #include <sstream>
 
 namespace flexopt::app {
@@ -106,7 +106,7 @@ private:
   double motion_bytes_ = 0;
   std::vector<double> out_t_, frame_t_, energy_;
   std::vector<std::vector<bodies::Vec3>> sensor_values_;
-  std::vector<double> elastic_max_; ///< per body: the largest |elastic displacement| of a node
+  std::vector<double> elastic_max_;   ///< per body: the largest |elastic displacement| of a node
   std::vector<std::string> warnings_; ///< summary.json `warnings`
   double max_violation_ = 0;
   dynamics::Vector all_;
@@ -263,7 +263,8 @@ void MotionRun::frame(double t) {
     if (elastic.empty()) continue;
     writer_->node_vector(b, "elastic_displacement", elastic.data());
     for (std::size_t k = 0; k + 2 < elastic.size(); k += 3)
-      elastic_max_[b] = std::max(elastic_max_[b], std::hypot(elastic[k], elastic[k + 1], elastic[k + 2]));
+      elastic_max_[b] =
+          std::max(elastic_max_[b], std::hypot(elastic[k], elastic[k + 1], elastic[k + 2]));
   }
 }
 
@@ -289,13 +290,14 @@ void MotionRun::check_linear_range() {
     largest[c_.scene.bodies[b].name] = elastic_max_[b];
     if (elastic_max_[b] <= kLinearRange * size) continue;
     char buf[400];
-    std::snprintf(buf, sizeof buf,
-                  "body '%s' (ffrf): elastic displacement up to %.3g m, %.0f %% of its size %.3g m, "
-                  "beyond the linear FFRF model's range (%.0f %%: elastic rotations near 0.1 rad); "
-                  "its results are not to be trusted: check the placement and the loads, or use "
-                  "model: acf",
-                  c_.scene.bodies[b].name.c_str(), elastic_max_[b], 100 * elastic_max_[b] / size,
-                  size, 100 * kLinearRange);
+    std::snprintf(
+        buf, sizeof buf,
+        "body '%s' (ffrf): elastic displacement up to %.3g m, %.0f %% of its size %.3g m, "
+        "beyond the linear FFRF model's range (%.0f %%: elastic rotations near 0.1 rad); "
+        "its results are not to be trusted: check the placement and the loads, or use "
+        "model: acf",
+        c_.scene.bodies[b].name.c_str(), elastic_max_[b], 100 * elastic_max_[b] / size, size,
+        100 * kLinearRange);
     print0(ctx_.comm(), "integrate: warning: %s\n", buf);
     warnings_.emplace_back(buf);
   }

@@ -157,6 +157,41 @@ const char *command_help(const std::string &cmd) {
 
 } // namespace
 
+/// Runs the command inside PETSc and MPI (the PETSc arguments `petsc_argv`) and turns its errors
+/// into the exit status: a collective error is printed once, by rank 0, and every rank exits 1;
+/// an error of one rank aborts the job.
+int run_in_context(const flexopt::app::Options &opts, std::vector<char *> petsc_argv) {
+  int pargc = static_cast<int>(petsc_argv.size());
+  petsc_argv.push_back(nullptr);
+  char **pargv = petsc_argv.data();
+  int status = 0;
+  try {
+    flexopt::Context ctx(&pargc, &pargv, nullptr);
+    try {
+      status = flexopt::app::run(ctx, opts);
+    } catch (const flexopt::Error &e) {
+      if (e.collective()) {
+        if (ctx.rank() == 0)
+          std::fprintf(stderr, "flexopt: error: %s\n", flexopt::printable(e.what()).c_str());
+        status = 1;
+      } else {
+        std::fprintf(stderr, "flexopt: error on rank %d: %s\n", ctx.rank(),
+                     flexopt::printable(e.what()).c_str());
+        std::fflush(stderr);
+        MPI_Abort(ctx.comm(), 1);
+      }
+    } catch (const std::exception &e) {
+      std::fprintf(stderr, "flexopt: internal error on rank %d: %s\n", ctx.rank(), e.what());
+      std::fflush(stderr);
+      MPI_Abort(ctx.comm(), 1);
+    }
+  } catch (const std::exception &e) {
+    std::fprintf(stderr, "flexopt: error: %s\n", flexopt::printable(e.what()).c_str());
+    return 1;
+  }
+  return status;
+}
+
 int main(int argc, char **argv) {
   // Our own arguments are taken out before PETSc sees the command line.
   flexopt::app::Options opts;
@@ -248,33 +283,5 @@ int main(int argc, char **argv) {
     return 2;
   }
 
-  int pargc = static_cast<int>(petsc_argv.size());
-  petsc_argv.push_back(nullptr);
-  char **pargv = petsc_argv.data();
-  int status = 0;
-  try {
-    flexopt::Context ctx(&pargc, &pargv, nullptr);
-    try {
-      status = flexopt::app::run(ctx, opts);
-    } catch (const flexopt::Error &e) {
-      if (e.collective()) {
-        if (ctx.rank() == 0)
-          std::fprintf(stderr, "flexopt: error: %s\n", flexopt::printable(e.what()).c_str());
-        status = 1;
-      } else {
-        std::fprintf(stderr, "flexopt: error on rank %d: %s\n", ctx.rank(),
-                     flexopt::printable(e.what()).c_str());
-        std::fflush(stderr);
-        MPI_Abort(ctx.comm(), 1);
-      }
-    } catch (const std::exception &e) {
-      std::fprintf(stderr, "flexopt: internal error on rank %d: %s\n", ctx.rank(), e.what());
-      std::fflush(stderr);
-      MPI_Abort(ctx.comm(), 1);
-    }
-  } catch (const std::exception &e) {
-    std::fprintf(stderr, "flexopt: error: %s\n", flexopt::printable(e.what()).c_str());
-    return 1;
-  }
-  return status;
+  return run_in_context(opts, petsc_argv);
 }

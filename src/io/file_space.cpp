@@ -50,7 +50,8 @@ std::string unwritable_reason(MPI_Comm comm, const std::string &file) {
   char text[200] = "";
   if (rank == 0) {
     const std::string why = why_unwritable(file);
-    std::snprintf(text, sizeof text, "%s", why.empty() ? "is the output directory writable?" : why.c_str());
+    std::snprintf(text, sizeof text, "%s",
+                  why.empty() ? "is the output directory writable?" : why.c_str());
   }
   MPI_Bcast(text, sizeof text, MPI_CHAR, 0, comm);
   return text;

@@ -7,8 +7,8 @@
 #include <algorithm>
 #include <cstdio>
 #include <filesystem>
-#include <hdf5.h>
 #include <functional>
+#include <hdf5.h>
 #include <unordered_map>
 
 namespace flexopt::io {
@@ -117,8 +117,8 @@ void write_restart(MPI_Comm comm, const std::string &path, const RestartData &da
   detail::SpaceGuard(comm, tmp).require(bytes); // before any collective write (hdf5_check.hpp)
   hid_t file = create_parallel(comm, tmp);
   if (file < 0)
-    throw Error("cannot create restart file '" + tmp + "': " +
-                    detail::unwritable_reason(comm, tmp) +
+    throw Error("cannot create restart file '" + tmp +
+                    "': " + detail::unwritable_reason(comm, tmp) +
                     " (the previous restart.h5, if any, is intact)",
                 true);
   H5Gclose(H5Gcreate2(file, "/fields", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT));
@@ -216,8 +216,8 @@ template <class T> void bcast_values(MPI_Comm comm, std::vector<T> &v, MPI_Datat
   if (n > 0) MPI_Bcast(v.data(), static_cast<int>(n), type, 0, comm);
 }
 
-template <class V> void bcast_map(MPI_Comm comm, std::map<std::string, V> &m,
-                                  const std::function<void(V &)> &value) {
+template <class V>
+void bcast_map(MPI_Comm comm, std::map<std::string, V> &m, const std::function<void(V &)> &value) {
   std::vector<std::string> keys;
   for (const auto &entry : m) keys.push_back(entry.first);
   long long n = static_cast<long long>(keys.size());
@@ -255,8 +255,8 @@ Contents load(MPI_Comm comm, const std::string &path, bool labels_only) {
   bcast_map<std::string>(comm, c.labels, [&](std::string &v) { bcast_text(comm, v); });
   bcast_values(comm, c.tags, MPI_UINT64_T);
   for (auto *m : {&c.fields, &c.arrays})
-    bcast_map<std::vector<double>>(comm, *m,
-                                   [&](std::vector<double> &v) { bcast_values(comm, v, MPI_DOUBLE); });
+    bcast_map<std::vector<double>>(
+        comm, *m, [&](std::vector<double> &v) { bcast_values(comm, v, MPI_DOUBLE); });
   return c;
 }
 

@@ -16,8 +16,8 @@ namespace flexopt::io {
 namespace {
 
 using detail::h5check;
-using detail::unwritable_reason;
 using detail::h5id;
+using detail::unwritable_reason;
 
 struct Field {
   std::string name;

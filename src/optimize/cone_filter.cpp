@@ -56,9 +56,8 @@ void check_cone_memory(const mesh::DistributedMesh &mesh, const std::vector<Poin
   double volume = 0;
   for (const Point &p : mine) volume += p.volume;
   const double mean = mine.empty() ? 1.0 : volume / static_cast<double>(mine.size());
-  const double per_element =
-      std::min(4.0 / 3.0 * M_PI * radius * radius * radius / mean,
-               static_cast<double>(mesh.global_elements));
+  const double per_element = std::min(4.0 / 3.0 * M_PI * radius * radius * radius / mean,
+                                      static_cast<double>(mesh.global_elements));
   const double pair = sizeof(PetscInt) + sizeof(double);
   const auto bytes = static_cast<long long>(static_cast<double>(mine.size()) * per_element *
                                             (pair + sizeof(std::pair<PetscInt, double>)));

@@ -81,8 +81,7 @@ void check_design_file(const DesignField &field, const std::string &path) {
     if (differs.empty() && got("design_positions") != expected.at("design_positions"))
       differs = "the design elements' tags or positions differ (the same body, region and "
                 "element count on another mesh: mesh.size, mesh.order or the geometry changed)";
-    if (!differs.empty())
-      throw Error(path + ": written for another design: " + differs, true);
+    if (!differs.empty()) throw Error(path + ": written for another design: " + differs, true);
   }
 }
 
@@ -105,8 +104,8 @@ void check_design_values(const DesignField &field, const std::vector<double> &va
   MPI_Bcast(&bad_value, 1, MPI_DOUBLE, root, comm);
   char value[64];
   std::snprintf(value, sizeof value, "%.17g", bad_value);
-  throw Error(path + ": field '" + what + "': element " + std::to_string(first) + " has " +
-                  value + ", not a density in [0, 1]",
+  throw Error(path + ": field '" + what + "': element " + std::to_string(first) + " has " + value +
+                  ", not a density in [0, 1]",
               true);
 }
 

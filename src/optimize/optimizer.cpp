@@ -297,7 +297,8 @@ void OptimizationRun::check_restart_contents(const io::RestartData &r) const {
   const auto con = r.arrays.find("constraints");
   if (con == r.arrays.end() || con->second.size() < n * m_) damaged("array constraints");
   const double stage = meta->second[3], start = meta->second[4];
-  if (!(stage >= 0 && stage < 1e6 && start >= 0 && start <= done)) damaged("its continuation stage");
+  if (!(stage >= 0 && stage < 1e6 && start >= 0 && start <= done))
+    damaged("its continuation stage");
 }
 
 void OptimizationRun::read_restart() {

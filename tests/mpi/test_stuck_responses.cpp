@@ -31,8 +31,7 @@ public:
   double round_off_level(std::size_t i) const override { return i >= 2 ? 1e-24 : 0; }
 
 private:
-  std::vector<std::string> names_{"objective:a", "constraint0:b", "constraint1:c",
-                                  "constraint2:d"};
+  std::vector<std::string> names_{"objective:a", "constraint0:b", "constraint1:c", "constraint2:d"};
 };
 
 Vec filled(double value) {

@@ -267,7 +267,7 @@ private:
   std::vector<char> sensor_on_design_;
   /// Per response: the FFRF body (mechanism index) whose strain energy it integrates, or -1.
   std::vector<int> strain_body_;
-  bool filter_limited_ = false;       ///< the user's options loosen the filter's solves
+  bool filter_limited_ = false; ///< the user's options loosen the filter's solves
   // Figures over the run (describe, timings).
   long long evaluations_ = 0;
   /// Wall times of the last evaluation with gradients (forward, backward sweep), of all
