@@ -271,22 +271,12 @@ void MotionRun::frame(double t) {
 void MotionRun::check_linear_range() {
   const std::size_t nb = c_.scene.bodies.size();
   elastic_max_.resize(nb, 0.0);
-  std::vector<double> lo(3 * nb, std::numeric_limits<double>::max()), hi(3 * nb, -lo[0]);
-  for (std::size_t b = 0; b < nb; ++b) {
-    const auto &xyz = scene_.meshes[b].coordinates;
-    for (std::size_t k = 0; k < xyz.size(); ++k)
-      lo[3 * b + k % 3] = std::min(lo[3 * b + k % 3], xyz[k]),
-                     hi[3 * b + k % 3] = std::max(hi[3 * b + k % 3], xyz[k]);
-  }
-  const int n3 = static_cast<int>(3 * nb), n = static_cast<int>(nb);
-  MPI_Allreduce(MPI_IN_PLACE, lo.data(), n3, MPI_DOUBLE, MPI_MIN, ctx_.comm());
-  MPI_Allreduce(MPI_IN_PLACE, hi.data(), n3, MPI_DOUBLE, MPI_MAX, ctx_.comm());
-  MPI_Allreduce(MPI_IN_PLACE, elastic_max_.data(), n, MPI_DOUBLE, MPI_MAX, ctx_.comm());
+  MPI_Allreduce(MPI_IN_PLACE, elastic_max_.data(), static_cast<int>(nb), MPI_DOUBLE, MPI_MAX,
+                ctx_.comm());
   io::Json largest = io::Json::object();
   for (std::size_t b = 0; b < nb; ++b) {
     if (scene_.bodies[b].acf >= 0 || elastic_max_[b] == 0) continue; // ACF: nonlinear
-    const double size = std::hypot(hi[3 * b] - lo[3 * b], hi[3 * b + 1] - lo[3 * b + 1],
-                                   hi[3 * b + 2] - lo[3 * b + 2]);
+    const double size = mesh::mesh_extent(scene_.meshes[b]);
     largest[c_.scene.bodies[b].name] = elastic_max_[b];
     if (elastic_max_[b] <= kLinearRange * size) continue;
     char buf[400];

@@ -460,26 +460,12 @@ public:
   /// the larger body it joins (an angle given in degrees, a position off by a body's length):
   /// the consistent start would close such a gap by moving bodies far from where the case put
   /// them, or, for an FFRF body, by a huge "elastic" displacement. Collective.
-  void check_gaps(MPI_Comm comm) const {
-    std::vector<double> lo, hi; // every body's bounding box, min then max of x, y, z
-    for (const mesh::DistributedMesh &m : scene_.meshes)
-      for (int d = 0; d < 3; ++d) {
-        double a = std::numeric_limits<double>::max(), b = -a;
-        for (std::size_t k = static_cast<std::size_t>(d); k < m.coordinates.size(); k += 3)
-          a = std::min(a, m.coordinates[k]), b = std::max(b, m.coordinates[k]);
-        lo.push_back(a), hi.push_back(b);
-      }
-    MPI_Allreduce(MPI_IN_PLACE, lo.data(), static_cast<int>(lo.size()), MPI_DOUBLE, MPI_MIN, comm);
-    MPI_Allreduce(MPI_IN_PLACE, hi.data(), static_cast<int>(hi.size()), MPI_DOUBLE, MPI_MAX, comm);
+  void check_gaps() const {
+    std::vector<double> sizes;
+    for (const mesh::DistributedMesh &m : scene_.meshes) sizes.push_back(mesh::mesh_extent(m));
     const auto size = [&](const std::string &body) {
       const auto it = body_index_.find(body);
-      if (it == body_index_.end()) return 0.0; // the ground
-      double s2 = 0;
-      for (std::size_t d = 0; d < 3; ++d) {
-        const double e = hi[3 * it->second + d] - lo[3 * it->second + d];
-        s2 += e * e;
-      }
-      return std::sqrt(s2);
+      return it == body_index_.end() ? 0.0 : sizes[it->second]; // the ground: 0
     };
     for (const auto &[j, gap] : gaps_) {
       const double sa = size(j->a), sb = size(j->b), s = std::max(sa, sb);
@@ -689,7 +675,7 @@ void connect(MPI_Comm comm, const SceneDescription &c, Scene &scene, bool report
   k.add_drivers();
   k.add_joints();
   if (report) {
-    k.check_gaps(comm);
+    k.check_gaps();
     k.report_gaps(comm);
   }
   if (c.gravity) mech.gravity = v3(*c.gravity);

@@ -4,7 +4,9 @@
 #include "flexopt/core/error.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <cstring>
+#include <limits>
 #include <metis.h>
 #include <numeric>
 
@@ -402,6 +404,18 @@ DistributedMesh distribute_mesh(MPI_Comm comm, const MeshData *root_mesh) {
   run_on_root(comm, 0, [&] { partition_on_root(*root_mesh, size, parts); });
   receive_parts(comm, header, parts, dm);
   return dm;
+}
+
+double mesh_extent(const DistributedMesh &mesh) {
+  double lo[3] = {std::numeric_limits<double>::max(), std::numeric_limits<double>::max(),
+                  std::numeric_limits<double>::max()},
+         hi[3] = {-lo[0], -lo[1], -lo[2]};
+  for (std::size_t k = 0; k < mesh.coordinates.size(); ++k)
+    lo[k % 3] = std::min(lo[k % 3], mesh.coordinates[k]),
+           hi[k % 3] = std::max(hi[k % 3], mesh.coordinates[k]);
+  MPI_Allreduce(MPI_IN_PLACE, lo, 3, MPI_DOUBLE, MPI_MIN, mesh.comm);
+  MPI_Allreduce(MPI_IN_PLACE, hi, 3, MPI_DOUBLE, MPI_MAX, mesh.comm);
+  return std::hypot(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]);
 }
 
 } // namespace flexopt::mesh

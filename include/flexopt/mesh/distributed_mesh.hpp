@@ -66,6 +66,9 @@ struct DistributedMesh {
                                             const std::string &where) const;
 };
 
+/// The diagonal of the bounding box of all of the mesh's nodes [m]: the body's size. Collective.
+double mesh_extent(const DistributedMesh &mesh);
+
 /// Partitions `root_mesh` (significant on rank 0 only) over `comm` and distributes it.
 /// Collective.
 DistributedMesh distribute_mesh(MPI_Comm comm, const MeshData *root_mesh);
