@@ -10,13 +10,15 @@
     every iteration, so a kill at any moment leaves the last complete one);
   - --restart without a restart file fails with a clear message.
 Usage: check_restart.py FLEXOPT CASE OUT [N (default 12) [R (default 2)]] [--replace OLD NEW]...
+                        [--option OPTION]...
 With --replace, the runs use a copy of CASE (in OUT/case) with each OLD text of case.yaml replaced
 by NEW (a coarser mesh: the restart does not depend on the resolution, and a coarse mesh makes
 each iteration cheaper).
+With --option, every run gets OPTION on its command line.
 Bit for bit needs an evaluation that is itself repeatable on R ranks: MUMPS's parallel
-factorization is not (its dynamic scheduling; docs/solvers.md "Reproducibility"), so a case whose
-evaluation factorizes with MUMPS on 2 ranks (an FFRF design body's reduction) is checked with
-R = 1.
+factorization is not (docs/solvers.md "Reproducibility"), so a case whose evaluation factorizes
+with MUMPS on 2 ranks (an FFRF design body's reduction) is checked with --option
+-fx_deterministic.
 """
 import json
 import os
@@ -32,11 +34,15 @@ from case_variants import write_variant  # noqa: E402
 from check_common import restart_iteration  # noqa: E402
 import mpi_job  # noqa: E402
 
-args, replace = sys.argv[1:], []
+args, replace, options = sys.argv[1:], [], []
 while "--replace" in args:
     i = args.index("--replace")
     replace.append((args[i + 1], args[i + 2]))
     del args[i:i + 3]
+while "--option" in args:
+    i = args.index("--option")
+    options.append(args[i + 1])
+    del args[i:i + 2]
 flexopt, case, out = args[:3]
 N = int(args[3]) if len(args) > 3 else 12
 R = int(args[4]) if len(args) > 4 else 2
@@ -49,7 +55,8 @@ if replace:
 
 
 def command(ranks, d, *args):
-    return ["mpirun", "-n", str(ranks), flexopt, "optimize", case, "--out", os.path.join(out, d)] + list(args)
+    return (["mpirun", "-n", str(ranks), flexopt, "optimize", case, "--out", os.path.join(out, d)] + list(args)
+            + options)
 
 
 def run(ranks, d, *args, ok=True):

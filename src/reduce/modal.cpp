@@ -202,9 +202,7 @@ void ClampedProblem::solve(const std::vector<Vec> &b, const std::vector<Vec> &x,
     }
     FX_PETSC(MatDenseRestoreArrayWrite(B, &ba));
   }
-  FX_PETSC(KSPMatSolve(ksp_, B, X));
-  KSPConvergedReason reason;
-  FX_PETSC(KSPGetConvergedReason(ksp_, &reason));
+  const KSPConvergedReason reason = solve_columns(ksp_, B, X);
   if (reason < 0) {
     MatDestroy(&B);
     MatDestroy(&X);

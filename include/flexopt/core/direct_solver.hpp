@@ -9,8 +9,20 @@ enum class Factorization { LU, Cholesky };
 /// Makes `ksp` a direct solve: preonly + MUMPS LU, or MUMPS Cholesky (LDL^T) for a symmetric
 /// operator (about half the flops and memory of LU; MUMPS takes its positive definite variant
 /// if the operator carries MAT_SPD). Options set afterwards (KSPSetFromOptions) still override.
-/// Not collective.
+/// With the option `-fx_deterministic` on more than one rank: a redundant solve instead, each
+/// rank factorizing the whole operator with sequential MUMPS, so that two runs give the same
+/// bits (docs/solvers.md "Reproducibility"). Not collective.
 void use_mumps(KSP ksp, Factorization factorization);
+
+/// Whether the option `-fx_deterministic` (command line or the case's `solver:`) asks for direct
+/// solves whose results do not vary from run to run. Not collective.
+bool deterministic_solvers();
+
+/// X = A^{-1} B for the dense block B (columns: right-hand sides) with the direct solver `ksp`
+/// (KSPMatSolve, one pass over the factors for the whole block; in the deterministic mode the
+/// block is gathered and solved by each rank's whole copy). Returns the solve's converged
+/// reason (negative: failed). Collective.
+KSPConvergedReason solve_columns(KSP ksp, Mat B, Mat X);
 
 /// A new direct solver of A on A's communicator: use_mumps, then the options with `prefix`
 /// (null: none). The caller destroys it. Collective.
