@@ -8,6 +8,10 @@
   - a run killed with SIGKILL (mpirun and every rank: the whole session) once restart.h5 holds iteration 3 or
     later, then continued with --restart: bit for bit (restart.h5 is replaced atomically after
     every iteration, so a kill at any moment leaves the last complete one);
+  - after each resume on R ranks, design.xdmf holds every frame of the uninterrupted run's, from
+    iteration 0, with the same densities bit for bit (the frames before the restart point
+    carried over from the stopped run's design.h5 or the killed run's design.h5.tmp), and the
+    killed run's design.h5.tmp is gone;
   - --restart without a restart file fails with a clear message.
 Usage: check_restart.py FLEXOPT CASE OUT [N (default 12) [R (default 2)]] [--replace OLD NEW]...
                         [--option OPTION]...
@@ -27,7 +31,10 @@ import subprocess
 import sys
 import time
 
+import re
+
 import h5py
+import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "scripts"))
 from case_variants import write_variant  # noqa: E402
@@ -89,12 +96,33 @@ def compare(a, b, tol, what):
         failures.append(what)
 
 
+def same_designs(d, what):
+    """design.xdmf's frame times and design.h5's densities of run `d` against the straight run's."""
+    def times(run_dir):
+        return re.findall(r'<Time Value="([^"]+)"', open(os.path.join(out, run_dir, "design.xdmf")).read())
+    ta, tb = times("straight"), times(d)
+    same = ta == tb
+    with h5py.File(os.path.join(out, "straight", "design.h5"), "r") as fa, \
+            h5py.File(os.path.join(out, d, "design.h5"), "r") as fb:
+        for k in range(len(ta) if same else 0):
+            for name in fa[f"step_{k}"]:
+                same = same and np.array_equal(fa[f"step_{k}/{name}"][()], fb[f"step_{k}/{name}"][()])
+    stale = os.path.exists(os.path.join(out, d, "design.h5.tmp"))
+    ok = same and not stale
+    print(("ok    " if ok else "FAIL  ") + f"{what}: design.xdmf's {len(tb)} frames (iterations {tb[0]} to {tb[-1]}) "
+          f"{'equal' if same else 'differ from'} the uninterrupted run's {len(ta)}"
+          + (", design.h5.tmp left behind" if stale else ""))
+    if not ok:
+        failures.append(what + ": design history")
+
+
 run(R, "straight", "--max-iterations", str(N))
 run(R, "split", "--max-iterations", "5")
 shutil.copytree(os.path.join(out, "split"), os.path.join(out, "split_other"))
 run(R, "split", "--max-iterations", str(N), "--restart")
 run(other, "split_other", "--max-iterations", str(N), "--restart")
 compare(summary("straight"), summary("split"), 0.0, f"stopped at 5, restarted on {R} rank(s) to {N}")
+same_designs("split", "stopped at 5, restarted")
 compare(summary("straight"), summary("split_other"), 1e-8,
         f"stopped at 5 on {R} rank(s), restarted on {other} rank(s)")
 
@@ -115,6 +143,7 @@ if done >= N:
     failures.append("the run ended before it could be killed")
 run(R, "killed", "--max-iterations", str(N), "--restart")
 compare(summary("straight"), summary("killed"), 0.0, f"killed after iteration {done}, restarted on {R} rank(s)")
+same_designs("killed", "killed, restarted")
 
 p = run(2, "none", "--restart", ok=False)
 ok = p.returncode != 0 and "restart file not found" in p.stdout

@@ -85,10 +85,12 @@ std::string output_directory(const Context &ctx, const Options &o) {
     // A stale summary from an earlier run must not pass for this run's result.
     fs::remove(fs::path(dir) / "summary.json", ec);
     // The incomplete files of a run that was killed (every writer writes NAME.tmp and renames
-    // it when complete): removed, and named.
+    // it when complete): removed, and named. `optimize --restart` keeps design.h5.tmp: the
+    // optimizer carries its frames over into the new design.h5.
     std::string stale;
     for (const auto &entry : fs::directory_iterator(dir, ec))
-      if (entry.is_regular_file() && entry.path().extension() == ".tmp") {
+      if (entry.is_regular_file() && entry.path().extension() == ".tmp" &&
+          !(o.restart && entry.path().filename() == "design.h5.tmp")) {
         stale += (stale.empty() ? "" : ", ") + entry.path().filename().string();
         fs::remove(entry.path(), ec);
       }

@@ -110,7 +110,8 @@ const char *command_help(const std::string &cmd) {
            "iterations and at the end, as time steps), out/history.csv and out/summary.json.\n"
            "After every iteration out/restart.h5 is replaced atomically; --restart continues\n"
            "from it (on any number of ranks) with the same iterates as an uninterrupted run.\n"
-           "A restarted run's design.xdmf holds the iterations it computed itself.\n"
+           "A restarted run's design.xdmf holds every iteration from the first (the earlier\n"
+           "frames carried over from the interrupted run's design.h5.tmp or the last design.h5).\n"
            "Dynamic cases: at the end, out/motion_initial.xdmf and out/motion_final.xdmf show the\n"
            "mechanism moving with the first and the last design (densities on the design body).\n"
            "A design region touching an interface of its flexible body is refused.\n";

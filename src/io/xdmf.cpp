@@ -31,6 +31,69 @@ struct Step {
   std::vector<Field> fields;
 };
 
+/// Rank 0's serial read of an XdmfWriter file's steps (XdmfWriter::copy_steps), HDF5's error
+/// printing off while it is open: a damaged or unfinished file gives a message, never a crash.
+struct StepReader {
+  hid_t file = -1;
+  std::size_t cells = 0;
+  std::vector<std::vector<double>> fields;
+  H5E_auto2_t handler = nullptr;
+  void *data = nullptr;
+
+  std::string open(const std::string &path, std::size_t global_cells) {
+    cells = global_cells;
+    if (!std::filesystem::is_regular_file(path)) return "not found";
+    H5Eget_auto2(H5E_DEFAULT, &handler, &data);
+    H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
+    file = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+    if (file < 0) {
+      H5Eset_auto2(H5E_DEFAULT, handler, data);
+      return "cannot be opened (not an HDF5 file, or damaged)";
+    }
+    return "";
+  }
+
+  /// 1 with step k's fields read, 0 at the end (its time not below `before`, or `problem` set).
+  int step(std::size_t k, double before, const std::vector<std::string> &names, double &time,
+           std::string &problem) {
+    const std::string group = "/step_" + std::to_string(k);
+    if (H5Lexists(file, group.c_str(), H5P_DEFAULT) <= 0) return 0; // the last step was k - 1
+    hid_t a = H5Aopen_by_name(file, group.c_str(), "time", H5P_DEFAULT, H5P_DEFAULT);
+    const bool timed = a >= 0 && H5Aread(a, H5T_NATIVE_DOUBLE, &time) >= 0;
+    if (a >= 0) H5Aclose(a);
+    if (!timed) {
+      problem = group + " has no time (unfinished, or written by an older flexopt)";
+      return 0;
+    }
+    if (!(time < before)) return 0;
+    fields.assign(names.size(), std::vector<double>(cells));
+    for (std::size_t f = 0; f < names.size(); ++f) {
+      const std::string name = group + "/" + names[f];
+      hid_t d = H5Dopen2(file, name.c_str(), H5P_DEFAULT);
+      hid_t sp = d >= 0 ? H5Dget_space(d) : -1;
+      const bool fits = sp >= 0 && H5Sget_simple_extent_npoints(sp) ==
+                                       static_cast<hssize_t>(cells);
+      const bool read = fits && H5Dread(d, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT,
+                                        fields[f].data()) >= 0;
+      if (sp >= 0) H5Sclose(sp);
+      if (d >= 0) H5Dclose(d);
+      if (!read) {
+        problem = name + (fits ? " cannot be read (unfinished)"
+                               : " is missing or has another cell count than the mesh");
+        return 0;
+      }
+    }
+    return 1;
+  }
+
+  void close() {
+    if (file < 0) return;
+    H5Fclose(file);
+    H5Eset_auto2(H5E_DEFAULT, handler, data);
+    file = -1;
+  }
+};
+
 } // namespace
 
 struct XdmfWriter::Impl {
@@ -81,6 +144,20 @@ struct XdmfWriter::Impl {
     H5Dclose(dset);
     H5Pclose(lcpl);
     H5Sclose(fspace);
+  }
+
+  /// The step's time as the attribute "time" of its group, written with its first field, so
+  /// that the .tmp of a killed run tells each step's time (copy_steps).
+  void write_step_time(std::size_t step) {
+    const std::string group = "/step_" + std::to_string(step);
+    hid_t g = h5id(H5Gopen2(file, group.c_str(), H5P_DEFAULT), "opening " + group);
+    hid_t sp = h5id(H5Screate(H5S_SCALAR), "H5Screate");
+    hid_t a = h5id(H5Acreate2(g, "time", H5T_IEEE_F64LE, sp, H5P_DEFAULT, H5P_DEFAULT),
+                   "creating " + group + "/time");
+    h5check(H5Awrite(a, H5T_NATIVE_DOUBLE, &steps[step].time), "writing " + group + "/time");
+    H5Aclose(a);
+    H5Sclose(sp);
+    H5Gclose(g);
   }
 
   std::string xdmf_text() const {
@@ -188,6 +265,7 @@ void XdmfWriter::node_vector(const std::string &name, const double *owned_values
   const std::string path = "/step_" + std::to_string(m.steps.size() - 1) + "/" + name;
   m.write_rows(path, H5T_NATIVE_DOUBLE, H5T_IEEE_F64LE, owned_values, m.layout.global_nodes,
                m.layout.node_start, m.layout.owned_nodes, 3);
+  if (m.steps.back().fields.empty()) m.write_step_time(m.steps.size() - 1);
   m.steps.back().fields.push_back(Field{name, false, true, path});
 }
 
@@ -197,7 +275,53 @@ void XdmfWriter::cell_scalar(const std::string &name, const double *local_values
   const std::string path = "/step_" + std::to_string(m.steps.size() - 1) + "/" + name;
   m.write_rows(path, H5T_NATIVE_DOUBLE, H5T_IEEE_F64LE, local_values, m.layout.global_cells,
                m.layout.cell_start, m.layout.local_cells, 1);
+  if (m.steps.back().fields.empty()) m.write_step_time(m.steps.size() - 1);
   m.steps.back().fields.push_back(Field{name, true, false, path});
+}
+
+void XdmfWriter::flush() {
+  h5check(H5Fflush(impl_->file, H5F_SCOPE_GLOBAL), "flushing " + impl_->h5_tmp);
+}
+
+XdmfWriter::Copied XdmfWriter::copy_steps(const std::string &path, double before,
+                                          const std::vector<std::string> &names) {
+  Impl &m = *impl_;
+  MPI_Comm comm = m.layout.comm;
+  int rank = 0, size = 1;
+  MPI_Comm_rank(comm, &rank);
+  MPI_Comm_size(comm, &size);
+  std::vector<int> counts(static_cast<std::size_t>(size)), offsets(counts.size(), 0);
+  const int mine = static_cast<int>(m.layout.local_cells);
+  MPI_Allgather(&mine, 1, MPI_INT, counts.data(), 1, MPI_INT, comm);
+  for (std::size_t r = 1; r < counts.size(); ++r) offsets[r] = offsets[r - 1] + counts[r - 1];
+  StepReader reader; // rank 0's
+  Copied out;
+  if (rank == 0) out.problem = reader.open(path, static_cast<std::size_t>(m.layout.global_cells));
+  std::vector<double> local(static_cast<std::size_t>(mine));
+  for (std::size_t k = 0;; ++k) {
+    double time = 0;
+    int more = 0; // 1: step k is complete and below `before`
+    if (rank == 0 && out.problem.empty()) more = reader.step(k, before, names, time, out.problem);
+    MPI_Bcast(&more, 1, MPI_INT, 0, comm);
+    if (!more) break;
+    MPI_Bcast(&time, 1, MPI_DOUBLE, 0, comm);
+    begin_step(time);
+    for (std::size_t f = 0; f < names.size(); ++f) {
+      MPI_Scatterv(rank == 0 ? reader.fields[f].data() : nullptr, counts.data(), offsets.data(),
+                   MPI_DOUBLE, local.data(), mine, MPI_DOUBLE, 0, comm);
+      cell_scalar(names[f], local.data());
+    }
+    ++out.steps;
+    out.last_time = time;
+  }
+  if (rank == 0) reader.close();
+  std::string problem = out.problem;
+  long long n = static_cast<long long>(problem.size());
+  MPI_Bcast(&n, 1, MPI_LONG_LONG, 0, comm);
+  problem.resize(static_cast<std::size_t>(n));
+  MPI_Bcast(problem.data(), static_cast<int>(n), MPI_CHAR, 0, comm);
+  out.problem = problem;
+  return out;
 }
 
 std::string XdmfWriter::close() {

@@ -20,6 +20,10 @@ namespace flexopt::optimize {
 
 namespace {
 
+/// An interrupted run's design.h5.tmp, set aside by `optimize --restart` while its frames are
+/// carried over into the new design.h5.
+constexpr const char *kInterruptedDesign = "design.interrupted.h5";
+
 /// Writes the densities of the current evaluation as one step of the design collection.
 void write_densities(io::XdmfWriter &writer, const DesignField &p, double step) {
   writer.begin_step(step);
@@ -97,8 +101,10 @@ void append_history_row(std::ostringstream &history, int k, double objective,
 /// history and the restart file.
 class OptimizationRun {
 public:
+  /// With `restart`, the interrupted run's design.h5.tmp is set aside before design.h5.tmp is
+  /// created anew, for read_restart to carry its frames over.
   OptimizationRun(MPI_Comm comm, DesignProblem &design, const OptimizerSettings &c,
-                  const std::string &out_dir);
+                  const std::string &out_dir, bool restart);
   OptimizationRun(const OptimizationRun &) = delete;
   OptimizationRun &operator=(const OptimizationRun &) = delete;
 
@@ -116,6 +122,7 @@ private:
   void write_history_header();
   void print_header() const;
   void restore_history(const io::RestartData &r, int done);
+  void carry_design_frames(int done);
   bool iteration(int k, Evaluation &e);
   std::vector<double> scaled_constraints(const Evaluation &e);
   std::vector<double> iteration_split(double seconds) const;
@@ -173,7 +180,7 @@ std::string clock_text(double s) {
 }
 
 OptimizationRun::OptimizationRun(MPI_Comm comm, DesignProblem &design, const OptimizerSettings &c,
-                                 const std::string &out_dir)
+                                 const std::string &out_dir, bool restart)
     : comm_(comm), problem_(&design), c_(c), out_dir_(out_dir), m_(c.bounds.size()),
       betas_(design.field().settings().beta) {
   DesignProblem *problem = problem_;
@@ -203,6 +210,13 @@ OptimizationRun::OptimizationRun(MPI_Comm comm, DesignProblem &design, const Opt
 
   const io::GridLayout layout = mesh::grid_layout(problem->mesh());
   plan_design_output(layout);
+  if (restart)
+    run_on_root(comm_, 0, [&] {
+      std::error_code ec;
+      const std::filesystem::path dir(out_dir);
+      if (std::filesystem::is_regular_file(dir / "design.h5.tmp", ec))
+        std::filesystem::rename(dir / "design.h5.tmp", dir / kInterruptedDesign, ec);
+    });
   writer_.emplace(layout, out_dir, "design");
   write_history_header();
   print_header();
@@ -334,6 +348,39 @@ void OptimizationRun::read_restart() {
   result_.iterations = done;
   first_ = done + 1;
   print0(comm_, "optimize: restarting from %s after iteration %d\n", restart_path_.c_str(), done);
+  carry_design_frames(done);
+}
+
+/// design.xdmf's frames of the iterations before `done` (docs/output.md "Restarts"), from the
+/// killed run's design.h5.tmp (set aside by the constructor), else from the design.h5 of the
+/// last run that ended. Each frame was flushed before the restart point of its iteration was
+/// written, so a kill at any moment leaves them.
+void OptimizationRun::carry_design_frames(int done) {
+  namespace fs = std::filesystem;
+  const fs::path dir(out_dir_), interrupted = dir / kInterruptedDesign;
+  int from_interrupted = 0;
+  run_on_root(comm_, 0, [&] { from_interrupted = fs::is_regular_file(interrupted) ? 1 : 0; });
+  MPI_Bcast(&from_interrupted, 1, MPI_INT, 0, comm_);
+  const fs::path source = from_interrupted ? interrupted : dir / "design.h5";
+  const io::XdmfWriter::Copied got = writer_->copy_steps(
+      source.string(), done, {"density", "filtered_density", "physical_density"});
+  // The last frame due before `done` at this run's stride.
+  const int stride = result_.output_stride, due = done > 0 ? (done - 1) / stride * stride : -1;
+  if (got.steps > 0)
+    print0(comm_, "optimize: design.xdmf: iterations 0 to %g (%d frames) carried over from %s\n",
+           got.last_time, got.steps, source.filename().c_str());
+  if (got.last_time < due) {
+    const std::string w = "design.xdmf lacks the frames of iterations " +
+                          std::to_string(static_cast<int>(got.last_time) + 1) + " to " +
+                          std::to_string(due) + ": " + source.string() + ": " +
+                          (got.problem.empty() ? "holds no more" : got.problem);
+    print0(comm_, "optimize: warning: %s\n", w.c_str());
+    result_.warnings.push_back(w);
+  }
+  run_on_root(comm_, 0, [&] {
+    std::error_code ec;
+    fs::remove(interrupted, ec);
+  });
 }
 
 /// The result's and history.csv's rows of the `done` iterations stored in a restart file.
@@ -413,7 +460,10 @@ bool OptimizationRun::iteration(int k, Evaluation &e) {
     }
   }
   const bool write = (k - 1) % result_.output_stride == 0;
-  if (write) write_densities(*writer_, problem->field(), k - 1);
+  if (write) {
+    write_densities(*writer_, problem->field(), k - 1);
+    writer_->flush(); // before restart point k: a kill leaves this frame for --restart
+  }
 
   FX_PETSC(VecCopy(e.d_objective, df0_));
   FX_PETSC(VecScale(df0_, objective_scale_));
@@ -545,7 +595,7 @@ long long design_output_frames(const OptimizerSettings &settings) {
 OptimizationResult run_optimization(MPI_Comm comm, DesignProblem &design,
                                     const OptimizerSettings &c, const std::string &out_dir,
                                     bool restart) {
-  OptimizationRun run(comm, design, c, out_dir);
+  OptimizationRun run(comm, design, c, out_dir, restart);
   if (restart) run.read_restart();
   run.iterate();
   return run.finish();

@@ -50,6 +50,22 @@ public:
   void node_vector(const std::string &name, const double *owned_values);
   /// A cell scalar field: one value per local cell. Collective.
   void cell_scalar(const std::string &name, const double *local_values);
+  /// Writes the HDF5 file's buffered data and metadata out, so that a run killed after this
+  /// leaves the steps written so far readable in `<basename>.h5.tmp` (copy_steps). Collective.
+  void flush();
+  /// What copy_steps carried over.
+  struct Copied {
+    int steps = 0;         ///< steps appended
+    double last_time = -1; ///< the last one's time (-1: none)
+    std::string problem;   ///< why it stopped before `before`, or "" (read to the end)
+  };
+  /// Appends, in order, the steps of `path` (an HDF5 file of an XdmfWriter over the same layout:
+  /// a complete one, or the `.tmp` of a run that was killed) whose time is below `before`, with
+  /// their cell scalar fields `names`. Stops at the first step that is missing a field, a time or
+  /// its cells' count (the step a killed run was writing), and says why in `problem`. Rank 0
+  /// reads the file with HDF5's serial driver, its error printing off, and sends each rank its
+  /// cells: a damaged file is a `problem`, never a hang. Collective.
+  Copied copy_steps(const std::string &path, double before, const std::vector<std::string> &names);
   /// Closes the HDF5 file, writes the XDMF file, renames both to their final names. Collective.
   /// Returns the path of the XDMF file.
   std::string close();
