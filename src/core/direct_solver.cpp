@@ -1,7 +1,12 @@
 #include "flexopt/core/direct_solver.hpp"
 
+#include "flexopt/core/context.hpp"
 #include "flexopt/core/error.hpp"
+#include "flexopt/core/memory.hpp"
 
+#include <cstdio>
+#include <set>
+#include <tuple>
 #include <vector>
 
 namespace flexopt {
@@ -107,6 +112,54 @@ KSPConvergedReason solve_columns(KSP ksp, Mat B, Mat X) {
   FX_PETSC(MatDestroy(&Bs));
   FX_PETSC(MatDestroy(&Xs));
   return reason;
+}
+
+void check_factor_memory(Mat A, Factorization factorization, const char *prefix,
+                         const std::string &what, const std::string &fix) {
+  // Once per matrix pattern and process: a design run factorizes the same pattern every
+  // iteration, and MUMPS's analysis is a fifth of a factorization (docs/benchmarks.md).
+  static std::set<std::tuple<PetscInt, PetscLogDouble, int>> checked;
+  MatInfo info;
+  FX_PETSC(MatGetInfo(A, MAT_GLOBAL_SUM, &info));
+  PetscInt n = 0;
+  FX_PETSC(MatGetSize(A, &n, nullptr));
+  if (!checked.emplace(n, info.nz_used, static_cast<int>(factorization)).second) return;
+  MPI_Comm comm = PetscObjectComm(reinterpret_cast<PetscObject>(A));
+  Mat F;
+  FX_PETSC(MatGetFactor(A, MATSOLVERMUMPS,
+                        factorization == Factorization::LU ? MAT_FACTOR_LU : MAT_FACTOR_CHOLESKY,
+                        &F));
+  if (prefix) FX_PETSC(MatSetOptionsPrefix(F, prefix)); // the solve's -mat_mumps_icntl_* apply
+  MatFactorInfo fi;
+  FX_PETSC(MatFactorInfoInitialize(&fi));
+  if (factorization == Factorization::LU)
+    FX_PETSC(MatLUFactorSymbolic(F, A, nullptr, nullptr, &fi));
+  else
+    FX_PETSC(MatCholeskyFactorSymbolic(F, A, nullptr, &fi));
+  // INFO(15): this process's estimate [MB] of MUMPS's data for an in-core factorization;
+  // INFOG(17): its sum over the processes.
+  PetscInt mine = 0, total = 0;
+  FX_PETSC(MatMumpsGetInfo(F, 15, &mine));
+  FX_PETSC(MatMumpsGetInfog(F, 17, &total));
+  FX_PETSC(MatDestroy(&F));
+  const PetscMPIInt size = comm_size(comm);
+  // The deterministic mode's redundant solve: every rank holds a whole sequential factor.
+  const bool redundant = size > 1 && deterministic_solvers();
+  const long long bytes = 1000000LL * (redundant ? total : mine);
+  const NodeMemory need = node_memory(comm, bytes);
+  char buf[600];
+  std::snprintf(buf, sizeof buf,
+                "memory: %s: MUMPS's analysis estimates its factorization of %lld unknowns at "
+                "%.3g GB in all%s (%.3g GB on the fullest node, of %.3g GB available there)",
+                what.c_str(), static_cast<long long>(n),
+                static_cast<double>(redundant ? total * size : total) / 1e3,
+                redundant ? ", a whole copy on every rank (-fx_deterministic)" : "",
+                static_cast<double>(need.bytes) / 1e9, static_cast<double>(need.available) / 1e9);
+  print0(comm, "%s\n", buf);
+  if (need.fits(0.8)) return;
+  throw Error(std::string(buf + 8) + ", above 80 % of it: " + fix +
+                  (redundant ? " (or run without -fx_deterministic)" : ""),
+              true);
 }
 
 KSP create_direct_solver(Mat A, Factorization factorization, const char *prefix) {

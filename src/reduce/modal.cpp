@@ -142,6 +142,9 @@ ClampedProblem::ClampedProblem(Mat K, Mat M, const std::vector<PetscInt> &clampe
   // The clamped surfaces hold the body: K_ff is positive definite, so MUMPS can factor without
   // pivoting (its SYM = 1 variant).
   FX_PETSC(MatSetOption(Kf_, MAT_SPD, PETSC_TRUE));
+  check_factor_memory(Kf_, Factorization::Cholesky, modes_ > 0 ? "st_" : prefix,
+                      "the FFRF reduction",
+                      "a coarser mesh.size for the FFRF body, or ranks on more nodes");
   if (modes_ > 0) {
     FX_PETSC(MatCreateSubMatrix(M, free_, free_, MAT_INITIAL_MATRIX, &Mf_));
     // Shift 0: the shift-and-invert operator is K_ff^-1 M_ff, and SLEPc factors K_ff itself

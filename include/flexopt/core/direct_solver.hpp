@@ -1,6 +1,7 @@
 #pragma once
 /// \file Direct solves with MUMPS through a PETSc KSP.
 #include <petscksp.h>
+#include <string>
 
 namespace flexopt {
 
@@ -23,6 +24,14 @@ bool deterministic_solvers();
 /// block is gathered and solved by each rank's whole copy). Returns the solve's converged
 /// reason (negative: failed). Collective.
 KSPConvergedReason solve_columns(KSP ksp, Mat B, Mat X);
+
+/// MUMPS's estimate, from its analysis of A's pattern, of the memory its factorization will take
+/// (INFO(15) per rank; with -fx_deterministic on more than one rank, the whole factor on every
+/// rank): printed, and refused with `what` and `fix` in the message when a node's share exceeds
+/// 80 % of the memory it reports available (core/memory.hpp). Runs once per pattern (size,
+/// nonzeros, factorization) and process. Collective.
+void check_factor_memory(Mat A, Factorization factorization, const char *prefix,
+                         const std::string &what, const std::string &fix);
 
 /// A new direct solver of A on A's communicator: use_mumps, then the options with `prefix`
 /// (null: none). The caller destroys it. Collective.
