@@ -3,7 +3,8 @@
 with --restart and compared bit for bit with an uninterrupted run (docs/testing.md, "Faults
 tried").
 
-For each case as shipped (with the iteration limit below), on 2 ranks with -fx_deterministic (docs/solvers.md
+For each case as shipped (with the iteration limit below; the static ones also with
+-fx_warm_start 0), on 2 ranks with -fx_deterministic (docs/solvers.md
 "Reproducibility"):
   1. an uninterrupted run of N iterations, timed (T);
   2. KILLS runs, each killed with SIGKILL (mpirun and every rank) at a moment drawn uniformly
@@ -32,21 +33,22 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import case_variants  # noqa: E402
 import mpi_job  # noqa: E402
 
-# name, replacements of case.yaml, iterations, kills
+# name, replacements of case.yaml, iterations, kills, options besides -fx_deterministic
 CASES = [
-    ("cantilever_topopt", [], 20, 2),
-    ("bridge_topopt", [], 20, 2),
-    ("first_link", [], 10, 2),
-    ("slider_crank_topopt", [], 8, 2),
-    ("manipulator_topopt", [], 6, 2),
-    ("spin_link_topopt", [], 6, 2),
+    ("cantilever_topopt", [], 20, 2, []),
+    ("cantilever_topopt", [], 20, 2, ["-fx_warm_start", "0"]),
+    ("bridge_topopt", [], 20, 2, []),
+    ("bridge_topopt", [], 20, 1, ["-fx_warm_start", "0"]),
+    ("first_link", [], 10, 2, []),
+    ("slider_crank_topopt", [], 8, 2, []),
+    ("manipulator_topopt", [], 6, 2, []),
+    ("spin_link_topopt", [], 6, 2, []),
 ]
 
 
-def optimize(flexopt, case, d, n, restart=False):
-    cmd = ["mpirun", "-n", "2", flexopt, "optimize", case, "--out", d, "--max-iterations", str(n),
-           "-fx_deterministic"] + (["--restart"] if restart else [])
-    return cmd
+def optimize(flexopt, case, d, n, options, restart=False):
+    return (["mpirun", "-n", "2", flexopt, "optimize", case, "--out", d, "--max-iterations", str(n),
+             "-fx_deterministic"] + options + (["--restart"] if restart else []))
 
 
 def run(cmd):
@@ -110,28 +112,29 @@ def main():
     rows, bad = [], 0
     print("| case | iterations | uninterrupted [s] | killed at [s] | restart point | files left by the kill | resumed | objective and constraints | design.xdmf frames |")
     print("|---|---|---|---|---|---|---|---|---|")
-    for name, replace, n, kills in CASES:
+    for name, replace, n, kills, options in CASES:
         if names and name not in names:
             continue
         case = os.path.join(source, "cases", name)
         if replace:
             case = case_variants.write_variant(case, os.path.join(out, name, "case"), replace, optimization=True)
-        straight = os.path.join(out, name, "straight")
+        tag = name + "".join(options).replace("-fx_", "_")
+        straight = os.path.join(out, tag, "straight")
         t0 = time.time()
-        run(optimize(flexopt, case, straight, n))
+        run(optimize(flexopt, case, straight, n, options))
         total = time.time() - t0
         reference = figures(straight), frames(straight)
         for k in range(kills):
-            d = os.path.join(out, name, f"killed{k}")
+            d = os.path.join(out, tag, f"killed{k}")
             at = rng.uniform(0.05, 0.95) * total
-            p = mpi_job.start(optimize(flexopt, case, d, n), env=mpi_job.ENV, stdout=subprocess.DEVNULL,
+            p = mpi_job.start(optimize(flexopt, case, d, n, options), env=mpi_job.ENV, stdout=subprocess.DEVNULL,
                               stderr=subprocess.DEVNULL)
             time.sleep(at)
             mpi_job.kill_session(p.pid)
             p.wait()
             point = restart_iteration(os.path.join(d, "restart.h5"))
             left = sorted(f for f in os.listdir(d) if f.endswith(".tmp")) if os.path.isdir(d) else []
-            log = run(optimize(flexopt, case, d, n, restart=point > 0))
+            log = run(optimize(flexopt, case, d, n, options, restart=point > 0))
             carried = re.search(r"iterations 0 to \S+ \((\d+) frames\) carried over from (\S+)", log)
             resumed = (f"--restart, {carried.group(1)} frames from {carried.group(2)}" if carried
                        else "--restart" if point > 0 else "from the start")
@@ -142,7 +145,7 @@ def main():
             stale = [f for f in os.listdir(d) if f.endswith(".tmp") or f == "design.interrupted.h5"]
             ok = same and same_design and not stale
             bad += 0 if ok else 1
-            row = (f"| {name} | {n} | {total:.1f} | {at:.1f} | {point} | {', '.join(left) or 'none'} | {resumed} | "
+            row = (f"| {name}{' ' + ' '.join(options) if options else ''} | {n} | {total:.1f} | {at:.1f} | {point} | {', '.join(left) or 'none'} | {resumed} | "
                    f"{'identical' if same else f'differ by {diff:.1e}'} | "
                    f"{'identical' if same_design else 'DIFFER'}{', stale ' + ', '.join(stale) if stale else ''} |")
             print(row, flush=True)

@@ -266,11 +266,13 @@ void LatticeCoarseOperators::update(Mat fine) {
     FX_PETSC(PCMGGetInterpolation(pc_, l, &P));
     Mat &C = coarse_[static_cast<std::size_t>(l - 1)];
     FX_PETSC(MatPtAP(A, P, first ? MAT_INITIAL_MATRIX : MAT_REUSE_MATRIX, PETSC_DEFAULT, &C));
-    if (first) {
-      KSP smoother = nullptr;
-      FX_PETSC(PCMGGetSmoother(pc_, l - 1, &smoother));
-      FX_PETSC(KSPSetOperators(smoother, C, C));
-    }
+    // Set again for every operator, not only the first: C is refilled in place, and a smoother
+    // not told so keeps its set-up, a Chebyshev smoother the eigenvalue estimate of the first
+    // design (found by scripts/study_kill_resume.py: a resumed run's estimate came from another
+    // design, docs/solvers.md "Warm start").
+    KSP smoother = nullptr;
+    FX_PETSC(PCMGGetSmoother(pc_, l - 1, &smoother));
+    FX_PETSC(KSPSetOperators(smoother, C, C));
     A = C;
   }
 }
