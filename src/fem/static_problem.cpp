@@ -276,13 +276,17 @@ void StaticProblem::zero_supported(Vec rhs) const {
   FX_PETSC(VecAssemblyEnd(rhs));
 }
 
+void StaticProblem::set_up_solver() {
+  FX_PETSC(KSPSetUp(ksp_));
+  FX_PETSC(KSPSetUpOnBlocks(ksp_));
+}
+
 void StaticProblem::solve() {
   LogScope log("FxStateSolve");
   FX_PETSC(VecCopy(f_, rhs_));
   zero_supported(rhs_);
   double t = wall_time();
-  FX_PETSC(KSPSetUp(ksp_));
-  FX_PETSC(KSPSetUpOnBlocks(ksp_));
+  set_up_solver();
   timings_.setup = wall_time() - t;
   t = wall_time();
   prepare_start(u_);

@@ -112,7 +112,12 @@ void write_restart(MPI_Comm comm, const std::string &path, const RestartData &da
   MPI_Exscan(&n, &start, 1, MPI_LONG_LONG, MPI_SUM, comm);
   if (comm_rank(comm) == 0) start = 0;
   MPI_Allreduce(&n, &global, 1, MPI_LONG_LONG, MPI_SUM, comm);
-  long long bytes = global * 8 * static_cast<long long>(1 + data.fields.size());
+  long long nd = static_cast<long long>(data.dof_keys.size()), dstart = 0, dglobal = 0;
+  MPI_Exscan(&nd, &dstart, 1, MPI_LONG_LONG, MPI_SUM, comm);
+  if (comm_rank(comm) == 0) dstart = 0;
+  MPI_Allreduce(&nd, &dglobal, 1, MPI_LONG_LONG, MPI_SUM, comm);
+  long long bytes = global * 8 * static_cast<long long>(1 + data.fields.size()) +
+                    dglobal * 8 * static_cast<long long>(1 + data.dof_fields.size());
   for (const auto &entry : data.arrays) bytes += 8 * static_cast<long long>(entry.second.size());
   detail::SpaceGuard(comm, tmp).require(bytes); // before any collective write (hdf5_check.hpp)
   hid_t file = create_parallel(comm, tmp);
@@ -128,6 +133,14 @@ void write_restart(MPI_Comm comm, const std::string &path, const RestartData &da
   for (const auto &[name, values] : data.fields)
     write_slab(file, "/fields/" + name, H5T_NATIVE_DOUBLE, H5T_IEEE_F64LE, values.data(), global,
                start, n);
+  if (dglobal > 0) {
+    H5Gclose(H5Gcreate2(file, "/dof_fields", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT));
+    write_slab(file, "/dof_keys", H5T_NATIVE_UINT64, H5T_STD_U64LE, data.dof_keys.data(), dglobal,
+               dstart, nd);
+    for (const auto &[name, values] : data.dof_fields)
+      write_slab(file, "/dof_fields/" + name, H5T_NATIVE_DOUBLE, H5T_IEEE_F64LE, values.data(),
+                 dglobal, dstart, nd);
+  }
   const bool root = comm_rank(comm) == 0;
   for (const auto &[name, values] : data.arrays) {
     const long long len = static_cast<long long>(values.size());
@@ -146,8 +159,8 @@ namespace {
 /// A restart file as rank 0 reads it.
 struct Contents {
   std::map<std::string, std::string> labels;
-  std::vector<std::uint64_t> tags;
-  std::map<std::string, std::vector<double>> fields, arrays;
+  std::vector<std::uint64_t> tags, dof_keys;
+  std::map<std::string, std::vector<double>> fields, arrays, dof_fields;
 };
 
 /// The names of the datasets in `group`.
@@ -191,6 +204,16 @@ Contents read_on_root(const std::string &path, bool labels_only) {
         }
         for (const std::string &name : dataset_names(file, "/arrays"))
           c.arrays[name] = read_all<double>(file, "/arrays/" + name, H5T_NATIVE_DOUBLE);
+        if (H5Lexists(file, "/dof_keys", H5P_DEFAULT) > 0) {
+          c.dof_keys = read_all<std::uint64_t>(file, "/dof_keys", H5T_NATIVE_UINT64);
+          for (const std::string &name : dataset_names(file, "/dof_fields")) {
+            c.dof_fields[name] = read_all<double>(file, "/dof_fields/" + name, H5T_NATIVE_DOUBLE);
+            if (c.dof_fields[name].size() != c.dof_keys.size())
+              throw Error("dof field " + name + " has " +
+                          std::to_string(c.dof_fields[name].size()) + " values for " +
+                          std::to_string(c.dof_keys.size()) + " keys (damaged)");
+          }
+        }
       }
     } catch (const std::exception &e) {
       message = e.what();
@@ -254,7 +277,8 @@ Contents load(MPI_Comm comm, const std::string &path, bool labels_only) {
   if (state == 2) throw Error(path + ": " + message, true);
   bcast_map<std::string>(comm, c.labels, [&](std::string &v) { bcast_text(comm, v); });
   bcast_values(comm, c.tags, MPI_UINT64_T);
-  for (auto *m : {&c.fields, &c.arrays})
+  bcast_values(comm, c.dof_keys, MPI_UINT64_T);
+  for (auto *m : {&c.fields, &c.arrays, &c.dof_fields})
     bcast_map<std::vector<double>>(
         comm, *m, [&](std::vector<double> &v) { bcast_values(comm, v, MPI_DOUBLE); });
   return c;
@@ -266,8 +290,39 @@ std::map<std::string, std::string> read_restart_labels(MPI_Comm comm, const std:
   return load(comm, path, true).labels;
 }
 
+namespace {
+
+/// The dof fields of `c` for `keys` (this rank's), or none when one of the keys on any rank is
+/// missing. Collective.
+std::map<std::string, std::vector<double>>
+match_dof_fields(MPI_Comm comm, const Contents &c, const std::vector<std::uint64_t> &keys) {
+  std::unordered_map<std::uint64_t, std::size_t> where;
+  for (std::size_t k = 0; k < c.dof_keys.size(); ++k) where[c.dof_keys[k]] = k;
+  std::vector<std::size_t> index(keys.size());
+  int missing = c.dof_fields.empty() ? 1 : 0;
+  for (std::size_t k = 0; k < keys.size() && !missing; ++k) {
+    const auto it = where.find(keys[k]);
+    if (it == where.end())
+      missing = 1;
+    else
+      index[k] = it->second;
+  }
+  MPI_Allreduce(MPI_IN_PLACE, &missing, 1, MPI_INT, MPI_MAX, comm);
+  std::map<std::string, std::vector<double>> out;
+  if (missing) return out;
+  for (const auto &[name, values] : c.dof_fields) {
+    auto &f = out[name];
+    f.resize(keys.size());
+    for (std::size_t k = 0; k < keys.size(); ++k) f[k] = values[index[k]];
+  }
+  return out;
+}
+
+} // namespace
+
 RestartData read_restart(MPI_Comm comm, const std::string &path,
-                         const std::vector<std::uint64_t> &tags) {
+                         const std::vector<std::uint64_t> &tags,
+                         const std::vector<std::uint64_t> &dof_keys) {
   Contents c = load(comm, path, false);
   RestartData out;
   out.tags = tags;
@@ -294,6 +349,8 @@ RestartData read_restart(MPI_Comm comm, const std::string &path,
     f.resize(tags.size());
     for (std::size_t k = 0; k < tags.size(); ++k) f[k] = values[index[k]];
   }
+  out.dof_keys = dof_keys;
+  out.dof_fields = match_dof_fields(comm, c, dof_keys);
   return out;
 }
 

@@ -109,4 +109,20 @@ void check_design_values(const DesignField &field, const std::vector<double> &va
               true);
 }
 
+std::vector<std::uint64_t> dof_keys(const mesh::DistributedMesh &mesh, int components) {
+  std::vector<std::uint64_t> keys;
+  keys.reserve(static_cast<std::size_t>(mesh.owned_nodes * components));
+  for (PetscInt n = 0; n < mesh.owned_nodes; ++n) {
+    std::uint64_t h = 0x6a09e667f3bcc909ULL;
+    for (int d = 0; d < 3; ++d) {
+      std::uint64_t bits = 0;
+      const double x = mesh.coordinates[static_cast<std::size_t>(3 * n + d)];
+      std::memcpy(&bits, &x, sizeof bits);
+      h = mix(h ^ bits);
+    }
+    for (int c = 0; c < components; ++c) keys.push_back(mix(h ^ static_cast<std::uint64_t>(c + 1)));
+  }
+  return keys;
+}
+
 } // namespace flexopt::optimize

@@ -148,6 +148,7 @@ private:
   std::string restart_path_;
   std::map<std::string, std::string> fingerprint_; ///< of the design, in every restart point
   std::vector<std::uint64_t> tags_;
+  std::vector<std::uint64_t> state_keys_; ///< of the solvers' state, once it is first written
   int first_ = 1;
   // Projection continuation: stage index into design.projection.beta and its first iteration.
   const std::vector<double> &betas_;
@@ -317,7 +318,8 @@ void OptimizationRun::check_restart_contents(const io::RestartData &r) const {
 
 void OptimizationRun::read_restart() {
   check_design_file(problem_->field(), restart_path_);
-  const io::RestartData r = io::read_restart(comm_, restart_path_, tags_);
+  const std::vector<std::uint64_t> state_keys = problem_->solver_state_keys();
+  const io::RestartData r = io::read_restart(comm_, restart_path_, tags_, state_keys);
   check_restart_contents(r);
   for (const char *name : {"x", "xold1", "xold2"}) // MMA's asymptotes low, upp leave [0, 1]
     check_design_values(problem_->field(), r.fields.at(name), restart_path_, name);
@@ -345,6 +347,22 @@ void OptimizationRun::read_restart() {
   mma_->restore(st);
   for (Vec &v : state_vecs) FX_PETSC(VecDestroy(&v));
   restore_history(r, done);
+  // Solvers that keep what they built for the run's first design (GAMG's interpolation) build
+  // it again from that design, at the first stage's projection, as the uninterrupted run did.
+  {
+    if (!betas_.empty()) problem_->field().set_beta(betas_.front());
+    Vec x0 = problem_->create_design_vector();
+    problem_->initial_design(x0);
+    problem_->prepare_resume(x0);
+    FX_PETSC(VecDestroy(&x0));
+  }
+  if (!r.dof_fields.empty())
+    problem_->restore_solver_state(r.dof_fields);
+  else if (!state_keys.empty())
+    print0(comm_, "optimize: %s holds no solver state for this mesh: the first solves start from "
+                  "zero (the run then agrees with an uninterrupted one to the solver's "
+                  "tolerance, not bit for bit)\n",
+           restart_path_.c_str());
   result_.iterations = done;
   first_ = done + 1;
   print0(comm_, "optimize: restarting from %s after iteration %d\n", restart_path_.c_str(), done);
@@ -547,6 +565,12 @@ void OptimizationRun::write_restart_point(int k, double change, bool &last_stage
   std::vector<double> flat;
   for (const auto &row : result_.constraints) flat.insert(flat.end(), row.begin(), row.end());
   rd.arrays["constraints"] = flat;
+  // The solvers' warm-start state (DesignProblem::solver_state), keyed by position.
+  rd.dof_fields = problem_->solver_state();
+  if (!rd.dof_fields.empty()) {
+    if (state_keys_.empty()) state_keys_ = problem_->solver_state_keys();
+    rd.dof_keys = state_keys_;
+  }
   io::write_restart(comm_, restart_path_, rd);
 }
 

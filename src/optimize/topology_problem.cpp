@@ -1,5 +1,7 @@
 #include "flexopt/optimize/topology_problem.hpp"
 
+#include "flexopt/optimize/design_file.hpp"
+
 #include "flexopt/core/context.hpp"
 #include "flexopt/core/error.hpp"
 #include "flexopt/core/krylov.hpp"
@@ -73,6 +75,56 @@ std::vector<std::string> TopologyProblem::solve_to_round_off() {
        {static_->solve_to_round_off(), field_->filter().solve_to_round_off()})
     if (!l.empty()) limits.push_back(l);
   return limits;
+}
+
+namespace {
+
+/// The owned values of a ghosted vector.
+std::vector<double> owned_values(Vec v) {
+  PetscInt n = 0;
+  FX_PETSC(VecGetLocalSize(v, &n));
+  const PetscScalar *a;
+  FX_PETSC(VecGetArrayRead(v, &a));
+  std::vector<double> out(a, a + n);
+  FX_PETSC(VecRestoreArrayRead(v, &a));
+  return out;
+}
+
+/// Sets the owned values of a ghosted vector and updates its ghosts. Collective.
+void set_owned_values(Vec v, const std::vector<double> &values) {
+  PetscScalar *a;
+  FX_PETSC(VecGetArray(v, &a));
+  std::copy(values.begin(), values.end(), a);
+  FX_PETSC(VecRestoreArray(v, &a));
+  FX_PETSC(VecGhostUpdateBegin(v, INSERT_VALUES, SCATTER_FORWARD));
+  FX_PETSC(VecGhostUpdateEnd(v, INSERT_VALUES, SCATTER_FORWARD));
+}
+
+} // namespace
+
+std::map<std::string, std::vector<double>> TopologyProblem::solver_state() const {
+  if (!static_->warm_start()) return {};
+  return {{"u", owned_values(static_->displacement())}, {"adjoint", owned_values(adjoint_)}};
+}
+
+std::vector<std::uint64_t> TopologyProblem::solver_state_keys() const {
+  if (!static_->warm_start()) return {};
+  return dof_keys(mesh(), 3); // the displacement's layout: 3 DOFs per owned node, node-major
+}
+
+void TopologyProblem::restore_solver_state(
+    const std::map<std::string, std::vector<double>> &state) {
+  const auto u = state.find("u"), a = state.find("adjoint");
+  const auto n = static_cast<std::size_t>(3 * mesh().owned_nodes);
+  if (u != state.end() && u->second.size() == n) set_owned_values(static_->displacement(), u->second);
+  if (a != state.end() && a->second.size() == n) set_owned_values(adjoint_, a->second);
+}
+
+void TopologyProblem::prepare_resume(Vec x0) {
+  field_->update(x0);
+  field_->stiffness_factors(factor_, dfactor_);
+  static_->assemble_operator(factor_);
+  static_->set_up_solver();
 }
 
 bool TopologyProblem::set_random_start(unsigned long seed) {

@@ -78,6 +78,8 @@ public:
   void assemble_operator(const std::vector<double> &modulus_factor);
   /// Solves K u = f. Throws (collectively) if the linear solver does not converge. Collective.
   void solve();
+  /// Sets the solver up for the current K (its preconditioner) without solving. Collective.
+  void set_up_solver();
   /// `on`: every later Krylov solve (state and adjoint) starts from the vector it writes into
   /// (its previous solution) instead of zero (the warm start); the stopping test stays relative
   /// to the right-hand side. Topology optimization: successive designs have nearby solutions.

@@ -29,4 +29,9 @@ void check_design_file(const DesignField &field, const std::string &path);
 void check_design_values(const DesignField &field, const std::vector<double> &values,
                          const std::string &path, const std::string &what);
 
+/// A key per owned degree of freedom of `mesh` (`components` per node, node-major): a 64-bit
+/// hash of the node's position (its coordinates' bits) and the component, the same on any rank
+/// count, for values kept in a restart file (io::RestartData::dof_keys). Not collective.
+std::vector<std::uint64_t> dof_keys(const mesh::DistributedMesh &mesh, int components);
+
 } // namespace flexopt::optimize

@@ -6,6 +6,8 @@
 #include "flexopt/mesh/distributed_mesh.hpp"
 #include "flexopt/optimize/design_field.hpp"
 
+#include <cstdint>
+#include <map>
 #include <petscvec.h>
 #include <string>
 #include <vector>
@@ -100,6 +102,22 @@ public:
   virtual double round_off_level(std::size_t i) const {
     (void)i;
     return 0;
+  }
+
+  /// The solvers' state that the next evaluation starts from (a warm start: the last
+  /// solutions of iterative solves), kept in restart.h5 so that a resumed run goes on with the
+  /// same bits (docs/output.md "Restart file"): values per owned degree of freedom, keyed by
+  /// solver_state_keys(). Empty: none (every evaluation starts afresh).
+  virtual std::map<std::string, std::vector<double>> solver_state() const { return {}; }
+  /// The keys of solver_state()'s values (optimize::dof_keys). Collective.
+  virtual std::vector<std::uint64_t> solver_state_keys() const { return {}; }
+  /// Before a resumed run's first evaluation: sets up, at the run's first design x0, the
+  /// solvers that keep what they build for their first operator (GAMG's interpolation, reused
+  /// for later designs), so that they hold what the uninterrupted run's did. Collective.
+  virtual void prepare_resume(Vec x0) { (void)x0; }
+  /// Takes up a state that solver_state() returned (read back from a restart file).
+  virtual void restore_solver_state(const std::map<std::string, std::vector<double>> &state) {
+    (void)state;
   }
 
   Vec create_design_vector() const { return field().create_design_vector(); }

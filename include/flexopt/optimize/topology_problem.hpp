@@ -43,6 +43,13 @@ public:
   /// Random starts for the state, adjoint and filter solves (those that are iterative).
   bool set_random_start(unsigned long seed) override;
   long long dofs() const override { return static_cast<long long>(static_->global_dofs()); }
+  /// With the warm start on: the last displacement ("u") and adjoint ("adjoint") solutions,
+  /// where the next evaluation's solves start.
+  std::map<std::string, std::vector<double>> solver_state() const override;
+  std::vector<std::uint64_t> solver_state_keys() const override;
+  void restore_solver_state(const std::map<std::string, std::vector<double>> &state) override;
+  /// K at x0 assembled and the state solver set up on it (no solve).
+  void prepare_resume(Vec x0) override;
   /// solve (assembly and state solve), adjoint (the sensitivities and their adjoint solves).
   std::vector<Timing> timings() const override {
     return {{"solve", "solve", solve_s_}, {"adjoint", "adjoint", adjoint_s_}};
