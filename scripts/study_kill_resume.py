@@ -35,9 +35,9 @@ import mpi_job  # noqa: E402
 
 # name, replacements of case.yaml, iterations, kills, options besides -fx_deterministic
 CASES = [
-    ("cantilever_topopt", [], 20, 2, []),
-    ("cantilever_topopt", [], 20, 2, ["-fx_warm_start", "0"]),
-    ("bridge_topopt", [], 20, 2, []),
+    ("cantilever_topopt", [], 20, 3, []),
+    ("cantilever_topopt", [], 20, 1, ["-fx_warm_start", "0"]),
+    ("bridge_topopt", [], 20, 3, []),
     ("bridge_topopt", [], 20, 1, ["-fx_warm_start", "0"]),
     ("first_link", [], 10, 2, []),
     ("slider_crank_topopt", [], 8, 2, []),
