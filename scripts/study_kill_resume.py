@@ -136,7 +136,7 @@ def main():
             left = sorted(f for f in os.listdir(d) if f.endswith(".tmp")) if os.path.isdir(d) else []
             log = run(optimize(flexopt, case, d, n, options, restart=point > 0))
             carried = re.search(r"iterations 0 to \S+ \((\d+) frames\) carried over from (\S+)", log)
-            resumed = (f"--restart, {carried.group(1)} frames from {carried.group(2)}" if carried
+            resumed = (f"--restart, {carried.group(1)} frame{'' if carried.group(1) == '1' else 's'} from {carried.group(2)}" if carried
                        else "--restart" if point > 0 else "from the start")
             got = figures(d)
             same = got == reference[0]
