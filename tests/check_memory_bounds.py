@@ -14,7 +14,8 @@ elements, R = 2.56 h: about 70 weights per element, 16 MB on a node) with 20 MB 
 refused naming design.filter and type: helmholtz.
 MUMPS's factorization in the FFRF reduction, estimated by its analysis: printed in every run
 above; cases/slider_crank_topopt (36,255 unknowns, 135 MB) with 100 MB available is refused
-before its first factorization, naming the FFRF reduction and mesh.size.
+before its first factorization, naming the FFRF reduction and mesh.size; the ACF Newton matrix
+of cases/spin_up_beam_acf (79 MB) with 50 MB available likewise.
 Usage: check_memory_bounds.py FLEXOPT SOURCE OUT
 """
 import os
@@ -77,5 +78,15 @@ errors = [ln for ln in p.stdout.splitlines() if "error" in ln]
 print(errors[0] if errors else "no error")
 expect(p.returncode != 0 and len(errors) == 1 and "the FFRF reduction" in errors[0] and "mesh.size" in errors[0],
        "a MUMPS factorization above the memory: refused before it starts, naming the FFRF reduction and mesh.size")
+
+acf = write_variant(os.path.join(source, "cases", "spin_up_beam_acf"), os.path.join(out, "acf_case"), end=0.1)
+p = mpi_job.run(["mpirun", "-n", "2", flexopt, "simulate", acf, "--out", os.path.join(out, "acf")],
+                env=dict(mpi_job.ENV, FLEXOPT_MEMORY_AVAILABLE=str(50_000_000)), stdout=subprocess.PIPE,
+                stderr=subprocess.STDOUT, text=True, timeout=600)
+errors = [ln for ln in p.stdout.splitlines() if "error" in ln]
+print(errors[0] if errors else "no error")
+expect(p.returncode != 0 and len(errors) == 1 and "ACF scene's Newton matrix" in errors[0]
+       and not os.path.exists(os.path.join(out, "acf", "summary.json")),
+       "an ACF scene's MUMPS factorization above the memory: refused before it starts")
 
 finish("the adjoint's states, the cone filter and MUMPS's factors are bounded before the run")

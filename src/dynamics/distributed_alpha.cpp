@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstring>
 #include <utility>
 
 namespace flexopt::dynamics {
@@ -28,10 +29,26 @@ double max_abs(Vec v) {
   return n;
 }
 
+/// MUMPS's estimate of the Newton matrix's factors, checked against the memory before the first
+/// factorization of its pattern (check_factor_memory caches the pattern). Collective.
+void check_newton_memory(KSP ksp, PC pc) {
+  PetscBool lu = PETSC_FALSE, redundant = PETSC_FALSE;
+  FX_PETSC(PetscObjectTypeCompare(reinterpret_cast<PetscObject>(pc), PCLU, &lu));
+  FX_PETSC(PetscObjectTypeCompare(reinterpret_cast<PetscObject>(pc), PCREDUNDANT, &redundant));
+  MatSolverType solver = nullptr;
+  if (lu) FX_PETSC(PCFactorGetMatSolverType(pc, &solver));
+  if (!redundant && !(solver && std::strcmp(solver, MATSOLVERMUMPS) == 0)) return; // KLU, ...
+  Mat A = nullptr;
+  FX_PETSC(KSPGetOperators(ksp, &A, nullptr));
+  check_factor_memory(A, Factorization::LU, "mech_", "the ACF scene's Newton matrix",
+                      "a coarser mesh.size for the ACF bodies, or ranks on more nodes");
+}
+
 bool factorized(KSP ksp) {
-  FX_PETSC(KSPSetUp(ksp));
   PC pc;
   FX_PETSC(KSPGetPC(ksp, &pc));
+  check_newton_memory(ksp, pc);
+  FX_PETSC(KSPSetUp(ksp));
   MPI_Comm comm;
   FX_PETSC(PetscObjectGetComm(reinterpret_cast<PetscObject>(ksp), &comm));
   if (comm_size(comm) == 1) {
