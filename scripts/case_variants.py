@@ -128,3 +128,13 @@ def finish(failures):
     for f in failures:
         print("FAIL: " + f)
     sys.exit(1 if failures else 0)
+
+
+def restart_iteration(path):
+    """The iteration restart.h5 at `path` holds (0: none yet, being replaced, or unreadable)."""
+    import h5py
+    try:
+        with h5py.File(path, "r") as f:
+            return int(f["arrays/meta"][0])
+    except (OSError, KeyError):
+        return 0

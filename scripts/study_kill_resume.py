@@ -32,6 +32,7 @@ import numpy as np
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import case_variants  # noqa: E402
 import mpi_job  # noqa: E402
+from case_variants import restart_iteration  # noqa: E402
 
 # name, replacements of case.yaml, iterations, kills, options besides -fx_deterministic
 CASES = [
@@ -58,14 +59,6 @@ def run(cmd):
         sys.stdout.write(p.stdout[-3000:])
         sys.exit(f"failed (exit {p.returncode}): {' '.join(cmd)}")
     return p.stdout
-
-
-def restart_iteration(path):
-    try:
-        with h5py.File(path, "r") as f:
-            return int(f["arrays/meta"][0])
-    except (OSError, KeyError):
-        return 0
 
 
 def figures(d):

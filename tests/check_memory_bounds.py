@@ -61,32 +61,26 @@ if m:
 rc, log = optimize("disk", "{storage: disk}")
 expect(rc == 0, "storage: disk: the iteration runs")
 
-p = mpi_job.run(["mpirun", "-n", "2", flexopt, "optimize", os.path.join(source, "cases", "cantilever_topopt"),
-                 "--out", os.path.join(out, "cone"), "--max-iterations", "1"],
-                env=dict(mpi_job.ENV, FLEXOPT_MEMORY_AVAILABLE=str(20_000_000)), stdout=subprocess.PIPE,
-                stderr=subprocess.STDOUT, text=True, timeout=600)
-errors = [ln for ln in p.stdout.splitlines() if "error" in ln]
-print(errors[0] if errors else "no error")
-expect(p.returncode != 0 and len(errors) == 1 and "design.filter" in errors[0] and "helmholtz" in errors[0],
-       "a cone filter above the memory: refused before its weights, naming design.filter")
+def refused(command, case, name, memory, words, what):
+    """`command` (optimize: one iteration) of `case` with `memory` bytes available: refused with
+    one error line holding every one of `words`, and no summary.json."""
+    extra = ["--max-iterations", "1"] if command == "optimize" else []
+    p = mpi_job.run(["mpirun", "-n", "2", flexopt, command, case, "--out", os.path.join(out, name)] + extra,
+                    env=dict(mpi_job.ENV, FLEXOPT_MEMORY_AVAILABLE=str(memory)), stdout=subprocess.PIPE,
+                    stderr=subprocess.STDOUT, text=True, timeout=600)
+    errors = [ln for ln in p.stdout.splitlines() if "error" in ln]
+    print(errors[0] if errors else "no error")
+    expect(p.returncode != 0 and len(errors) == 1 and all(w in errors[0] for w in words)
+           and not os.path.exists(os.path.join(out, name, "summary.json")), what)
 
-p = mpi_job.run(["mpirun", "-n", "2", flexopt, "optimize", os.path.join(source, "cases", "slider_crank_topopt"),
-                 "--out", os.path.join(out, "mumps"), "--max-iterations", "1"],
-                env=dict(mpi_job.ENV, FLEXOPT_MEMORY_AVAILABLE=str(100_000_000)), stdout=subprocess.PIPE,
-                stderr=subprocess.STDOUT, text=True, timeout=600)
-errors = [ln for ln in p.stdout.splitlines() if "error" in ln]
-print(errors[0] if errors else "no error")
-expect(p.returncode != 0 and len(errors) == 1 and "the FFRF reduction" in errors[0] and "mesh.size" in errors[0],
-       "a MUMPS factorization above the memory: refused before it starts, naming the FFRF reduction and mesh.size")
 
+refused("optimize", os.path.join(source, "cases", "cantilever_topopt"), "cone", 20_000_000,
+        ["design.filter", "helmholtz"], "a cone filter above the memory: refused before its weights, naming design.filter")
+refused("optimize", os.path.join(source, "cases", "slider_crank_topopt"), "mumps", 100_000_000,
+        ["the FFRF reduction", "mesh.size"],
+        "a MUMPS factorization above the memory: refused before it starts, naming the FFRF reduction and mesh.size")
 acf = write_variant(os.path.join(source, "cases", "spin_up_beam_acf"), os.path.join(out, "acf_case"), end=0.1)
-p = mpi_job.run(["mpirun", "-n", "2", flexopt, "simulate", acf, "--out", os.path.join(out, "acf")],
-                env=dict(mpi_job.ENV, FLEXOPT_MEMORY_AVAILABLE=str(50_000_000)), stdout=subprocess.PIPE,
-                stderr=subprocess.STDOUT, text=True, timeout=600)
-errors = [ln for ln in p.stdout.splitlines() if "error" in ln]
-print(errors[0] if errors else "no error")
-expect(p.returncode != 0 and len(errors) == 1 and "ACF scene's Newton matrix" in errors[0]
-       and not os.path.exists(os.path.join(out, "acf", "summary.json")),
-       "an ACF scene's MUMPS factorization above the memory: refused before it starts")
+refused("simulate", acf, "acf", 50_000_000, ["ACF scene's Newton matrix"],
+        "an ACF scene's MUMPS factorization above the memory: refused before it starts")
 
 finish("the adjoint's states, the cone filter and MUMPS's factors are bounded before the run")

@@ -3,6 +3,7 @@
 #include "flexopt/core/context.hpp"
 #include "flexopt/core/error.hpp"
 #include "flexopt/io/json.hpp"
+#include "flexopt/core/vec_values.hpp"
 #include "flexopt/io/restart.hpp"
 #include "flexopt/io/xdmf.hpp"
 #include "flexopt/mesh/grid_layout.hpp"
@@ -37,24 +38,6 @@ void write_densities(io::XdmfWriter &writer, const DesignField &p, double step) 
   FX_PETSC(VecGetArrayRead(p.physical(), &a));
   writer.cell_scalar("physical_density", a);
   FX_PETSC(VecRestoreArrayRead(p.physical(), &a));
-}
-
-/// Local values of a design-layout Vec.
-std::vector<double> local_values(Vec v) {
-  PetscInt n = 0;
-  FX_PETSC(VecGetLocalSize(v, &n));
-  const PetscScalar *a;
-  FX_PETSC(VecGetArrayRead(v, &a));
-  std::vector<double> out(a, a + n);
-  FX_PETSC(VecRestoreArrayRead(v, &a));
-  return out;
-}
-
-void set_local_values(Vec v, const std::vector<double> &values) {
-  PetscScalar *a;
-  FX_PETSC(VecGetArray(v, &a));
-  std::copy(values.begin(), values.end(), a);
-  FX_PETSC(VecRestoreArray(v, &a));
 }
 
 /// The outer move-limit box: xmin_j = max(0, x_j - move), xmax_j = min(1, x_j + move).

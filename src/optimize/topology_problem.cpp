@@ -6,6 +6,7 @@
 #include "flexopt/core/error.hpp"
 #include "flexopt/core/krylov.hpp"
 #include "flexopt/core/log.hpp"
+#include "flexopt/core/vec_values.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -79,23 +80,9 @@ std::vector<std::string> TopologyProblem::solve_to_round_off() {
 
 namespace {
 
-/// The owned values of a ghosted vector.
-std::vector<double> owned_values(Vec v) {
-  PetscInt n = 0;
-  FX_PETSC(VecGetLocalSize(v, &n));
-  const PetscScalar *a;
-  FX_PETSC(VecGetArrayRead(v, &a));
-  std::vector<double> out(a, a + n);
-  FX_PETSC(VecRestoreArrayRead(v, &a));
-  return out;
-}
-
 /// Sets the owned values of a ghosted vector and updates its ghosts. Collective.
 void set_owned_values(Vec v, const std::vector<double> &values) {
-  PetscScalar *a;
-  FX_PETSC(VecGetArray(v, &a));
-  std::copy(values.begin(), values.end(), a);
-  FX_PETSC(VecRestoreArray(v, &a));
+  set_local_values(v, values);
   FX_PETSC(VecGhostUpdateBegin(v, INSERT_VALUES, SCATTER_FORWARD));
   FX_PETSC(VecGhostUpdateEnd(v, INSERT_VALUES, SCATTER_FORWARD));
 }
@@ -104,7 +91,7 @@ void set_owned_values(Vec v, const std::vector<double> &values) {
 
 std::map<std::string, std::vector<double>> TopologyProblem::solver_state() const {
   if (!static_->warm_start()) return {};
-  return {{"u", owned_values(static_->displacement())}, {"adjoint", owned_values(adjoint_)}};
+  return {{"u", local_values(static_->displacement())}, {"adjoint", local_values(adjoint_)}};
 }
 
 std::vector<std::uint64_t> TopologyProblem::solver_state_keys() const {
