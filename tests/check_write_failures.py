@@ -9,7 +9,9 @@ tests/optimize/beam on 2 ranks:
      last restart.h5 is intact (h5py reads its iteration k >= 1) and `--restart` from a copy of
      it elsewhere runs to 40 iterations, with the final objective of a straight run of 40 to
      1e-8 (2-rank runs differ from run to run at about 1e-11, MUMPS: docs/solvers.md
-     "Reproducibility"; optimize.restart checks restarts bit for bit);
+     "Reproducibility"; optimize.restart checks restarts bit for bit), and its design.xdmf holds
+     the straight run's frames from iteration 0 (the frames before the failure carried over
+     from the design.h5.tmp the failed run leaves, the only .tmp it leaves);
   (An output directory removed during a run is not tested: when the removal falls between the
   free-space check and a collective HDF5 file creation the job can still hang; seen once in
   three runs.)
@@ -17,6 +19,7 @@ Usage: check_write_failures.py FLEXOPT SOURCE OUT
 """
 import json
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -62,7 +65,8 @@ else:
         expect(p.returncode != 0 and len(e) == 1 and "No space left on device" in e[0] and ".h5.tmp" in e[0],
                "disk full: non-zero exit, one message naming the file and the OS's reason")
         left = sorted(os.listdir(run_dir))
-        expect(not any(n.endswith(".tmp") for n in left), f"disk full: no .tmp file left ({left})")
+        expect(not any(n.endswith(".tmp") and n != "design.h5.tmp" for n in left),
+               f"disk full: no .tmp file left but design.h5.tmp, the frames for --restart ({left})")
         k = restart_iteration(os.path.join(run_dir, "restart.h5"))
         expect(k >= 1, f"disk full: the last restart.h5 is intact (iteration {k})")
         shutil.copytree(run_dir, os.path.join(out, "resumed"))
@@ -79,5 +83,12 @@ else:
         expect(p.returncode == 0 and q.returncode == 0 and a["iterations"] == 40 and abs(fa - fb) <= 1e-8 * abs(fb),
                f"--restart from the intact file runs to 40 iterations, final objective {fa!r} against a "
                f"straight run's {fb!r}")
+
+        def times(d):
+            return re.findall(r'<Time Value="([^"]+)"', open(os.path.join(out, d, "design.xdmf")).read())
+        ta, tb = times("resumed"), times("straight")
+        expect(ta == tb and "warnings" not in a,
+               f"--restart after the full disk: design.xdmf holds every frame from iteration 0 "
+               f"({len(ta)} frames, the straight run {len(tb)})")
 
 finish("write failures stop the run cleanly")

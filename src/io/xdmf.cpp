@@ -102,16 +102,18 @@ struct XdmfWriter::Impl {
   hid_t file = -1;
   std::vector<Step> steps;
   bool closed = false;
+  bool keep_unfinished = false; ///< keep_unfinished_file()
   std::optional<detail::SpaceGuard> space; ///< of h5_tmp's file system
 
   /// Error path (also when the writer's constructor throws, which runs no writer destructor):
-  /// drop the incomplete file so nothing valid-looking remains.
+  /// drop the incomplete file so nothing valid-looking remains (it has a .tmp name; kept when
+  /// asked, for copy_steps).
   ~Impl() {
     if (!closed && file >= 0) {
       H5Fclose(file);
       int rank = 0;
       MPI_Comm_rank(layout.comm, &rank);
-      if (rank == 0) std::remove(h5_tmp.c_str());
+      if (rank == 0 && !keep_unfinished) std::remove(h5_tmp.c_str());
     }
   }
 
@@ -278,6 +280,8 @@ void XdmfWriter::cell_scalar(const std::string &name, const double *local_values
   if (m.steps.back().fields.empty()) m.write_step_time(m.steps.size() - 1);
   m.steps.back().fields.push_back(Field{name, true, false, path});
 }
+
+void XdmfWriter::keep_unfinished_file() { impl_->keep_unfinished = true; }
 
 void XdmfWriter::flush() {
   h5check(H5Fflush(impl_->file, H5F_SCOPE_GLOBAL), "flushing " + impl_->h5_tmp);

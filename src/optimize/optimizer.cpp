@@ -202,6 +202,9 @@ OptimizationRun::OptimizationRun(MPI_Comm comm, DesignProblem &design, const Opt
         std::filesystem::rename(dir / "design.h5.tmp", dir / kInterruptedDesign, ec);
     });
   writer_.emplace(layout, out_dir, "design");
+  // A run that stops on an error (a full disk, a diverging solve) leaves design.h5.tmp with its
+  // flushed frames for `--restart` to carry over; the next run without --restart removes it.
+  writer_->keep_unfinished_file();
   write_history_header();
   print_header();
   restart_path_ = (std::filesystem::path(out_dir) / "restart.h5").string();

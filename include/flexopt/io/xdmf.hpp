@@ -50,6 +50,9 @@ public:
   void node_vector(const std::string &name, const double *owned_values);
   /// A cell scalar field: one value per local cell. Collective.
   void cell_scalar(const std::string &name, const double *local_values);
+  /// On an error before close(), leave `<basename>.h5.tmp` in place instead of removing it: its
+  /// flushed steps can be read back (copy_steps) by a run that resumes. Not collective.
+  void keep_unfinished_file();
   /// Writes the HDF5 file's buffered data and metadata out, so that a run killed after this
   /// leaves the steps written so far readable in `<basename>.h5.tmp` (copy_steps). Collective.
   void flush();
