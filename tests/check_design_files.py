@@ -9,7 +9,9 @@ computation:
   - the restart.h5 of the same mesh moved by 1 mm (the same count and tags, other positions);
   - a restart.h5 whose x holds a NaN, or a 1.5, at one element (named by its Gmsh tag);
   - `check-gradient --design` of a file from another mesh.
-A file without a fingerprint (written by an earlier flexopt) is used with a warning.
+A file without a fingerprint (written by an earlier flexopt) is used with a warning. design.h5
+carries the fingerprint too: `--restart` beside another design's design.h5 resumes without its
+frames, with one warning saying why.
 Usage: check_design_files.py FLEXOPT SOURCE OUT
 """
 import os
@@ -100,6 +102,22 @@ for name, value in (("nan", np.nan), ("above_one", 1.5)):
     rc, text = flexopt_run("optimize", beam, name, "--max-iterations", "4", "--restart")
     refused(rc, text, rf"field 'x': element {tag} has {'nan' if name == 'nan' else '1.5'}, not a density",
             f"--restart from a file with x = {value} at element {tag}")
+
+# design.h5 carries the fingerprint too: --restart carries frames over only from this design's
+# file. The run's restart.h5 beside the coarse mesh's design.h5: the run resumes, warning that
+# design.xdmf lacks the earlier frames because that file belongs to another design.
+rc, text = flexopt_run("optimize", coarse, "coarse_run", "--max-iterations", "3")
+with h5py.File(os.path.join(out, "coarse_run", "design.h5"), "r") as f:
+    design_labels = {k: (v.decode() if isinstance(v, bytes) else str(v)) for k, v in f.attrs.items()}
+expect(rc == 0 and design_labels.get("design_body") == "beam" and "design_positions" in design_labels,
+       "design.h5 carries the fingerprint")
+foreign = copy_restart("run", "foreign_design")
+shutil.copy(os.path.join(out, "coarse_run", "design.h5"), os.path.join(out, "foreign_design", "design.h5"))
+rc, text = flexopt_run("optimize", beam, "foreign_design", "--max-iterations", "4", "--restart")
+warned = [ln for ln in text.splitlines() if "warning" in ln and "design.xdmf lacks" in ln]
+print(warned[0] if warned else text[-2000:])
+expect(rc == 0 and len(warned) == 1 and "written for another design" in warned[0],
+       "--restart beside another design's design.h5: runs, its frames not carried, one warning saying why")
 
 # --design of a file from another mesh.
 rc, text = flexopt_run("check-gradient", coarse, "design_other",

@@ -2,6 +2,7 @@
 
 #include "flexopt/core/context.hpp"
 #include "flexopt/core/error.hpp"
+#include "h5_labels.hpp"
 #include "hdf5_check.hpp"
 
 #include <algorithm>
@@ -67,43 +68,6 @@ template <class T> std::vector<T> read_all(hid_t file, const std::string &name, 
   return v;
 }
 
-/// A string attribute `name` = `value` of the file's root. Collective (the same on every rank).
-void write_label(hid_t file, const std::string &name, const std::string &value) {
-  hid_t type = H5Tcopy(H5T_C_S1);
-  H5Tset_size(type, std::max<std::size_t>(1, value.size()));
-  hid_t space = H5Screate(H5S_SCALAR);
-  hid_t attr = H5Acreate2(file, name.c_str(), type, space, H5P_DEFAULT, H5P_DEFAULT);
-  if (attr < 0) throw Error("restart file: creating the label " + name + " failed");
-  const std::string padded = value.empty() ? std::string(1, '\0') : value;
-  check(H5Awrite(attr, type, padded.data()), "writing the label " + name);
-  H5Aclose(attr);
-  H5Sclose(space);
-  H5Tclose(type);
-}
-
-/// H5Aiterate2's visit: a fixed-length string attribute into the map `data`.
-herr_t collect_label(hid_t location, const char *name, const H5A_info_t *, void *data) {
-  auto &labels = *static_cast<std::map<std::string, std::string> *>(data);
-  hid_t attr = H5Aopen(location, name, H5P_DEFAULT);
-  if (attr < 0) return 0;
-  hid_t type = H5Aget_type(attr);
-  if (H5Tget_class(type) == H5T_STRING && H5Tis_variable_str(type) <= 0) {
-    std::string value(H5Tget_size(type), '\0');
-    if (H5Aread(attr, type, value.data()) >= 0) labels[name] = value.substr(0, value.find('\0'));
-  }
-  H5Tclose(type);
-  H5Aclose(attr);
-  return 0;
-}
-
-/// Every string attribute of the file's root.
-std::map<std::string, std::string> read_labels(hid_t file) {
-  std::map<std::string, std::string> labels;
-  hsize_t index = 0;
-  H5Aiterate2(file, H5_INDEX_NAME, H5_ITER_INC, &index, collect_label, &labels);
-  return labels;
-}
-
 } // namespace
 
 void write_restart(MPI_Comm comm, const std::string &path, const RestartData &data) {
@@ -128,7 +92,7 @@ void write_restart(MPI_Comm comm, const std::string &path, const RestartData &da
                 true);
   H5Gclose(H5Gcreate2(file, "/fields", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT));
   H5Gclose(H5Gcreate2(file, "/arrays", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT));
-  for (const auto &[name, value] : data.labels) write_label(file, name, value);
+  for (const auto &[name, value] : data.labels) detail::write_label(file, name, value);
   write_slab(file, "/tags", H5T_NATIVE_UINT64, H5T_STD_U64LE, data.tags.data(), global, start, n);
   for (const auto &[name, values] : data.fields)
     write_slab(file, "/fields/" + name, H5T_NATIVE_DOUBLE, H5T_IEEE_F64LE, values.data(), global,
@@ -193,7 +157,7 @@ Contents read_on_root(const std::string &path, bool labels_only) {
     message = "cannot open the restart file (not an HDF5 file, or damaged)";
   } else {
     try {
-      c.labels = read_labels(file);
+      c.labels = detail::read_labels(file);
       if (!labels_only) {
         c.tags = read_all<std::uint64_t>(file, "/tags", H5T_NATIVE_UINT64);
         for (const std::string &name : dataset_names(file, "/fields")) {

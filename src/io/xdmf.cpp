@@ -2,6 +2,7 @@
 
 #include "flexopt/core/error.hpp"
 #include "flexopt/io/json.hpp"
+#include "h5_labels.hpp"
 #include "h5_overhead.hpp"
 #include "hdf5_check.hpp"
 
@@ -40,7 +41,8 @@ struct StepReader {
   H5E_auto2_t handler = nullptr;
   void *data = nullptr;
 
-  std::string open(const std::string &path, std::size_t global_cells) {
+  std::string open(const std::string &path, std::size_t global_cells,
+                   const std::map<std::string, std::string> &labels) {
     cells = global_cells;
     if (!std::filesystem::is_regular_file(path)) return "not found";
     H5Eget_auto2(H5E_DEFAULT, &handler, &data);
@@ -49,6 +51,14 @@ struct StepReader {
     if (file < 0) {
       H5Eset_auto2(H5E_DEFAULT, handler, data);
       return "cannot be opened (not an HDF5 file, or damaged)";
+    }
+    const std::map<std::string, std::string> got = detail::read_labels(file);
+    for (const auto &[name, value] : labels) {
+      const auto it = got.find(name);
+      if (it == got.end() || it->second != value)
+        return "written for another design (its " + name + " is '" +
+               (it == got.end() ? std::string("missing") : it->second) + "', this run's '" + value +
+               "')";
     }
     return "";
   }
@@ -287,8 +297,17 @@ void XdmfWriter::flush() {
   h5check(H5Fflush(impl_->file, H5F_SCOPE_GLOBAL), "flushing " + impl_->h5_tmp);
 }
 
+void XdmfWriter::label(const std::string &name, const std::string &value) {
+  try {
+    detail::write_label(impl_->file, name, value);
+  } catch (const std::exception &e) {
+    abort_local(std::string(e.what()) + " in " + impl_->h5_tmp); // a collective sequence
+  }
+}
+
 XdmfWriter::Copied XdmfWriter::copy_steps(const std::string &path, double before,
-                                          const std::vector<std::string> &names) {
+                                          const std::vector<std::string> &names,
+                                          const std::map<std::string, std::string> &labels) {
   Impl &m = *impl_;
   MPI_Comm comm = m.layout.comm;
   int rank = 0, size = 1;
@@ -300,7 +319,8 @@ XdmfWriter::Copied XdmfWriter::copy_steps(const std::string &path, double before
   for (std::size_t r = 1; r < counts.size(); ++r) offsets[r] = offsets[r - 1] + counts[r - 1];
   StepReader reader; // rank 0's
   Copied out;
-  if (rank == 0) out.problem = reader.open(path, static_cast<std::size_t>(m.layout.global_cells));
+  if (rank == 0)
+    out.problem = reader.open(path, static_cast<std::size_t>(m.layout.global_cells), labels);
   std::vector<double> local(static_cast<std::size_t>(mine));
   for (std::size_t k = 0;; ++k) {
     double time = 0;

@@ -205,6 +205,10 @@ OptimizationRun::OptimizationRun(MPI_Comm comm, DesignProblem &design, const Opt
   // A run that stops on an error (a full disk, a diverging solve) leaves design.h5.tmp with its
   // flushed frames for `--restart` to carry over; the next run without --restart removes it.
   writer_->keep_unfinished_file();
+  // design.h5 carries the design's fingerprint, as restart.h5 does: --restart carries frames
+  // over only from a file of this design.
+  fingerprint_ = design_fingerprint(problem->field());
+  for (const auto &[name, value] : fingerprint_) writer_->label(name, value);
   write_history_header();
   print_header();
   restart_path_ = (std::filesystem::path(out_dir) / "restart.h5").string();
@@ -367,7 +371,7 @@ void OptimizationRun::carry_design_frames(int done) {
   MPI_Bcast(&from_interrupted, 1, MPI_INT, 0, comm_);
   const fs::path source = from_interrupted ? interrupted : dir / "design.h5";
   const io::XdmfWriter::Copied got = writer_->copy_steps(
-      source.string(), done, {"density", "filtered_density", "physical_density"});
+      source.string(), done, {"density", "filtered_density", "physical_density"}, fingerprint_);
   // The last frame due before `done` at this run's stride.
   const int stride = result_.output_stride, due = done > 0 ? (done - 1) / stride * stride : -1;
   if (got.steps > 0)

@@ -5,6 +5,7 @@
 /// (/step_K/<field>); the XDMF file describes a temporal collection of grids that all share
 /// the mesh. Both files are written under temporary names and renamed when complete, so an
 /// interrupted run never leaves a valid-looking result.
+#include <map>
 #include <memory>
 #include <mpi.h>
 #include <string>
@@ -50,6 +51,9 @@ public:
   void node_vector(const std::string &name, const double *owned_values);
   /// A cell scalar field: one value per local cell. Collective.
   void cell_scalar(const std::string &name, const double *local_values);
+  /// A string attribute `name` = `value` on the HDF5 file's root (the fingerprint of the design
+  /// a file belongs to, checked by copy_steps). Collective (the same on every rank).
+  void label(const std::string &name, const std::string &value);
   /// On an error before close(), leave `<basename>.h5.tmp` in place instead of removing it: its
   /// flushed steps can be read back (copy_steps) by a run that resumes. Not collective.
   void keep_unfinished_file();
@@ -68,7 +72,10 @@ public:
   /// its cells' count (the step a killed run was writing), and says why in `problem`. Rank 0
   /// reads the file with HDF5's serial driver, its error printing off, and sends each rank its
   /// cells: a damaged file is a `problem`, never a hang. Collective.
-  Copied copy_steps(const std::string &path, double before, const std::vector<std::string> &names);
+  /// With `labels`, a file whose root lacks one of them or holds another value is not read (its
+  /// `problem` names the label).
+  Copied copy_steps(const std::string &path, double before, const std::vector<std::string> &names,
+                    const std::map<std::string, std::string> &labels = {});
   /// Closes the HDF5 file, writes the XDMF file, renames both to their final names. Collective.
   /// Returns the path of the XDMF file.
   std::string close();
