@@ -46,11 +46,15 @@ void run_on_root(MPI_Comm comm, int root, const std::function<void()> &fn) {
   }
   MPI_Bcast(&failed, 1, MPI_INT, root, comm);
   if (!failed) return;
-  int len = static_cast<int>(message.size());
-  MPI_Bcast(&len, 1, MPI_INT, root, comm);
-  message.resize(static_cast<std::size_t>(len));
-  MPI_Bcast(message.data(), len, MPI_CHAR, root, comm);
+  broadcast_text(comm, message, root);
   throw Error(message, /*collective=*/true);
+}
+
+void broadcast_text(MPI_Comm comm, std::string &s, int root) {
+  long long n = static_cast<long long>(s.size());
+  MPI_Bcast(&n, 1, MPI_LONG_LONG, root, comm);
+  s.resize(static_cast<std::size_t>(n));
+  MPI_Bcast(s.data(), static_cast<int>(n), MPI_CHAR, root, comm);
 }
 
 void print0(MPI_Comm comm, const char *format, ...) {

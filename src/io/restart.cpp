@@ -189,13 +189,6 @@ Contents read_on_root(const std::string &path, bool labels_only) {
   return c;
 }
 
-void bcast_text(MPI_Comm comm, std::string &s) {
-  long long n = static_cast<long long>(s.size());
-  MPI_Bcast(&n, 1, MPI_LONG_LONG, 0, comm);
-  s.resize(static_cast<std::size_t>(n));
-  MPI_Bcast(s.data(), static_cast<int>(n), MPI_CHAR, 0, comm);
-}
-
 template <class T> void bcast_values(MPI_Comm comm, std::vector<T> &v, MPI_Datatype type) {
   long long n = static_cast<long long>(v.size());
   MPI_Bcast(&n, 1, MPI_LONG_LONG, 0, comm);
@@ -211,7 +204,7 @@ void bcast_map(MPI_Comm comm, std::map<std::string, V> &m, const std::function<v
   MPI_Bcast(&n, 1, MPI_LONG_LONG, 0, comm);
   keys.resize(static_cast<std::size_t>(n));
   for (std::string &k : keys) {
-    bcast_text(comm, k);
+    broadcast_text(comm, k);
     value(m[k]);
   }
 }
@@ -237,9 +230,9 @@ Contents load(MPI_Comm comm, const std::string &path, bool labels_only) {
   MPI_Bcast(&state, 1, MPI_INT, 0, comm);
   if (state == 1)
     throw Error(path + ": restart file not found (run without --restart first)", true);
-  bcast_text(comm, message);
+  broadcast_text(comm, message);
   if (state == 2) throw Error(path + ": " + message, true);
-  bcast_map<std::string>(comm, c.labels, [&](std::string &v) { bcast_text(comm, v); });
+  bcast_map<std::string>(comm, c.labels, [&](std::string &v) { broadcast_text(comm, v); });
   bcast_values(comm, c.tags, MPI_UINT64_T);
   bcast_values(comm, c.dof_keys, MPI_UINT64_T);
   for (auto *m : {&c.fields, &c.arrays, &c.dof_fields})
@@ -256,30 +249,31 @@ std::map<std::string, std::string> read_restart_labels(MPI_Comm comm, const std:
 
 namespace {
 
-/// The dof fields of `c` for `keys` (this rank's), or none when one of the keys on any rank is
-/// missing. Collective.
-std::map<std::string, std::vector<double>>
-match_dof_fields(MPI_Comm comm, const Contents &c, const std::vector<std::uint64_t> &keys) {
+/// `fields` (aligned with `file_keys`) picked for `keys`, this rank's, in their order; the first
+/// key that `file_keys` lacks on any rank instead (returned, the fields left empty). Collective.
+long long pick(MPI_Comm comm, const std::vector<std::uint64_t> &file_keys,
+               const std::map<std::string, std::vector<double>> &fields,
+               const std::vector<std::uint64_t> &keys,
+               std::map<std::string, std::vector<double>> &out) {
   std::unordered_map<std::uint64_t, std::size_t> where;
-  for (std::size_t k = 0; k < c.dof_keys.size(); ++k) where[c.dof_keys[k]] = k;
+  for (std::size_t k = 0; k < file_keys.size(); ++k) where[file_keys[k]] = k;
   std::vector<std::size_t> index(keys.size());
-  int missing = c.dof_fields.empty() ? 1 : 0;
-  for (std::size_t k = 0; k < keys.size() && !missing; ++k) {
+  long long missing = -1;
+  for (std::size_t k = 0; k < keys.size() && missing < 0; ++k) {
     const auto it = where.find(keys[k]);
     if (it == where.end())
-      missing = 1;
+      missing = static_cast<long long>(keys[k]);
     else
       index[k] = it->second;
   }
-  MPI_Allreduce(MPI_IN_PLACE, &missing, 1, MPI_INT, MPI_MAX, comm);
-  std::map<std::string, std::vector<double>> out;
-  if (missing) return out;
-  for (const auto &[name, values] : c.dof_fields) {
+  MPI_Allreduce(MPI_IN_PLACE, &missing, 1, MPI_LONG_LONG, MPI_MAX, comm);
+  if (missing >= 0) return missing;
+  for (const auto &[name, values] : fields) {
     auto &f = out[name];
     f.resize(keys.size());
     for (std::size_t k = 0; k < keys.size(); ++k) f[k] = values[index[k]];
   }
-  return out;
+  return -1;
 }
 
 } // namespace
@@ -292,29 +286,15 @@ RestartData read_restart(MPI_Comm comm, const std::string &path,
   out.tags = tags;
   out.labels = std::move(c.labels);
   out.arrays = std::move(c.arrays);
-  std::unordered_map<std::uint64_t, std::size_t> where;
-  for (std::size_t k = 0; k < c.tags.size(); ++k) where[c.tags[k]] = k;
-  std::vector<std::size_t> index(tags.size());
-  long long missing = -1;
-  for (std::size_t k = 0; k < tags.size() && missing < 0; ++k) {
-    const auto it = where.find(tags[k]);
-    if (it == where.end())
-      missing = static_cast<long long>(tags[k]);
-    else
-      index[k] = it->second;
-  }
-  MPI_Allreduce(MPI_IN_PLACE, &missing, 1, MPI_LONG_LONG, MPI_MAX, comm);
+  const long long missing = pick(comm, c.tags, c.fields, tags, out.fields);
   if (missing >= 0)
     throw Error(path + ": element " + std::to_string(missing) +
                     " is not in the restart file (written for another mesh, or damaged)",
                 true);
-  for (auto &[name, values] : c.fields) {
-    auto &f = out.fields[name];
-    f.resize(tags.size());
-    for (std::size_t k = 0; k < tags.size(); ++k) f[k] = values[index[k]];
-  }
   out.dof_keys = dof_keys;
-  out.dof_fields = match_dof_fields(comm, c, dof_keys);
+  // The solvers' state only if the file has all of it (else none: the first solves start afresh).
+  if (!c.dof_fields.empty() && pick(comm, c.dof_keys, c.dof_fields, dof_keys, out.dof_fields) >= 0)
+    out.dof_fields.clear();
   return out;
 }
 

@@ -1,5 +1,6 @@
 #include "flexopt/io/xdmf.hpp"
 
+#include "flexopt/core/context.hpp"
 #include "flexopt/core/error.hpp"
 #include "flexopt/io/json.hpp"
 #include "h5_labels.hpp"
@@ -81,8 +82,7 @@ struct StepReader {
       const std::string name = group + "/" + names[f];
       hid_t d = H5Dopen2(file, name.c_str(), H5P_DEFAULT);
       hid_t sp = d >= 0 ? H5Dget_space(d) : -1;
-      const bool fits = sp >= 0 && H5Sget_simple_extent_npoints(sp) ==
-                                       static_cast<hssize_t>(cells);
+      const bool fits = sp >= 0 && H5Sget_simple_extent_npoints(sp) == static_cast<hssize_t>(cells);
       const bool read = fits && H5Dread(d, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT,
                                         fields[f].data()) >= 0;
       if (sp >= 0) H5Sclose(sp);
@@ -112,7 +112,7 @@ struct XdmfWriter::Impl {
   hid_t file = -1;
   std::vector<Step> steps;
   bool closed = false;
-  bool keep_unfinished = false; ///< keep_unfinished_file()
+  bool keep_unfinished = false;            ///< keep_unfinished_file()
   std::optional<detail::SpaceGuard> space; ///< of h5_tmp's file system
 
   /// Error path (also when the writer's constructor throws, which runs no writer destructor):
@@ -291,7 +291,9 @@ void XdmfWriter::cell_scalar(const std::string &name, const double *local_values
   m.steps.back().fields.push_back(Field{name, true, false, path});
 }
 
-void XdmfWriter::keep_unfinished_file() { impl_->keep_unfinished = true; }
+void XdmfWriter::keep_unfinished_file() {
+  impl_->keep_unfinished = true;
+}
 
 void XdmfWriter::flush() {
   h5check(H5Fflush(impl_->file, H5F_SCOPE_GLOBAL), "flushing " + impl_->h5_tmp);
@@ -339,12 +341,7 @@ XdmfWriter::Copied XdmfWriter::copy_steps(const std::string &path, double before
     out.last_time = time;
   }
   if (rank == 0) reader.close();
-  std::string problem = out.problem;
-  long long n = static_cast<long long>(problem.size());
-  MPI_Bcast(&n, 1, MPI_LONG_LONG, 0, comm);
-  problem.resize(static_cast<std::size_t>(n));
-  MPI_Bcast(problem.data(), static_cast<int>(n), MPI_CHAR, 0, comm);
-  out.problem = problem;
+  broadcast_text(comm, out.problem);
   return out;
 }
 

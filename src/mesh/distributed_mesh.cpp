@@ -115,13 +115,6 @@ std::vector<T> scatter_parts(MPI_Comm comm, const std::vector<std::vector<T>> &p
   return mine;
 }
 
-void broadcast_string(MPI_Comm comm, std::string &s) {
-  int len = static_cast<int>(s.size());
-  MPI_Bcast(&len, 1, MPI_INT, 0, comm);
-  s.resize(static_cast<std::size_t>(len));
-  MPI_Bcast(s.data(), len, MPI_CHAR, 0, comm);
-}
-
 /// Element partition with METIS_PartMeshDual on corner nodes: two elements are neighbours if
 /// they share a face (3 corners for tets, 4 for hexes).
 std::vector<int> partition_elements(const MeshData &m, int parts) {
@@ -188,9 +181,9 @@ struct MeshHeader {
         face_types.push_back(static_cast<int>(kv.second.type));
       }
     }
-    broadcast_string(comm, dm.source);
-    broadcast_string(comm, volume_names);
-    broadcast_string(comm, surface_names);
+    broadcast_text(comm, dm.source);
+    broadcast_text(comm, volume_names);
+    broadcast_text(comm, surface_names);
     MPI_Bcast(&type, 1, MPI_INT, 0, comm);
     MPI_Bcast(&n_nodes, 1, MPI_LONG_LONG, 0, comm);
     dm.type = static_cast<ElementType>(type);

@@ -2,8 +2,8 @@
 
 #include "flexopt/core/context.hpp"
 #include "flexopt/core/error.hpp"
-#include "flexopt/io/json.hpp"
 #include "flexopt/core/vec_values.hpp"
+#include "flexopt/io/json.hpp"
 #include "flexopt/io/restart.hpp"
 #include "flexopt/io/xdmf.hpp"
 #include "flexopt/mesh/grid_layout.hpp"
@@ -349,9 +349,10 @@ void OptimizationRun::read_restart() {
   if (!r.dof_fields.empty())
     problem_->restore_solver_state(r.dof_fields);
   else if (!state_keys.empty())
-    print0(comm_, "optimize: %s holds no solver state for this mesh: the first solves start from "
-                  "zero (the run then agrees with an uninterrupted one to the solver's "
-                  "tolerance, not bit for bit)\n",
+    print0(comm_,
+           "optimize: %s holds no solver state for this mesh: the first solves start from "
+           "zero (the run then agrees with an uninterrupted one to the solver's "
+           "tolerance, not bit for bit)\n",
            restart_path_.c_str());
   result_.iterations = done;
   first_ = done + 1;
@@ -535,7 +536,6 @@ void OptimizationRun::write_restart_point(int k, double change, bool &last_stage
   // complete file).
   io::RestartData rd;
   rd.tags = tags_;
-  if (fingerprint_.empty()) fingerprint_ = design_fingerprint(problem_->field());
   rd.labels = fingerprint_;
   rd.fields["x"] = local_values(x_);
   const Mma::State st = mma_->state();

@@ -1,12 +1,11 @@
 #include "flexopt/optimize/topology_problem.hpp"
 
-#include "flexopt/optimize/design_file.hpp"
-
 #include "flexopt/core/context.hpp"
 #include "flexopt/core/error.hpp"
 #include "flexopt/core/krylov.hpp"
 #include "flexopt/core/log.hpp"
 #include "flexopt/core/vec_values.hpp"
+#include "flexopt/optimize/design_file.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -103,14 +102,20 @@ void TopologyProblem::restore_solver_state(
     const std::map<std::string, std::vector<double>> &state) {
   const auto u = state.find("u"), a = state.find("adjoint");
   const auto n = static_cast<std::size_t>(3 * mesh().owned_nodes);
-  if (u != state.end() && u->second.size() == n) set_owned_values(static_->displacement(), u->second);
+  if (u != state.end() && u->second.size() == n)
+    set_owned_values(static_->displacement(), u->second);
   if (a != state.end() && a->second.size() == n) set_owned_values(adjoint_, a->second);
+}
+
+void TopologyProblem::assemble_stiffness() {
+  // SIMP: s = e_min + rho~^p (1 - e_min) on design elements; solid (s = 1) elsewhere.
+  field_->stiffness_factors(factor_, dfactor_);
+  static_->assemble_operator(factor_);
 }
 
 void TopologyProblem::prepare_resume(Vec x0) {
   field_->update(x0);
-  field_->stiffness_factors(factor_, dfactor_);
-  static_->assemble_operator(factor_);
+  assemble_stiffness();
   static_->set_up_solver();
 }
 
@@ -220,10 +225,7 @@ void TopologyProblem::evaluate(Vec x, bool gradients, Evaluation &out) {
   LogScope log("FxTopologyEvaluate");
   field_->update(x);
   const double t_solve = wall_time();
-
-  // SIMP: s = e_min + rho~^p (1 - e_min) on design elements; solid (s = 1) elsewhere.
-  field_->stiffness_factors(factor_, dfactor_);
-  static_->assemble_operator(factor_);
+  assemble_stiffness();
   if (static_->has_body_load()) { // self-weight, inertia: scaled by the mass interpolation
     field_->mass_factors(mass_, dmass_);
     static_->set_body_load_factors(mass_);

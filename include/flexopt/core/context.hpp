@@ -26,6 +26,9 @@ private:
   int size_ = 1;
 };
 
+/// `s` as `root` holds it, on every rank of `comm`. Collective.
+void broadcast_text(MPI_Comm comm, std::string &s, int root = 0);
+
 /// Runs `fn` on `root` only and makes any exception it throws collective: every rank of `comm`
 /// then throws a flexopt::Error with the same message. Collective.
 void run_on_root(MPI_Comm comm, int root, const std::function<void()> &fn);

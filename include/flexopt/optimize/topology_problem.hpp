@@ -64,6 +64,8 @@ public:
 
 private:
   TopologyProblem() = default;
+  /// K with the SIMP factors of the field's current physical densities. Collective.
+  void assemble_stiffness();
   /// Value of response `index` (0: objective, i: constraint i - 1).
   double response_value(const ResponseSettings &r, std::size_t index);
   /// K_e^0 u_e of every local element, computed once per evaluation for all stiffness
