@@ -298,6 +298,46 @@ Voigt element_stress(ElementType type, const ElementCoords &X, const IsotropicMa
   return sigma;
 }
 
+StressMatrix element_stress_matrix(ElementType type, const ElementCoords &X,
+                                   const IsotropicMaterial &mat, const Eigen::Vector3d &xi) {
+  const char *who = "element_stress_matrix";
+  check_coords(type, X, who);
+  mat.validate();
+  const int n = nodes_per_element(type);
+  double dN[kMaxNodes * 3];
+  shape_functions(type, xi, nullptr, dN);
+  const Eigen::Matrix3d J = jacobian(X, dN);
+  const double det = J.determinant();
+  if (!(det > 0.0)) throw_degenerate(who, type, X, det, 0.0);
+  const Eigen::Matrix3d Jinv = J.inverse();
+  const double lambda = mat.lambda(), mu = mat.mu();
+  StressMatrix S = StressMatrix::Zero(6, 3 * n);
+  for (int a = 0; a < n; ++a) {
+    const Eigen::RowVector3d g = Eigen::Map<const Eigen::RowVector3d>(&dN[a * 3]) * Jinv;
+    // Normal rows: sigma_ii = lambda tr(H) + 2 mu H_ii; shear rows mu (H_ij + H_ji), Voigt
+    // order yz, xz, xy (section 3).
+    for (int k = 0; k < 3; ++k) {
+      for (int i = 0; i < 3; ++i) S(i, 3 * a + k) = lambda * g(k) + (i == k ? 2.0 * mu * g(k) : 0.0);
+    }
+    S(3, 3 * a + 1) = mu * g(2);
+    S(3, 3 * a + 2) = mu * g(1);
+    S(4, 3 * a + 0) = mu * g(2);
+    S(4, 3 * a + 2) = mu * g(0);
+    S(5, 3 * a + 0) = mu * g(1);
+    S(5, 3 * a + 1) = mu * g(0);
+  }
+  return S;
+}
+
+Voigt von_mises_gradient(const Voigt &s) {
+  const double v = von_mises(s);
+  if (v == 0.0) return Voigt::Zero();
+  Voigt g;
+  g << 2 * s[0] - s[1] - s[2], 2 * s[1] - s[2] - s[0], 2 * s[2] - s[0] - s[1], 6 * s[3], 6 * s[4],
+      6 * s[5];
+  return g / (2.0 * v);
+}
+
 double von_mises(const Voigt &s) {
   const double d01 = s[0] - s[1], d12 = s[1] - s[2], d20 = s[2] - s[0];
   return std::sqrt(0.5 * (d01 * d01 + d12 * d12 + d20 * d20) +

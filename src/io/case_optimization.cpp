@@ -49,7 +49,7 @@ void read_design(const Reader &r, const YAML::Node &v, Case &c) {
     const YAML::Node &i = v["interpolation"];
     const std::string ip = path + ".interpolation";
     r.require_map(i, ip);
-    r.check_keys(i, ip, {"penalty", "min_stiffness", "mass"});
+    r.check_keys(i, ip, {"penalty", "min_stiffness", "mass", "stress_exponent"});
     if (i["penalty"]) {
       d.penalty = r.number(i["penalty"], ip + ".penalty");
       if (!(d.penalty >= 1)) r.fail(i["penalty"], ip + ".penalty: the SIMP exponent must be >= 1");
@@ -58,6 +58,13 @@ void read_design(const Reader &r, const YAML::Node &v, Case &c) {
       d.min_stiffness = r.number(i["min_stiffness"], ip + ".min_stiffness");
       if (!(d.min_stiffness > 0 && d.min_stiffness < 1))
         r.fail(i["min_stiffness"], ip + ".min_stiffness: E_min / E_0 must lie in (0, 1)");
+    }
+    if (i["stress_exponent"]) {
+      d.stress_exponent = r.number(i["stress_exponent"], ip + ".stress_exponent");
+      if (!(d.stress_exponent > 0 && d.stress_exponent < d.penalty))
+        r.fail(i["stress_exponent"],
+               ip + ".stress_exponent: the stress relaxation exponent q must lie in (0, penalty) "
+                    "(the qp-approach: q < p; docs/theory.md 5.1)");
     }
     if (i["mass"])
       d.mass = r.enumerated(i["mass"], ip + ".mass",
@@ -102,6 +109,60 @@ void read_design(const Reader &r, const YAML::Node &v, Case &c) {
   c.design = d;
 }
 
+/// A stress response's keys (docs/case-format.md "Stress responses") into s: the body (optional
+/// for a single-body static case), the aggregate and its parameter, the normalization, the
+/// reference stress and the region.
+void read_stress(const Reader &r, const YAML::Node &v, const std::string &path, bool constraint,
+                 const Case &c, optimize::ResponseSettings &s) {
+  if (v["body"]) {
+    s.body = r.string(v["body"], path + ".body");
+    if (!has_body(c, s.body)) r.fail(v["body"], path + ".body: no body named '" + s.body + "'");
+  } else if (c.dynamic() || c.scene.bodies.size() != 1) {
+    r.fail(v, path + ": a stress response in a scene of several bodies (or a dynamic one) names "
+                     "its body: add body: <name>");
+  } else {
+    s.body = c.scene.bodies.front().name;
+  }
+  for (const dynamics::BodyDescription &b : c.scene.bodies)
+    if (b.name == s.body && c.dynamic() && b.model == BodyModel::Rigid)
+      r.fail(v["body"], path + ".body: '" + s.body +
+                            "' is a rigid body, which has no stress: a stress response needs an "
+                            "FFRF or ACF body (model: ffrf or acf)");
+  if (c.dynamic())
+    r.fail(v["type"], path + ".type: stress responses of a dynamic analysis are not available "
+                             "yet (issue 43: static analyses only so far)");
+  optimize::StressAggregateSettings &a = s.aggregate;
+  if (v["aggregate"])
+    a.type = r.enumerated(v["aggregate"], path + ".aggregate",
+                          {std::pair{"pnorm", optimize::StressAggregateType::PNorm},
+                           {"ks", optimize::StressAggregateType::Ks}});
+  const bool ks = a.type == optimize::StressAggregateType::Ks;
+  if (v["p"]) {
+    if (ks) r.fail(v["p"], path + ".p: the p-norm's exponent; aggregate: ks takes ks:");
+    a.p = r.number(v["p"], path + ".p");
+    if (!(a.p >= 1 && a.p <= 200))
+      r.fail(v["p"], path + ".p: the p-norm's exponent must lie in [1, 200] (8 is usual)");
+  }
+  if (v["ks"]) {
+    if (!ks) r.fail(v["ks"], path + ".ks: the KS parameter; it needs aggregate: ks");
+    a.ks = r.number(v["ks"], path + ".ks");
+    if (!(a.ks > 0 && a.ks <= 1e4)) r.fail(v["ks"], path + ".ks: must lie in (0, 1e4] (20 is usual)");
+  }
+  if (v["normalization"])
+    s.adaptive = r.enumerated(v["normalization"], path + ".normalization",
+                              {std::pair{"none", false}, {"adaptive", true}});
+  if (v["reference"]) {
+    if (!ks) r.fail(v["reference"], path + ".reference: only aggregate: ks takes it");
+    a.reference = r.number(v["reference"], path + ".reference");
+    if (!(a.reference > 0 && std::isfinite(a.reference)))
+      r.fail(v["reference"], path + ".reference: must be a positive stress [Pa]");
+  } else if (ks && !constraint) {
+    r.fail(v, path + ": a ks stress objective needs reference: <stress> [Pa], the stress its ks "
+                     "parameter is relative to (a constraint takes its max)");
+  }
+  if (v["region"]) s.region = r.string(v["region"], path + ".region");
+}
+
 /// The objective or a constraint (`constraint`: with its bound `max`) at `path`.
 optimize::ResponseSettings read_response(const Reader &r, const YAML::Node &v,
                                          const std::string &path, bool constraint, const Case &c) {
@@ -109,7 +170,8 @@ optimize::ResponseSettings read_response(const Reader &r, const YAML::Node &v,
   r.require_map(v, path);
   r.check_keys(
       v, path,
-      {"type", "sensor", "direction", "body", "target", "component", "measure", "ks", "max"});
+      {"type", "sensor", "direction", "body", "target", "component", "measure", "ks", "max",
+       "aggregate", "p", "normalization", "reference", "region"});
   optimize::ResponseSettings s;
   s.where = r.where(v);
   const bool dynamic = c.dynamic();
@@ -120,11 +182,12 @@ optimize::ResponseSettings read_response(const Reader &r, const YAML::Node &v,
                          {"strain_energy_integral", ResponseType::StrainEnergyIntegral},
                          {"tracking_error", ResponseType::TrackingError},
                          {"sensor", ResponseType::Sensor},
-                         {"mass", ResponseType::Mass}});
+                         {"mass", ResponseType::Mass},
+                         {"stress", ResponseType::Stress}});
   const std::string type = optimize::response_type_name(s.type);
   const bool dynamic_only = s.type == ResponseType::StrainEnergyIntegral ||
                             s.type == ResponseType::TrackingError ||
-                            s.type == ResponseType::Sensor || s.type == ResponseType::Mass;
+                            s.type == ResponseType::Sensor;
   if (!dynamic && dynamic_only)
     r.fail(v["type"], path + ".type: '" + type + "' is a response of a dynamic analysis");
   if (dynamic && (s.type == ResponseType::Compliance || s.type == ResponseType::Displacement))
@@ -138,7 +201,10 @@ optimize::ResponseSettings read_response(const Reader &r, const YAML::Node &v,
   if (s.type == ResponseType::Sensor) takes = {"sensor", "component", "measure", "ks"};
   if (s.type == ResponseType::StrainEnergyIntegral || s.type == ResponseType::Mass)
     takes = {"body"};
-  for (const char *k : {"sensor", "direction", "body", "target", "component", "measure", "ks"})
+  if (s.type == ResponseType::Stress)
+    takes = {"body", "aggregate", "p", "ks", "normalization", "reference", "region"};
+  for (const char *k : {"sensor", "direction", "body", "target", "component", "measure", "ks",
+                        "aggregate", "p", "normalization", "reference", "region"})
     if (v[k] && !takes.count(k))
       r.fail(v[k], path + "." + k + ": a '" + type + "' response does not take it");
   auto find_sensor = [&]() {
@@ -208,6 +274,7 @@ optimize::ResponseSettings read_response(const Reader &r, const YAML::Node &v,
     s.body = r.string(r.require(v, "body", path), path + ".body");
     if (!has_body(c, s.body)) r.fail(v["body"], path + ".body: no body named '" + s.body + "'");
   }
+  if (s.type == ResponseType::Stress) read_stress(r, v, path, constraint, c, s);
   if (constraint) {
     s.max = r.number(r.require(v, "max", path), path + ".max");
     s.has_max = true;
@@ -215,6 +282,9 @@ optimize::ResponseSettings read_response(const Reader &r, const YAML::Node &v,
       r.fail(v["max"], path + ".max: a volume fraction bound must lie in (0, 1)");
     if (s.type == ResponseType::Mass && !(s.max > 0))
       r.fail(v["max"], path + ".max: a mass bound must be positive [kg]");
+    if (s.type == ResponseType::Stress && !(s.max > 0 && std::isfinite(s.max)))
+      r.fail(v["max"], path + ".max: a stress limit must be a positive number [Pa]");
+    if (s.type == ResponseType::Stress && s.aggregate.reference == 0) s.aggregate.reference = s.max;
   } else if (v["max"]) {
     r.fail(v["max"], path + ".max: the objective takes no bound");
   }

@@ -224,6 +224,19 @@ void DesignField::stiffness_factors(std::vector<double> &s, std::vector<double> 
               });
 }
 
+void DesignField::stress_factors(std::vector<double> &eta, std::vector<double> &deta) const {
+  // qp-relaxation (docs/theory.md 5.1): eta = ((rho + d)^q - d^q) / ((1 + d)^q - d^q), the
+  // shift d keeping eta' finite at rho = 0.
+  const double q = spec_.stress_exponent, d = kStressShift;
+  const double d_q = std::pow(d, q), scale = 1.0 / (std::pow(1.0 + d, q) - d_q);
+  interpolate(*this, physical_, eta, deta, mesh_.local_elements(),
+              [&](double r, double &f, double &df) {
+                const double rr = std::max(r, 0.0);
+                f = (std::pow(rr + d, q) - d_q) * scale;
+                df = q * std::pow(rr + d, q - 1.0) * scale;
+              });
+}
+
 void DesignField::mass_factors(std::vector<double> &w, std::vector<double> &dw) const {
   const bool pedersen = spec_.mass == MassInterpolation::Pedersen;
   // pedersen keeps a floor of 1e-3 min_stiffness (docs/theory.md 9.1): 10^5 rho^6 underflows

@@ -25,8 +25,10 @@ namespace {
 /// carried over into the new design.h5.
 constexpr const char *kInterruptedDesign = "design.interrupted.h5";
 
-/// Writes the densities of the current evaluation as one step of the design collection.
-void write_densities(io::XdmfWriter &writer, const DesignField &p, double step) {
+/// Writes the densities of the current evaluation, and the problem's other cell fields (a stress
+/// response's von Mises stress), as one step of the design collection.
+void write_densities(io::XdmfWriter &writer, const DesignProblem &problem, double step) {
+  const DesignField &p = problem.field();
   writer.begin_step(step);
   const PetscScalar *a;
   FX_PETSC(VecGetArrayRead(p.density(), &a));
@@ -38,6 +40,7 @@ void write_densities(io::XdmfWriter &writer, const DesignField &p, double step) 
   FX_PETSC(VecGetArrayRead(p.physical(), &a));
   writer.cell_scalar("physical_density", a);
   FX_PETSC(VecRestoreArrayRead(p.physical(), &a));
+  for (const auto &[name, values] : problem.cell_fields()) writer.cell_scalar(name, values.data());
 }
 
 /// The outer move-limit box: xmin_j = max(0, x_j - move), xmax_j = min(1, x_j + move).
@@ -337,6 +340,8 @@ void OptimizationRun::read_restart() {
   mma_->restore(st);
   for (Vec &v : state_vecs) FX_PETSC(VecDestroy(&v));
   restore_history(r, done);
+  if (const auto sc = r.arrays.find("response_scales"); sc != r.arrays.end())
+    problem_->restore_response_scales(sc->second);
   // Solvers that keep what they built for the run's first design (GAMG's interpolation) build
   // it again from that design, at the first stage's projection, as the uninterrupted run did.
   {
@@ -470,7 +475,7 @@ bool OptimizationRun::iteration(int k, Evaluation &e) {
   }
   const bool write = (k - 1) % result_.output_stride == 0;
   if (write) {
-    write_densities(*writer_, problem->field(), k - 1);
+    write_densities(*writer_, *problem, k - 1);
     writer_->flush(); // before restart point k: a kill leaves this frame for --restart
   }
 
@@ -483,6 +488,7 @@ bool OptimizationRun::iteration(int k, Evaluation &e) {
   const double change = max_abs_change(x_, xold_);
   const double seconds = wall_time() - t0;
   record(k, e, change, seconds, iteration_split(seconds));
+  problem->end_iteration(); // the adaptive scales for iteration k + 1, kept in its restart point
 
   bool last_stage = false;
   write_restart_point(k, change, last_stage);
@@ -555,6 +561,8 @@ void OptimizationRun::write_restart_point(int k, double change, bool &last_stage
   std::vector<double> flat;
   for (const auto &row : result_.constraints) flat.insert(flat.end(), row.begin(), row.end());
   rd.arrays["constraints"] = flat;
+  const std::vector<double> scales = problem_->response_scales();
+  if (!scales.empty()) rd.arrays["response_scales"] = scales;
   // The solvers' warm-start state (DesignProblem::solver_state), keyed by position.
   rd.dof_fields = problem_->solver_state();
   if (!rd.dof_fields.empty()) {
@@ -575,7 +583,7 @@ OptimizationResult OptimizationRun::finish() {
         split_list_.begin() + static_cast<std::ptrdiff_t>((k + 1) * nsplit_));
   // Final state: the design after the last update.
   problem->evaluate(x_, false, e);
-  write_densities(*writer_, problem->field(), result.iterations);
+  write_densities(*writer_, *problem, result.iterations);
   result.volume_fraction = problem->field().volume_fraction();
   result.output = writer_->close();
   run_on_root(comm_, 0, [&] {

@@ -18,6 +18,8 @@ const char *response_type_name(ResponseType type) {
     return "sensor";
   case ResponseType::Mass:
     return "mass";
+  case ResponseType::Stress:
+    return "stress";
   }
   return "?";
 }

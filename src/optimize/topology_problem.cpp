@@ -47,6 +47,7 @@ std::unique_ptr<TopologyProblem> TopologyProblem::create(MPI_Comm comm, const To
   p->static_->set_warm_start(warm_start_option().value_or(true));
   const mesh::DistributedMesh &m = p->static_->mesh();
   p->field_ = std::make_unique<DesignField>(m, c.design);
+  p->needs_mass_ = p->static_->has_body_load();
   for (std::size_t i = 0; i < p->responses_.size(); ++i) {
     const ResponseSettings &r = p->responses_[i];
     p->names_.push_back((i == 0 ? std::string("objective") : "constraint" + std::to_string(i - 1)) +
@@ -55,12 +56,19 @@ std::unique_ptr<TopologyProblem> TopologyProblem::create(MPI_Comm comm, const To
     if (r.type == ResponseType::Displacement)
       loc = fem::locate(m, r.point, r.point_where.str() + ": sensor '" + r.sensor + "'");
     p->sensor_locations_.push_back(loc);
+    p->stress_.push_back(r.type == ResponseType::Stress
+                             ? std::make_unique<StaticStress>(m, p->static_->material(), r)
+                             : nullptr);
+    if (r.type == ResponseType::Mass) {
+      if (!(p->static_->material().density > 0))
+        throw Error(r.where.str() + ": a mass response needs the body's material density > 0",
+                    true);
+      p->needs_mass_ = true;
+    }
   }
-
+  p->adjoints_.assign(p->responses_.size(), nullptr);
   p->grad_physical_ = p->field_->filter().create_element_vector();
-  p->adjoint_ = fem::create_ghosted_vector(m);
-  FX_PETSC(VecZeroEntries(p->adjoint_));
-  FX_PETSC(VecDuplicate(p->adjoint_, &p->adjoint_rhs_));
+  p->adjoint_rhs_ = fem::create_ghosted_vector(m);
   return p;
 }
 
@@ -88,9 +96,30 @@ void set_owned_values(Vec v, const std::vector<double> &values) {
 
 } // namespace
 
+namespace {
+/// The restart state's name of the adjoint of response i: "adjoint" for the first response
+/// with one (the name of the files before issue 43), "adjoint_<i>" for the others.
+std::string adjoint_key(const std::vector<Vec> &adjoints, std::size_t i) {
+  for (std::size_t j = 0; j < i; ++j)
+    if (adjoints[j]) return "adjoint_" + std::to_string(i);
+  return "adjoint";
+}
+} // namespace
+
+Vec TopologyProblem::adjoint(std::size_t i) {
+  if (!adjoints_[i]) {
+    adjoints_[i] = fem::create_ghosted_vector(mesh());
+    FX_PETSC(VecZeroEntries(adjoints_[i]));
+  }
+  return adjoints_[i];
+}
+
 std::map<std::string, std::vector<double>> TopologyProblem::solver_state() const {
   if (!static_->warm_start()) return {};
-  return {{"u", local_values(static_->displacement())}, {"adjoint", local_values(adjoint_)}};
+  std::map<std::string, std::vector<double>> state{{"u", local_values(static_->displacement())}};
+  for (std::size_t i = 0; i < adjoints_.size(); ++i)
+    if (adjoints_[i]) state[adjoint_key(adjoints_, i)] = local_values(adjoints_[i]);
+  return state;
 }
 
 std::vector<std::uint64_t> TopologyProblem::solver_state_keys() const {
@@ -100,11 +129,42 @@ std::vector<std::uint64_t> TopologyProblem::solver_state_keys() const {
 
 void TopologyProblem::restore_solver_state(
     const std::map<std::string, std::vector<double>> &state) {
-  const auto u = state.find("u"), a = state.find("adjoint");
   const auto n = static_cast<std::size_t>(3 * mesh().owned_nodes);
+  const auto u = state.find("u");
   if (u != state.end() && u->second.size() == n)
     set_owned_values(static_->displacement(), u->second);
-  if (a != state.end() && a->second.size() == n) set_owned_values(adjoint_, a->second);
+  // The adjoints exist from the first evaluation on; a restart creates those it restores.
+  for (std::size_t i = 0; i < responses_.size(); ++i) {
+    const ResponseType t = responses_[i].type;
+    if (t != ResponseType::Displacement && t != ResponseType::Stress) continue;
+    adjoint(i);
+    const auto a = state.find(adjoint_key(adjoints_, i));
+    if (a != state.end() && a->second.size() == n) set_owned_values(adjoints_[i], a->second);
+  }
+}
+
+void TopologyProblem::end_iteration() {
+  for (const auto &s : stress_)
+    if (s) s->end_iteration();
+}
+
+std::vector<double> TopologyProblem::response_scales() const {
+  std::vector<double> c;
+  for (const auto &s : stress_)
+    if (s) c.push_back(s->scale());
+  return c;
+}
+
+void TopologyProblem::restore_response_scales(const std::vector<double> &scales) {
+  std::size_t k = 0;
+  for (const auto &s : stress_)
+    if (s && k < scales.size()) s->set_scale(scales[k++]);
+}
+
+std::vector<std::pair<std::string, std::vector<double>>> TopologyProblem::cell_fields() const {
+  if (eta_.empty()) return {};
+  return {{"von_mises", fem::element_von_mises(mesh(), static_->material(), eta_,
+                                               static_->displacement())}};
 }
 
 void TopologyProblem::assemble_stiffness() {
@@ -127,7 +187,7 @@ bool TopologyProblem::set_random_start(unsigned long seed) {
 
 TopologyProblem::~TopologyProblem() {
   VecDestroy(&grad_physical_);
-  VecDestroy(&adjoint_);
+  for (Vec &a : adjoints_) VecDestroy(&a);
   VecDestroy(&adjoint_rhs_);
 }
 
@@ -137,11 +197,21 @@ void TopologyProblem::describe(io::Json &s) const {
   s["design_variables"] = static_cast<long long>(design_size());
   s["state_solves"] = solves_;
   s["krylov_iterations"] = krylov_;
+  io::Json stress = io::Json::array();
+  bool any = false;
+  for (std::size_t i = 0; i < stress_.size(); ++i)
+    if (stress_[i]) {
+      stress.push_back(stress_[i]->describe(names_[i]));
+      any = true;
+    }
+  if (any) s["stress"] = stress;
 }
 
 double TopologyProblem::response_value(const ResponseSettings &r, std::size_t index) {
   if (r.type == ResponseType::Compliance) return static_->compliance();
   if (r.type == ResponseType::VolumeFraction) return field_->volume_fraction();
+  if (r.type == ResponseType::Stress) return stress_[index]->evaluate(static_->displacement(), eta_);
+  if (r.type == ResponseType::Mass) return mass();
   // displacement: d . u(sensor point), at the location found once in create()
   const auto u = fem::probe_vector(mesh(), static_->displacement(), sensor_locations_[index]);
   return u[0] * r.direction[0] + u[1] * r.direction[1] + u[2] * r.direction[2];
@@ -168,6 +238,15 @@ const std::vector<double> &TopologyProblem::element_ku() {
   return element_ku_;
 }
 
+double TopologyProblem::mass() const {
+  const std::vector<double> &v = field_->element_volumes();
+  double local = 0;
+  for (std::size_t e = 0; e < mass_.size(); ++e) local += mass_[e] * v[e];
+  double total = 0;
+  MPI_Allreduce(&local, &total, 1, MPI_DOUBLE, MPI_SUM, mesh().comm);
+  return static_->material().density * total;
+}
+
 void TopologyProblem::response_gradient(const ResponseSettings &r, std::size_t index, Vec g) {
   LogScope log("FxSensitivities");
   const mesh::DistributedMesh &m = mesh();
@@ -176,18 +255,30 @@ void TopologyProblem::response_gradient(const ResponseSettings &r, std::size_t i
     field_->volume_fraction_gradient(g);
     return;
   }
+  if (r.type == ResponseType::Mass) { // density * w'(rho_e) V_e
+    const std::vector<double> &v = field_->element_volumes();
+    FX_PETSC(VecGetArray(g, &ga));
+    for (std::size_t e = 0; e < dmass_.size(); ++e)
+      ga[e] = static_->material().density * dmass_[e] * v[e];
+    FX_PETSC(VecRestoreArray(g, &ga));
+    return;
+  }
   // Stiffness responses: dR/ds_e = -lambda_e^T K_e u_e, with lambda = u for the compliance
-  // (self-adjoint) and K lambda = c (the point functional) for a displacement. A body force
-  // f_b = sum_e w_e f_e depends on the design through the mass factors w: it adds
-  // dR/dw_e = lambda_e . f_e, twice for the compliance f . u (its explicit f; docs/theory.md
-  // section 5).
+  // (self-adjoint) and K lambda = dR/du for a displacement (the point functional c) or a
+  // stress (section 5.1). A body force f_b = sum_e w_e f_e depends on the design through the
+  // mass factors w: it adds dR/dw_e = lambda_e . f_e, twice for the compliance f . u (its
+  // explicit f; docs/theory.md section 5).
   Vec lambda = static_->displacement();
-  if (r.type == ResponseType::Displacement) {
-    FX_PETSC(VecZeroEntries(adjoint_rhs_));
-    fem::add_point_functional(m, sensor_locations_[index], r.direction, adjoint_rhs_);
-    static_->solve_adjoint(adjoint_rhs_, adjoint_);
+  if (r.type == ResponseType::Displacement || r.type == ResponseType::Stress) {
+    if (r.type == ResponseType::Displacement) {
+      FX_PETSC(VecZeroEntries(adjoint_rhs_));
+      fem::add_point_functional(m, sensor_locations_[index], r.direction, adjoint_rhs_);
+    } else {
+      stress_[index]->adjoint_load(eta_, adjoint_rhs_);
+    }
+    lambda = adjoint(index);
+    static_->solve_adjoint(adjoint_rhs_, lambda);
     ++solves_;
-    lambda = adjoint_;
   }
   const std::vector<double> &ku = element_ku();
   const int nd = 3 * m.nodes_per_element();
@@ -216,6 +307,7 @@ void TopologyProblem::response_gradient(const ResponseSettings &r, std::size_t i
       ga[e] += load_weight * dw * lf;
     }
   }
+  if (r.type == ResponseType::Stress) stress_[index]->add_explicit(deta_, ga);
   FX_PETSC(VecRestoreArray(g, &ga));
   FX_PETSC(VecRestoreArrayRead(ll, &l));
   FX_PETSC(VecGhostRestoreLocalForm(lambda, &ll));
@@ -226,10 +318,11 @@ void TopologyProblem::evaluate(Vec x, bool gradients, Evaluation &out) {
   field_->update(x);
   const double t_solve = wall_time();
   assemble_stiffness();
-  if (static_->has_body_load()) { // self-weight, inertia: scaled by the mass interpolation
-    field_->mass_factors(mass_, dmass_);
+  if (needs_mass_) field_->mass_factors(mass_, dmass_);
+  if (static_->has_body_load()) // self-weight, inertia: scaled by the mass interpolation
     static_->set_body_load_factors(mass_);
-  }
+  if (std::any_of(stress_.begin(), stress_.end(), [](const auto &p) { return p != nullptr; }))
+    field_->stress_factors(eta_, deta_);
   static_->solve();
   krylov_.push_back(static_->iterations());
   element_ku_current_ = false;

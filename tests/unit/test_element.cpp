@@ -535,6 +535,48 @@ TEST(Stress, LinearDisplacementGivesExactConstantStress) {
   }
 }
 
+TEST(Stress, StressMatrixIsTheLinearMapOfElementStress) {
+  // S = D B(xi) applied to any element displacement (not only linear fields) must give
+  // element_stress's sigma with modulus factor 1: the two build sigma by different routes (S
+  // column by column, element_stress through H), so agreement to 1e-13 relative checks every
+  // entry of S.
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  for (const TestElement &el : test_elements()) {
+    ElementVector ue(3 * el.X.rows());
+    for (int k = 0; k < ue.size(); ++k) ue(k) = 1e-3 * u(rng);
+    for (int i = 0; i < 4; ++i) {
+      const Vector3d xi = i == 0 ? reference_centroid(el.type) : random_inside(el.type, rng);
+      const StressMatrix S = element_stress_matrix(el.type, el.X, kSteel, xi);
+      const Voigt expected = element_stress(el.type, el.X, kSteel, 1.0, ue, xi);
+      EXPECT_LT((S * ue - expected).norm(), 1e-13 * expected.norm()) << el.name;
+    }
+  }
+}
+
+TEST(VonMises, GradientMatchesCentralDifferences) {
+  // Central differences with h = 1e-6 |sigma|: truncation O(h^2) relative 1e-12, round-off
+  // 1e-16 / 1e-6 = 1e-10 of |g| (which is O(1)); 1e-8 absolute holds both with room.
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  for (int trial = 0; trial < 20; ++trial) {
+    Voigt s;
+    for (int k = 0; k < 6; ++k) s[k] = 1e8 * u(rng);
+    const Voigt g = von_mises_gradient(s);
+    const double h = 1e-6 * s.norm();
+    for (int k = 0; k < 6; ++k) {
+      Voigt sp = s, sm = s;
+      sp[k] += h;
+      sm[k] -= h;
+      const double fd = (von_mises(sp) - von_mises(sm)) / (2 * h);
+      EXPECT_NEAR(g[k], fd, 1e-8) << "component " << k;
+    }
+    // Homogeneous of degree 1: sigma . dv/dsigma = v (Euler).
+    EXPECT_NEAR(s.dot(g), von_mises(s), 1e-12 * von_mises(s));
+  }
+  EXPECT_EQ(von_mises_gradient(Voigt::Zero()).norm(), 0.0);
+}
+
 // -----------------------------------------------------------------------------------------------
 // Geometric stiffness
 

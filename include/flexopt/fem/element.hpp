@@ -152,9 +152,20 @@ ElementVector element_geometric_stiffness_load(ElementType type, const ElementCo
                                                const IsotropicMaterial &mat,
                                                const Eigen::Ref<const Eigen::MatrixXd> &psi,
                                                const Eigen::Ref<const Eigen::MatrixXd> &Gbar);
+/// Stress matrix S = D B(xi) [Pa/m], 6 x 3n (node-major columns), of unit modulus factor: the
+/// Voigt stress of an element displacement u_e at reference point xi is S u_e (= element_stress
+/// with modulus_factor 1), and S^T g is the nodal load whose work on u_e is g . sigma (the
+/// adjoint of a stress functional; docs/theory.md section 5.1). Throws if det J <= 0 at xi.
+using StressMatrix = Eigen::Matrix<double, 6, Eigen::Dynamic, 0, 6, kMaxDofs>;
+StressMatrix element_stress_matrix(ElementType type, const ElementCoords &X,
+                                   const IsotropicMaterial &mat, const Eigen::Vector3d &xi);
 /// von Mises equivalent stress [Pa] of a Voigt stress:
 /// sqrt(((sxx-syy)^2 + (syy-szz)^2 + (szz-sxx)^2) / 2 + 3 (syz^2 + sxz^2 + sxy^2)).
 double von_mises(const Voigt &sigma);
+/// d(von_mises)/d(sigma) [-] of a Voigt stress: V sigma / von_mises(sigma), i.e.
+/// (2sxx-syy-szz, 2syy-szz-sxx, 2szz-sxx-syy, 6syz, 6sxz, 6sxy) / (2 von_mises); zero where
+/// the von Mises stress is zero (the cone point of the norm; docs/theory.md section 5.1).
+Voigt von_mises_gradient(const Voigt &sigma);
 /// Consistent nodal load [N] of a constant traction t [N/m^2] on a (possibly curved, quadratic)
 /// face in 3D: f_(i,k) = t_k int N_i dA, dA = |dx/dxi x dx/deta| dxi deta. Xf: one row per face
 /// node (Gmsh ordering). Exact for flat straight-sided Tri3/Tri6 and planar Quad4; curved Tri6 and

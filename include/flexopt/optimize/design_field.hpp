@@ -26,6 +26,9 @@ struct DesignSettings {
   double initial = 0.5;          ///< initial density of every design element
   double penalty = 3.0;          ///< SIMP exponent p
   double min_stiffness = 1e-9;   ///< E_min / E_0
+  /// The stress relaxation exponent q of the qp-approach (stress responses; 0 < q < penalty):
+  /// an element's measured stress is ~ rho^q times its solid stress (docs/theory.md 5.1).
+  double stress_exponent = 0.5;
   /// Mass interpolation (dynamic analyses; static body forces); default pedersen for an FFRF or
   /// ACF design body and for a static design under gravity or loads.inertia, linear otherwise.
   MassInterpolation mass = MassInterpolation::Linear;
@@ -104,6 +107,11 @@ public:
   /// The SIMP modulus factors s = E_min/E_0 + rho^p (1 - E_min/E_0) of the physical densities
   /// of all local elements and their derivatives (1 and 0 outside the design region).
   void stiffness_factors(std::vector<double> &s, std::vector<double> &ds) const;
+  /// The stress relaxation factors eta = ((rho + d)^q - d^q) / ((1 + d)^q - d^q), d =
+  /// kStressShift, q = stress_exponent, of the physical densities of all local elements and
+  /// their derivatives, as stiffness_factors (docs/theory.md 5.1).
+  void stress_factors(std::vector<double> &eta, std::vector<double> &deta) const;
+  static constexpr double kStressShift = 1e-6;
   /// The mass factors of `interpolation.mass` (linear: rho; pedersen: rho above 0.1, 1e5 rho^6
   /// below; docs/theory.md section 9.1) and their derivatives, as stiffness_factors.
   void mass_factors(std::vector<double> &w, std::vector<double> &dw) const;

@@ -120,6 +120,19 @@ public:
     (void)state;
   }
 
+  /// After each iteration's evaluation (optimize only, never check-gradient): responses whose
+  /// scale follows the design (a stress aggregate's adaptive normalization, docs/theory.md 5.1)
+  /// take it from this evaluation for the next.
+  virtual void end_iteration() {}
+  /// Those scales, one per response that has one (restart.h5 keeps them), and their restore.
+  virtual std::vector<double> response_scales() const { return {}; }
+  virtual void restore_response_scales(const std::vector<double> &scales) { (void)scales; }
+  /// Cell fields (one value per local element) that design.xdmf carries at each written
+  /// iteration besides the densities, from the last evaluation: name and values.
+  virtual std::vector<std::pair<std::string, std::vector<double>>> cell_fields() const {
+    return {};
+  }
+
   Vec create_design_vector() const { return field().create_design_vector(); }
   void initial_design(Vec x) const { field().initial_design(x); }
   PetscInt design_size() const { return field().design_size(); }

@@ -2,8 +2,10 @@
 /// \file The responses a design problem evaluates, as objective or constraint (`objective:`,
 /// `constraints:`; docs/case-format.md): what each names and bounds. Static: compliance,
 /// volume_fraction, displacement (docs/theory.md section 5). Dynamic (section 9.3):
-/// strain_energy_integral, tracking_error, sensor, volume_fraction, mass.
+/// strain_energy_integral, tracking_error, sensor, volume_fraction, mass. Both: stress (section
+/// 5.1).
 #include "flexopt/io/location.hpp"
+#include "flexopt/optimize/stress_aggregate.hpp"
 
 #include <array>
 #include <string>
@@ -17,7 +19,8 @@ enum class ResponseType {
   StrainEnergyIntegral,
   TrackingError,
   Sensor,
-  Mass
+  Mass,
+  Stress
 };
 /// The case-file name: "compliance", "volume_fraction", ...
 const char *response_type_name(ResponseType type);
@@ -39,6 +42,12 @@ struct ResponseSettings {
   int component = 0;                            ///< sensor: 0, 1, 2 (x, y, z)
   SensorMeasure measure = SensorMeasure::Final; ///< sensor
   double ks = 50; ///< sensor ks_max: the aggregation parameter k [1/unit of the sensor]
+  /// stress: the aggregate (pnorm or ks, its parameter; ks: the reference stress, a constraint's
+  /// max unless given), whether its scale follows the true peak (normalization: adaptive), and
+  /// the physical volume whose elements it takes (empty: the whole body).
+  StressAggregateSettings aggregate;
+  bool adaptive = false;
+  std::string region;
   double max = 0; ///< constraints: upper bound
   bool has_max = false;
   io::Location where;

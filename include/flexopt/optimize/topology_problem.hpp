@@ -6,6 +6,7 @@
 #include "flexopt/optimize/design_field.hpp"
 #include "flexopt/optimize/design_problem.hpp"
 #include "flexopt/optimize/response.hpp"
+#include "flexopt/optimize/static_stress.hpp"
 
 #include <memory>
 #include <string>
@@ -28,11 +29,12 @@ public:
   ~TopologyProblem();
 
   /// Evaluates the objective and every constraint at x; with `gradients`, also their
-  /// derivatives by the adjoint method (one extra solve per displacement response).
+  /// derivatives by the adjoint method (one extra solve per displacement or stress response).
   /// Collective.
   void evaluate(Vec x, bool gradients, Evaluation &out) override;
   /// dofs, elements, design_variables, state_solves, krylov_iterations (of every state solve,
-  /// in order: how the solver copes as the design gains contrast).
+  /// in order: how the solver copes as the design gains contrast), and for each stress response
+  /// its aggregate, peak and the peak's element at the last evaluation ("stress").
   void describe(io::Json &summary) const override;
   /// 1e-10: the state solve is accurate to about eps cond(K), measured ~1e-11 relative on the
   /// test cases.
@@ -50,6 +52,13 @@ public:
   void restore_solver_state(const std::map<std::string, std::vector<double>> &state) override;
   /// K at x0 assembled and the state solver set up on it (no solve).
   void prepare_resume(Vec x0) override;
+  /// The stress responses' adaptive normalization (docs/theory.md 5.1).
+  void end_iteration() override;
+  std::vector<double> response_scales() const override;
+  void restore_response_scales(const std::vector<double> &scales) override;
+  /// Cell fields of design.xdmf beyond the densities: with a stress response, "von_mises", the
+  /// relaxed von Mises stress eta(rho) v of every element [Pa] (docs/theory.md 5.1).
+  std::vector<std::pair<std::string, std::vector<double>>> cell_fields() const override;
   /// solve (assembly and state solve), adjoint (the sensitivities and their adjoint solves).
   std::vector<Timing> timings() const override {
     return {{"solve", "solve", solve_s_}, {"adjoint", "adjoint", adjoint_s_}};
@@ -66,8 +75,13 @@ private:
   TopologyProblem() = default;
   /// K with the SIMP factors of the field's current physical densities. Collective.
   void assemble_stiffness();
+  /// The body's mass sum_e w(rho_e) density V_e [kg] (all elements; w the mass interpolation).
+  /// Collective.
+  double mass() const;
   /// Value of response `index` (0: objective, i: constraint i - 1).
   double response_value(const ResponseSettings &r, std::size_t index);
+  /// The adjoint vector of response i (displacement, stress), created at first use.
+  Vec adjoint(std::size_t i);
   /// K_e^0 u_e of every local element, computed once per evaluation for all stiffness
   /// responses (their gradients are -ds_e lambda_e . K_e^0 u_e).
   const std::vector<double> &element_ku();
@@ -80,10 +94,14 @@ private:
   std::vector<std::string> names_;                   ///< objective, then constraints
   std::vector<fem::PointLocation> sensor_locations_; ///< per response (displacement only)
   Vec grad_physical_ = nullptr;
-  Vec adjoint_rhs_ = nullptr, adjoint_ = nullptr;
+  Vec adjoint_rhs_ = nullptr;
+  std::vector<Vec> adjoints_;                         ///< per response (null: none)
+  std::vector<std::unique_ptr<StaticStress>> stress_; ///< per response (null: not stress)
+  std::vector<double> eta_, deta_;                    ///< stress relaxation factors
   std::vector<double> factor_;       ///< SIMP modulus factors (all local elements)
   std::vector<double> dfactor_;      ///< d factor / d filtered density
-  std::vector<double> mass_, dmass_; ///< mass factors (body forces) and their derivatives
+  std::vector<double> mass_, dmass_; ///< mass factors (body forces, mass) and derivatives
+  bool needs_mass_ = false;          ///< a body load or a mass response
   std::vector<double> element_ku_;   ///< K_e^0 u_e, 3 * nodes_per_element per element
   bool element_ku_current_ = false;  ///< element_ku_ belongs to the current state
   int solves_ = 0;

@@ -1,0 +1,51 @@
+#pragma once
+/// \file A stress response of a static design (docs/theory.md section 5.1): the relaxed von
+/// Mises stress of each element at its centroid, its aggregate, the adjoint load dR/du and the
+/// explicit dR/d(rho), and the adaptive normalization's scale.
+#include "flexopt/fem/element.hpp"
+#include "flexopt/io/json.hpp"
+#include "flexopt/mesh/distributed_mesh.hpp"
+#include "flexopt/optimize/response.hpp"
+#include "flexopt/optimize/stress_aggregate.hpp"
+
+#include <petscvec.h>
+#include <vector>
+
+namespace flexopt::optimize {
+
+class StaticStress {
+public:
+  /// The elements of r.region (all elements of `mesh` when empty). Collective (a missing
+  /// region throws a collective error naming the response).
+  StaticStress(const mesh::DistributedMesh &mesh, const fem::IsotropicMaterial &material,
+               const ResponseSettings &r);
+  /// The samples eta_e v_e at the displacement u (ghosted, ghosts current) and relaxation
+  /// factors eta (all local elements); returns c R. Collective.
+  double evaluate(Vec u, const std::vector<double> &eta);
+  /// dR/du of the last evaluate (times c) into the ghosted vector rhs (overwritten, summed over
+  /// the ranks that share a node). Collective.
+  void adjoint_load(const std::vector<double> &eta, Vec rhs) const;
+  /// Adds the explicit c g_e eta'(rho_e) v_e to g (one entry per local element).
+  void add_explicit(const std::vector<double> &deta, double *g) const;
+  /// The relaxed stress eta_e v_e of every local element [Pa] (0 outside the region).
+  const std::vector<double> &relaxed() const { return relaxed_; }
+  /// Adaptive normalization: c from the last evaluation, for the next (no-op without it).
+  void end_iteration();
+  double scale() const { return scale_; }
+  void set_scale(double c) { scale_ = c; }
+  /// {"response", "aggregate", "peak", "element", "scale"} of the last evaluation.
+  io::Json describe(const std::string &name) const;
+
+private:
+  const mesh::DistributedMesh &mesh_;
+  fem::IsotropicMaterial material_;
+  ResponseSettings r_;
+  std::vector<PetscInt> elements_; ///< local elements of the aggregate
+  StressAggregate aggregate_;
+  std::vector<fem::Voigt> sigma_; ///< solid stress per aggregate element (elements_ order)
+  std::vector<double> solid_;     ///< its von Mises v_e
+  std::vector<double> relaxed_;   ///< eta_e v_e per local element
+  double scale_ = 1.0;            ///< adaptive normalization c
+};
+
+} // namespace flexopt::optimize

@@ -1,0 +1,111 @@
+#include "flexopt/optimize/static_stress.hpp"
+
+#include "flexopt/core/error.hpp"
+#include "flexopt/fem/assembly.hpp"
+
+#include <numeric>
+
+namespace flexopt::optimize {
+
+StaticStress::StaticStress(const mesh::DistributedMesh &mesh,
+                           const fem::IsotropicMaterial &material, const ResponseSettings &r)
+    : mesh_(mesh), material_(material), r_(r), aggregate_(r.aggregate) {
+  if (r.region.empty()) {
+    elements_.resize(static_cast<std::size_t>(mesh.local_elements()));
+    std::iota(elements_.begin(), elements_.end(), PetscInt{0});
+  } else {
+    elements_ = mesh.volume_group(r.region, r.where.str() + ": stress region");
+    long long n = static_cast<long long>(elements_.size()), total = 0;
+    MPI_Allreduce(&n, &total, 1, MPI_LONG_LONG, MPI_SUM, mesh.comm);
+    if (total == 0)
+      throw Error(r.where.str() + ": stress region '" + r.region + "' has no elements", true);
+  }
+}
+
+double StaticStress::evaluate(Vec u, const std::vector<double> &eta) {
+  aggregate_.clear();
+  sigma_.resize(elements_.size());
+  solid_.resize(elements_.size());
+  relaxed_.assign(static_cast<std::size_t>(mesh_.local_elements()), 0.0);
+  Vec ul;
+  const PetscScalar *ua;
+  FX_PETSC(VecGhostGetLocalForm(u, &ul));
+  FX_PETSC(VecGetArrayRead(ul, &ua));
+  const Eigen::Vector3d xi = fem::reference_centroid(mesh_.type);
+  for (std::size_t i = 0; i < elements_.size(); ++i) {
+    const PetscInt e = elements_[i];
+    const fem::StressMatrix S =
+        fem::element_stress_matrix(mesh_.type, mesh_.element_coordinates(e), material_, xi);
+    sigma_[i] = S * fem::gather_element(mesh_, e, ua);
+    solid_[i] = fem::von_mises(sigma_[i]);
+    const double s = eta[static_cast<std::size_t>(e)] * solid_[i];
+    relaxed_[static_cast<std::size_t>(e)] = s;
+    aggregate_.add(s, 1.0, static_cast<long long>(mesh_.element_tags[static_cast<std::size_t>(e)]),
+                   -1.0);
+  }
+  FX_PETSC(VecRestoreArrayRead(ul, &ua));
+  FX_PETSC(VecGhostRestoreLocalForm(u, &ul));
+  aggregate_.reduce(mesh_.comm);
+  return scale_ * aggregate_.value();
+}
+
+void StaticStress::adjoint_load(const std::vector<double> &eta, Vec rhs) const {
+  FX_PETSC(VecZeroEntries(rhs));
+  Vec rl;
+  PetscScalar *ra;
+  FX_PETSC(VecGhostGetLocalForm(rhs, &rl));
+  FX_PETSC(VecZeroEntries(rl));
+  FX_PETSC(VecGetArray(rl, &ra));
+  const Eigen::Vector3d xi = fem::reference_centroid(mesh_.type);
+  const int npe = mesh_.nodes_per_element();
+  for (std::size_t i = 0; i < elements_.size(); ++i) {
+    const PetscInt e = elements_[i];
+    const double eta_e = eta[static_cast<std::size_t>(e)];
+    const double g = scale_ * aggregate_.derivative(eta_e * solid_[i], 1.0) * eta_e;
+    if (g == 0.0) continue;
+    const fem::StressMatrix S =
+        fem::element_stress_matrix(mesh_.type, mesh_.element_coordinates(e), material_, xi);
+    const fem::ElementVector f = S.transpose() * (g * fem::von_mises_gradient(sigma_[i]));
+    for (int a = 0; a < npe; ++a) {
+      const PetscInt n = mesh_.connectivity[static_cast<std::size_t>(e * npe + a)];
+      for (int k = 0; k < 3; ++k) ra[3 * n + k] += f(3 * a + k);
+    }
+  }
+  FX_PETSC(VecRestoreArray(rl, &ra));
+  FX_PETSC(VecGhostRestoreLocalForm(rhs, &rl));
+  // Ghost entries carry this rank's share of other ranks' nodes: add them to their owners.
+  FX_PETSC(VecGhostUpdateBegin(rhs, ADD_VALUES, SCATTER_REVERSE));
+  FX_PETSC(VecGhostUpdateEnd(rhs, ADD_VALUES, SCATTER_REVERSE));
+}
+
+void StaticStress::add_explicit(const std::vector<double> &deta, double *g) const {
+  for (std::size_t i = 0; i < elements_.size(); ++i) {
+    const auto e = static_cast<std::size_t>(elements_[i]);
+    if (deta[e] == 0.0) continue;
+    g[e] += scale_ * aggregate_.derivative(relaxed_[e], 1.0) * deta[e] * solid_[i];
+  }
+}
+
+void StaticStress::end_iteration() {
+  // Le et al. (2010), eq. 19, alpha = 1/2: c <- alpha M / R + (1 - alpha) c.
+  if (r_.adaptive && aggregate_.value() > 0)
+    scale_ = 0.5 * aggregate_.peak() / aggregate_.value() + 0.5 * scale_;
+}
+
+io::Json StaticStress::describe(const std::string &name) const {
+  io::Json j = io::Json::object();
+  j["response"] = name;
+  j["aggregate"] = r_.aggregate.type == StressAggregateType::Ks ? "ks" : "pnorm";
+  j["value"] = scale_ * aggregate_.value();
+  j["unscaled_value"] = aggregate_.value();
+  j["scale"] = scale_;
+  j["peak"] = aggregate_.peak();
+  j["peak_element"] = aggregate_.peak_tag();
+  if (r_.has_max) {
+    j["max"] = r_.max;
+    j["peak_over_max"] = aggregate_.peak() / r_.max;
+  }
+  return j;
+}
+
+} // namespace flexopt::optimize
