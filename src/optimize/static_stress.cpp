@@ -86,6 +86,12 @@ void StaticStress::add_explicit(const std::vector<double> &deta, double *g) cons
   }
 }
 
+long long StaticStress::global_elements() const {
+  long long n = static_cast<long long>(elements_.size()), total = 0;
+  MPI_Allreduce(&n, &total, 1, MPI_LONG_LONG, MPI_SUM, mesh_.comm);
+  return total;
+}
+
 void StaticStress::end_iteration() {
   // Le et al. (2010), eq. 19, alpha = 1/2: c <- alpha M / R + (1 - alpha) c.
   if (r_.adaptive && aggregate_.value() > 0)

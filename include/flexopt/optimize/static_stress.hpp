@@ -32,6 +32,10 @@ public:
   /// Adaptive normalization: c from the last evaluation, for the next (no-op without it).
   void end_iteration();
   double scale() const { return scale_; }
+  /// The last evaluation's aggregate R (unscaled), peak and its place.
+  const StressAggregate &aggregate() const { return aggregate_; }
+  /// The elements the aggregate takes, over all ranks. Collective.
+  long long global_elements() const;
   void set_scale(double c) { scale_ = c; }
   /// {"response", "aggregate", "peak", "element", "scale"} of the last evaluation.
   io::Json describe(const std::string &name) const;

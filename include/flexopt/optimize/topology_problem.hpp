@@ -70,6 +70,8 @@ public:
   const mesh::DistributedMesh &mesh() const override { return static_->mesh(); }
   fem::StaticProblem &static_problem() { return *static_; }
   int state_solves() const { return solves_; }
+  /// Response i's stress (null unless it is a stress response).
+  const StaticStress *stress_response(std::size_t i) const { return stress_[i].get(); }
 
 private:
   TopologyProblem() = default;
