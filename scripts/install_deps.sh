@@ -12,6 +12,7 @@ PACKAGES=(
   libmetis-dev
   libopenblas0-serial # optimized BLAS/LAPACK for MUMPS, ScaLAPACK and LAPACK (replaces the
                       # reference BLAS through Debian's alternatives; 3x faster ACF steps)
+  libblas-dev         # the BLAS link library (core/dense_blas.hpp's dgemm; OpenBLAS at run time)
   libhdf5-openmpi-dev
   gmsh libgmsh-dev
   libeigen3-dev

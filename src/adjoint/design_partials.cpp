@@ -60,6 +60,20 @@ bodies::FfrfModel unpack(const Vector &v, int n, bool stiffening) {
   return m;
 }
 
+/// c.basis as n zero vectors of the basis's layout (owned: destroyed by the caller), unless it
+/// holds them already (a response with several basis cotangents adds them up).
+void zero_basis_cotangent(const reduce::FlexibleReduction &r, int n, reduce::ReductionCotangent &c,
+                          std::vector<Vec> &owned) {
+  if (!c.basis.empty()) return;
+  for (int k = 0; k < n; ++k) {
+    Vec v;
+    FX_PETSC(VecDuplicate(r.basis.front(), &v));
+    FX_PETSC(VecZeroEntries(v));
+    c.basis.push_back(v);
+    owned.push_back(v);
+  }
+}
+
 } // namespace
 
 int DynamicProblem::design_parameters() const {
@@ -167,14 +181,7 @@ void DynamicProblem::add_initial_field_cotangent(std::size_t i, int n, const Sta
     const Vector &zeta = rate ? dsb.elastic_rate0 : dsb.elastic0;
     if (zeta.size() == 0) continue;
     const Vector zbar = (rate ? start.v.col(col) : qbar).segment(o + 7, n);
-    if (c.basis.empty())
-      for (int k = 0; k < n; ++k) {
-        Vec v;
-        FX_PETSC(VecDuplicate(reduction_->basis.front(), &v));
-        FX_PETSC(VecZeroEntries(v));
-        c.basis.push_back(v);
-        owned.push_back(v);
-      }
+    zero_basis_cotangent(*reduction_, n, c, owned);
     reduce::project_field_adjoint(m, density, *reduction_,
                                   dynamics::initial_elastic_field(spec, rate), zeta, zbar, c.basis,
                                   projection_w);
@@ -211,6 +218,14 @@ void DynamicProblem::add_ffrf_element_gradients(const Matrix &G, const StartAdjo
     c.invariants = bar.invariants;
     c.geometric = bar.geometric;
     if (sensor_on_design_[i] && n > 0 && add_sensor_cotangent(i, n, c, owned)) used = true;
+    if (stress_[i] && stress_case_body_[i] == design_body_ && n > 0 &&
+        basis_ == reduce::BasisDerivative::Exact) {
+      // The stress shapes' cotangent into the basis vectors' (section 10.3), added to a
+      // sensor's if the response has both.
+      zero_basis_cotangent(*reduction_, n, c, owned);
+      stress_[i]->add_basis_cotangent(c.basis);
+      used = true;
+    }
     if (start.q.size() > 0 && n > 0) {
       add_initial_field_cotangent(i, n, start, c, owned, projection_w[i]);
       used = true;

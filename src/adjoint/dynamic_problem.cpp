@@ -5,6 +5,7 @@
 #include "flexopt/core/log.hpp"
 #include "flexopt/core/memory.hpp"
 #include "flexopt/io/xdmf.hpp"
+#include "flexopt/optimize/static_stress.hpp"
 #include "passes.hpp"
 
 #include <algorithm>
@@ -181,6 +182,7 @@ void DynamicProblem::bind_responses(dynamics::BodyModel model) {
           if (settings_.scene.bodies[b].name == r->body)
             strain_body_.back() = scene_.bodies[b].mechanism;
     }
+    bind_stress(*r);
     if (sensor >= 0 && model == BodyModel::Acf) {
       const dynamics::BoundSensor &s = scene_.sensors[static_cast<std::size_t>(sensor)];
       if (s.acf_body >= 0 && s.quantity == dynamics::SensorQuantity::ElasticDisplacement)
@@ -190,6 +192,45 @@ void DynamicProblem::bind_responses(dynamics::BodyModel model) {
                     true);
     }
   }
+}
+
+void DynamicProblem::bind_stress(const optimize::ResponseSettings &r) {
+  using dynamics::BodyModel;
+  stress_.push_back(nullptr);
+  stress_body_.push_back(-1);
+  stress_case_body_.push_back(-1);
+  if (r.type != optimize::ResponseType::Stress) return;
+  std::size_t b = 0;
+  while (settings_.scene.bodies[b].name != r.body) ++b;
+  const dynamics::BodyDescription &body = settings_.scene.bodies[b];
+  const BodyModel bm = dynamics::simulated_model(body.model);
+  // `model: auto` resolved to rigid reaches here; an explicit rigid body is refused when read.
+  if (bm == BodyModel::Rigid)
+    throw Error(r.where.str() + ": stress of body '" + r.body +
+                    "': a rigid body has no stress (the plan made it rigid: give it model: ffrf "
+                    "or model: acf)",
+                true);
+  if (bm == BodyModel::Acf || !scene_.acf.empty())
+    throw Error(r.where.str() + ": stress of body '" + r.body +
+                    "': stress responses of ACF bodies, and of FFRF bodies in scenes with ACF "
+                    "bodies, are not built yet (FFRF bodies in scenes of rigid and FFRF bodies)",
+                true);
+  stress_.back() = std::make_unique<FfrfStress>(r, scene_.meshes[b], body.material);
+  stress_body_.back() = scene_.bodies[b].mechanism;
+  stress_case_body_.back() = static_cast<int>(b);
+  stress_.back()->set_basis(scene_.bodies[b].reduction->basis);
+}
+
+void DynamicProblem::end_iteration() {
+  optimize::end_iterations(stress_);
+}
+
+std::vector<double> DynamicProblem::response_scales() const {
+  return optimize::scales_of(stress_);
+}
+
+void DynamicProblem::restore_response_scales(const std::vector<double> &scales) {
+  optimize::restore_scales(stress_, scales);
 }
 
 DynamicProblem::~DynamicProblem() {
@@ -235,6 +276,9 @@ void DynamicProblem::apply_design(Vec x) {
                                     static_cast<std::size_t>(design_body_), reduced_factors_);
       reduction_s_ = wall_time() - t0;
       ev_.reduction_s = reduction_s_;
+      for (std::size_t i = 0; i < stress_.size(); ++i)
+        if (stress_[i] && stress_case_body_[i] == design_body_)
+          stress_[i]->set_basis(reduction_->basis);
     }
   } else {
     set_rigid_design();
@@ -440,6 +484,23 @@ void DynamicProblem::describe(io::Json &s) const {
         settings_.adjoint.basis == reduce::BasisDerivative::Fixed ? "fixed" : "exact";
   }
   s["checkpoint_bytes"] = checkpoint_bytes_;
+  const io::Json stress = stress_json();
+  if (!stress.is_null()) s["stress"] = stress;
+}
+
+io::Json DynamicProblem::stress_json() const {
+  return optimize::describe_stress(stress_, names_);
+}
+
+std::vector<DynamicProblem::StressSummary> DynamicProblem::stress_summaries() const {
+  std::vector<StressSummary> out;
+  for (std::size_t i = 0; i < stress_.size(); ++i)
+    if (stress_[i]) {
+      const optimize::StressAggregate &a = stress_[i]->aggregate();
+      out.push_back({i == 0 ? "objective" : "constraint" + std::to_string(i - 1), specs_[i]->body,
+                     a.peak(), a.peak_tag(), a.peak_time()});
+    }
+  return out;
 }
 
 } // namespace flexopt::adjoint

@@ -98,6 +98,9 @@ private:
   /// The responses' samples at state s (sensor values, the FFRF strain energies' trapezoidal
   /// sums and, for the design body, sum_n w_n 1/2 zeta_n zeta_n^T; the sensor frames on it).
   void sample(const dynamics::State &s);
+  /// The stress responses' aggregates after the forward run (and, with gradients, their
+  /// adjoint pieces and the relaxation's explicit element gradient).
+  void finish_stress();
   /// (dPsi/ds)^T at main step j with state `state` (empty if zero), one column per response.
   Matrix state_partials(long long j, const dynamics::State &state) const;
   /// Main step j recomputed from the record of step j - 1 along the forward run's substeps.

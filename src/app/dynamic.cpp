@@ -399,6 +399,12 @@ void MotionRun::run_design(adjoint::DynamicProblem &design, Vec x, bool gradient
     print0(ctx_.comm(), "response %-12s %-28s %.10g\n", key.c_str(), names[i].c_str(), v);
   }
   s_["responses"] = responses;
+  const io::Json stress = design.stress_json();
+  if (!stress.is_null()) s_["stress"] = stress;
+  for (const adjoint::DynamicProblem::StressSummary &st : design.stress_summaries())
+    print0(ctx_.comm(),
+           "response %-12s stress of body %s: peak %.6g Pa at element %lld, t = %.6g s\n",
+           st.key.c_str(), st.body.c_str(), st.peak, st.element, st.time);
   io::Json rn = io::Json::array();
   for (const auto &n : names) rn.push_back(n);
   s_["response_names"] = rn;

@@ -713,6 +713,15 @@ ElementVector gather_element(const mesh::DistributedMesh &mesh, PetscInt e,
   return ue;
 }
 
+void add_element(const mesh::DistributedMesh &mesh, PetscInt e, const double *f,
+                 PetscScalar *local) {
+  const int npe = mesh.nodes_per_element();
+  for (int a = 0; a < npe; ++a) {
+    const PetscInt n = mesh.connectivity[static_cast<std::size_t>(e * npe + a)];
+    for (int k = 0; k < 3; ++k) local[3 * n + k] += f[3 * a + k];
+  }
+}
+
 std::vector<double> element_von_mises(const mesh::DistributedMesh &mesh,
                                       const IsotropicMaterial &material,
                                       const std::vector<double> &modulus_factor, Vec u_ghosted) {

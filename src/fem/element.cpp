@@ -260,6 +260,23 @@ ElementVector element_body_force(ElementType type, const ElementCoords &X,
   return f;
 }
 
+namespace {
+/// dN_a/dx at reference point xi, one row per node; throws naming `who` if det J <= 0 there.
+ElementCoords physical_gradients(ElementType type, const ElementCoords &X,
+                                 const Eigen::Vector3d &xi, const char *who) {
+  const int n = nodes_per_element(type);
+  double dN[kMaxNodes * 3];
+  shape_functions(type, xi, nullptr, dN);
+  const Eigen::Matrix3d J = jacobian(X, dN);
+  const double det = J.determinant();
+  if (!(det > 0.0)) throw_degenerate(who, type, X, det, 0.0);
+  const Eigen::Matrix3d Jinv = J.inverse();
+  ElementCoords g(n, 3);
+  for (int a = 0; a < n; ++a) g.row(a) = Eigen::Map<const Eigen::RowVector3d>(&dN[a * 3]) * Jinv;
+  return g;
+}
+} // namespace
+
 Eigen::Matrix3d displacement_gradient(ElementType type, const ElementCoords &X,
                                       const ElementVector &u_e, const Eigen::Vector3d &xi,
                                       const char *who) {
@@ -268,18 +285,10 @@ Eigen::Matrix3d displacement_gradient(ElementType type, const ElementCoords &X,
   if (u_e.size() != 3 * n)
     throw Error(std::string(who) + ": " + element_name(type) + " needs " + std::to_string(3 * n) +
                 " displacement entries, got " + std::to_string(u_e.size()));
-  double dN[kMaxNodes * 3];
-  shape_functions(type, xi, nullptr, dN);
-  const Eigen::Matrix3d J = jacobian(X, dN);
-  const double det = J.determinant();
-  if (!(det > 0.0)) throw_degenerate(who, type, X, det, 0.0);
-  const Eigen::Matrix3d Jinv = J.inverse();
+  const ElementCoords g = physical_gradients(type, X, xi, who);
   // H(i,j) = du_i/dx_j = sum_a u_(a,i) dN_a/dx_j.
   Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
-  for (int a = 0; a < n; ++a) {
-    const Eigen::RowVector3d g = Eigen::Map<const Eigen::RowVector3d>(&dN[a * 3]) * Jinv; // dN_a/dx
-    H += u_e.segment<3>(3 * a) * g;
-  }
+  for (int a = 0; a < n; ++a) H += u_e.segment<3>(3 * a) * g.row(a);
   return H;
 }
 
@@ -304,20 +313,16 @@ StressMatrix element_stress_matrix(ElementType type, const ElementCoords &X,
   check_coords(type, X, who);
   mat.validate();
   const int n = nodes_per_element(type);
-  double dN[kMaxNodes * 3];
-  shape_functions(type, xi, nullptr, dN);
-  const Eigen::Matrix3d J = jacobian(X, dN);
-  const double det = J.determinant();
-  if (!(det > 0.0)) throw_degenerate(who, type, X, det, 0.0);
-  const Eigen::Matrix3d Jinv = J.inverse();
+  const ElementCoords grad = physical_gradients(type, X, xi, who);
   const double lambda = mat.lambda(), mu = mat.mu();
   StressMatrix S = StressMatrix::Zero(6, 3 * n);
   for (int a = 0; a < n; ++a) {
-    const Eigen::RowVector3d g = Eigen::Map<const Eigen::RowVector3d>(&dN[a * 3]) * Jinv;
+    const Eigen::RowVector3d g = grad.row(a);
     // Normal rows: sigma_ii = lambda tr(H) + 2 mu H_ii; shear rows mu (H_ij + H_ji), Voigt
     // order yz, xz, xy (section 3).
     for (int k = 0; k < 3; ++k) {
-      for (int i = 0; i < 3; ++i) S(i, 3 * a + k) = lambda * g(k) + (i == k ? 2.0 * mu * g(k) : 0.0);
+      for (int i = 0; i < 3; ++i)
+        S(i, 3 * a + k) = lambda * g(k) + (i == k ? 2.0 * mu * g(k) : 0.0);
     }
     S(3, 3 * a + 1) = mu * g(2);
     S(3, 3 * a + 2) = mu * g(1);

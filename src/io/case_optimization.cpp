@@ -128,9 +128,11 @@ void read_stress(const Reader &r, const YAML::Node &v, const std::string &path, 
       r.fail(v["body"], path + ".body: '" + s.body +
                             "' is a rigid body, which has no stress: a stress response needs an "
                             "FFRF or ACF body (model: ffrf or acf)");
-  if (c.dynamic())
-    r.fail(v["type"], path + ".type: stress responses of a dynamic analysis are not available "
-                             "yet (issue 43: static analyses only so far)");
+  for (const dynamics::BodyDescription &b : c.scene.bodies)
+    if (b.name == s.body && c.dynamic() && b.model == BodyModel::Acf)
+      r.fail(v["body"], path + ".body: '" + s.body +
+                            "' is an ACF body, whose stress responses are not built yet (FFRF "
+                            "bodies' are: model: ffrf)");
   optimize::StressAggregateSettings &a = s.aggregate;
   if (v["aggregate"])
     a.type = r.enumerated(v["aggregate"], path + ".aggregate",
@@ -146,7 +148,8 @@ void read_stress(const Reader &r, const YAML::Node &v, const std::string &path, 
   if (v["ks"]) {
     if (!ks) r.fail(v["ks"], path + ".ks: the KS parameter; it needs aggregate: ks");
     a.ks = r.number(v["ks"], path + ".ks");
-    if (!(a.ks > 0 && a.ks <= 1e4)) r.fail(v["ks"], path + ".ks: must lie in (0, 1e4] (20 is usual)");
+    if (!(a.ks > 0 && a.ks <= 1e4))
+      r.fail(v["ks"], path + ".ks: must lie in (0, 1e4] (20 is usual)");
   }
   if (v["normalization"])
     s.adaptive = r.enumerated(v["normalization"], path + ".normalization",
@@ -163,15 +166,34 @@ void read_stress(const Reader &r, const YAML::Node &v, const std::string &path, 
   if (v["region"]) s.region = r.string(v["region"], path + ".region");
 }
 
+/// A constraint's bound `max` into s (the objective takes none), checked for the response's type;
+/// a KS stress constraint's reference stress is its bound unless given.
+void read_bound(const Reader &r, const YAML::Node &v, const std::string &path, bool constraint,
+                optimize::ResponseSettings &s) {
+  using optimize::ResponseType;
+  if (!constraint) {
+    if (v["max"]) r.fail(v["max"], path + ".max: the objective takes no bound");
+    return;
+  }
+  s.max = r.number(r.require(v, "max", path), path + ".max");
+  s.has_max = true;
+  if (s.type == ResponseType::VolumeFraction && !(s.max > 0 && s.max < 1))
+    r.fail(v["max"], path + ".max: a volume fraction bound must lie in (0, 1)");
+  if (s.type == ResponseType::Mass && !(s.max > 0))
+    r.fail(v["max"], path + ".max: a mass bound must be positive [kg]");
+  if (s.type == ResponseType::Stress && !(s.max > 0 && std::isfinite(s.max)))
+    r.fail(v["max"], path + ".max: a stress limit must be a positive number [Pa]");
+  if (s.type == ResponseType::Stress && s.aggregate.reference == 0) s.aggregate.reference = s.max;
+}
+
 /// The objective or a constraint (`constraint`: with its bound `max`) at `path`.
 optimize::ResponseSettings read_response(const Reader &r, const YAML::Node &v,
                                          const std::string &path, bool constraint, const Case &c) {
   using optimize::ResponseType;
   r.require_map(v, path);
-  r.check_keys(
-      v, path,
-      {"type", "sensor", "direction", "body", "target", "component", "measure", "ks", "max",
-       "aggregate", "p", "normalization", "reference", "region"});
+  r.check_keys(v, path,
+               {"type", "sensor", "direction", "body", "target", "component", "measure", "ks",
+                "max", "aggregate", "p", "normalization", "reference", "region"});
   optimize::ResponseSettings s;
   s.where = r.where(v);
   const bool dynamic = c.dynamic();
@@ -186,8 +208,7 @@ optimize::ResponseSettings read_response(const Reader &r, const YAML::Node &v,
                          {"stress", ResponseType::Stress}});
   const std::string type = optimize::response_type_name(s.type);
   const bool dynamic_only = s.type == ResponseType::StrainEnergyIntegral ||
-                            s.type == ResponseType::TrackingError ||
-                            s.type == ResponseType::Sensor;
+                            s.type == ResponseType::TrackingError || s.type == ResponseType::Sensor;
   if (!dynamic && dynamic_only)
     r.fail(v["type"], path + ".type: '" + type + "' is a response of a dynamic analysis");
   if (dynamic && (s.type == ResponseType::Compliance || s.type == ResponseType::Displacement))
@@ -275,19 +296,7 @@ optimize::ResponseSettings read_response(const Reader &r, const YAML::Node &v,
     if (!has_body(c, s.body)) r.fail(v["body"], path + ".body: no body named '" + s.body + "'");
   }
   if (s.type == ResponseType::Stress) read_stress(r, v, path, constraint, c, s);
-  if (constraint) {
-    s.max = r.number(r.require(v, "max", path), path + ".max");
-    s.has_max = true;
-    if (s.type == ResponseType::VolumeFraction && !(s.max > 0 && s.max < 1))
-      r.fail(v["max"], path + ".max: a volume fraction bound must lie in (0, 1)");
-    if (s.type == ResponseType::Mass && !(s.max > 0))
-      r.fail(v["max"], path + ".max: a mass bound must be positive [kg]");
-    if (s.type == ResponseType::Stress && !(s.max > 0 && std::isfinite(s.max)))
-      r.fail(v["max"], path + ".max: a stress limit must be a positive number [Pa]");
-    if (s.type == ResponseType::Stress && s.aggregate.reference == 0) s.aggregate.reference = s.max;
-  } else if (v["max"]) {
-    r.fail(v["max"], path + ".max: the objective takes no bound");
-  }
+  read_bound(r, v, path, constraint, s);
   return s;
 }
 

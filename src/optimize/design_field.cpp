@@ -224,10 +224,16 @@ void DesignField::stiffness_factors(std::vector<double> &s, std::vector<double> 
               });
 }
 
+double DesignField::default_stress_exponent(double penalty) {
+  return std::max(penalty - 1.5, 0.5 * penalty);
+}
+
 void DesignField::stress_factors(std::vector<double> &eta, std::vector<double> &deta) const {
   // qp-relaxation (docs/theory.md 5.1): eta = ((rho + d)^q - d^q) / ((1 + d)^q - d^q), the
   // shift d keeping eta' finite at rho = 0.
-  const double q = spec_.stress_exponent, d = kStressShift;
+  const double q =
+      spec_.stress_exponent > 0 ? spec_.stress_exponent : default_stress_exponent(spec_.penalty);
+  const double d = kStressShift;
   const double d_q = std::pow(d, q), scale = 1.0 / (std::pow(1.0 + d, q) - d_q);
   interpolate(*this, physical_, eta, deta, mesh_.local_elements(),
               [&](double r, double &f, double &df) {

@@ -376,8 +376,10 @@ void OptimizationRun::carry_design_frames(int done) {
   run_on_root(comm_, 0, [&] { from_interrupted = fs::is_regular_file(interrupted) ? 1 : 0; });
   MPI_Bcast(&from_interrupted, 1, MPI_INT, 0, comm_);
   const fs::path source = from_interrupted ? interrupted : dir / "design.h5";
-  const io::XdmfWriter::Copied got = writer_->copy_steps(
-      source.string(), done, {"density", "filtered_density", "physical_density"}, fingerprint_);
+  std::vector<std::string> names{"density", "filtered_density", "physical_density"};
+  for (const std::string &n : problem_->cell_field_names()) names.push_back(n);
+  const io::XdmfWriter::Copied got =
+      writer_->copy_steps(source.string(), done, names, fingerprint_);
   // The last frame due before `done` at this run's stride.
   const int stride = result_.output_stride, due = done > 0 ? (done - 1) / stride * stride : -1;
   if (got.steps > 0)

@@ -7,20 +7,26 @@
 
 namespace flexopt::optimize {
 
+std::vector<PetscInt> stress_elements(const mesh::DistributedMesh &mesh,
+                                      const ResponseSettings &r) {
+  std::vector<PetscInt> elements;
+  if (r.region.empty()) {
+    elements.resize(static_cast<std::size_t>(mesh.local_elements()));
+    std::iota(elements.begin(), elements.end(), PetscInt{0});
+    return elements;
+  }
+  elements = mesh.volume_group(r.region, r.where.str() + ": stress region");
+  long long n = static_cast<long long>(elements.size()), total = 0;
+  MPI_Allreduce(&n, &total, 1, MPI_LONG_LONG, MPI_SUM, mesh.comm);
+  if (total == 0)
+    throw Error(r.where.str() + ": stress region '" + r.region + "' has no elements", true);
+  return elements;
+}
+
 StaticStress::StaticStress(const mesh::DistributedMesh &mesh,
                            const fem::IsotropicMaterial &material, const ResponseSettings &r)
-    : mesh_(mesh), material_(material), r_(r), aggregate_(r.aggregate) {
-  if (r.region.empty()) {
-    elements_.resize(static_cast<std::size_t>(mesh.local_elements()));
-    std::iota(elements_.begin(), elements_.end(), PetscInt{0});
-  } else {
-    elements_ = mesh.volume_group(r.region, r.where.str() + ": stress region");
-    long long n = static_cast<long long>(elements_.size()), total = 0;
-    MPI_Allreduce(&n, &total, 1, MPI_LONG_LONG, MPI_SUM, mesh.comm);
-    if (total == 0)
-      throw Error(r.where.str() + ": stress region '" + r.region + "' has no elements", true);
-  }
-}
+    : mesh_(mesh), material_(material), r_(r), elements_(stress_elements(mesh, r)),
+      aggregate_(r.aggregate) {}
 
 double StaticStress::evaluate(Vec u, const std::vector<double> &eta) {
   aggregate_.clear();
@@ -50,32 +56,19 @@ double StaticStress::evaluate(Vec u, const std::vector<double> &eta) {
 }
 
 void StaticStress::adjoint_load(const std::vector<double> &eta, Vec rhs) const {
-  FX_PETSC(VecZeroEntries(rhs));
-  Vec rl;
-  PetscScalar *ra;
-  FX_PETSC(VecGhostGetLocalForm(rhs, &rl));
-  FX_PETSC(VecZeroEntries(rl));
-  FX_PETSC(VecGetArray(rl, &ra));
   const Eigen::Vector3d xi = fem::reference_centroid(mesh_.type);
-  const int npe = mesh_.nodes_per_element();
-  for (std::size_t i = 0; i < elements_.size(); ++i) {
-    const PetscInt e = elements_[i];
-    const double eta_e = eta[static_cast<std::size_t>(e)];
-    const double g = scale_ * aggregate_.derivative(eta_e * solid_[i], 1.0) * eta_e;
-    if (g == 0.0) continue;
-    const fem::StressMatrix S =
-        fem::element_stress_matrix(mesh_.type, mesh_.element_coordinates(e), material_, xi);
-    const fem::ElementVector f = S.transpose() * (g * fem::von_mises_gradient(sigma_[i]));
-    for (int a = 0; a < npe; ++a) {
-      const PetscInt n = mesh_.connectivity[static_cast<std::size_t>(e * npe + a)];
-      for (int k = 0; k < 3; ++k) ra[3 * n + k] += f(3 * a + k);
+  fem::assemble_ghosted(rhs, [&](PetscScalar *ra) {
+    for (std::size_t i = 0; i < elements_.size(); ++i) {
+      const PetscInt e = elements_[i];
+      const double eta_e = eta[static_cast<std::size_t>(e)];
+      const double g = scale_ * aggregate_.derivative(eta_e * solid_[i], 1.0) * eta_e;
+      if (g == 0.0) continue;
+      const fem::StressMatrix S =
+          fem::element_stress_matrix(mesh_.type, mesh_.element_coordinates(e), material_, xi);
+      const fem::ElementVector f = S.transpose() * (g * fem::von_mises_gradient(sigma_[i]));
+      fem::add_element(mesh_, e, f.data(), ra);
     }
-  }
-  FX_PETSC(VecRestoreArray(rl, &ra));
-  FX_PETSC(VecGhostRestoreLocalForm(rhs, &rl));
-  // Ghost entries carry this rank's share of other ranks' nodes: add them to their owners.
-  FX_PETSC(VecGhostUpdateBegin(rhs, ADD_VALUES, SCATTER_REVERSE));
-  FX_PETSC(VecGhostUpdateEnd(rhs, ADD_VALUES, SCATTER_REVERSE));
+  });
 }
 
 void StaticStress::add_explicit(const std::vector<double> &deta, double *g) const {
@@ -94,8 +87,7 @@ long long StaticStress::global_elements() const {
 
 void StaticStress::end_iteration() {
   // Le et al. (2010), eq. 19, alpha = 1/2: c <- alpha M / R + (1 - alpha) c.
-  if (r_.adaptive && aggregate_.value() > 0)
-    scale_ = 0.5 * aggregate_.peak() / aggregate_.value() + 0.5 * scale_;
+  if (r_.adaptive) scale_ = next_scale(scale_, aggregate_);
 }
 
 io::Json StaticStress::describe(const std::string &name) const {

@@ -144,27 +144,27 @@ void TopologyProblem::restore_solver_state(
 }
 
 void TopologyProblem::end_iteration() {
-  for (const auto &s : stress_)
-    if (s) s->end_iteration();
+  end_iterations(stress_);
 }
 
 std::vector<double> TopologyProblem::response_scales() const {
-  std::vector<double> c;
-  for (const auto &s : stress_)
-    if (s) c.push_back(s->scale());
-  return c;
+  return scales_of(stress_);
 }
 
 void TopologyProblem::restore_response_scales(const std::vector<double> &scales) {
-  std::size_t k = 0;
+  restore_scales(stress_, scales);
+}
+
+std::vector<std::string> TopologyProblem::cell_field_names() const {
   for (const auto &s : stress_)
-    if (s && k < scales.size()) s->set_scale(scales[k++]);
+    if (s) return {"von_mises"};
+  return {};
 }
 
 std::vector<std::pair<std::string, std::vector<double>>> TopologyProblem::cell_fields() const {
   if (eta_.empty()) return {};
-  return {{"von_mises", fem::element_von_mises(mesh(), static_->material(), eta_,
-                                               static_->displacement())}};
+  return {{"von_mises",
+           fem::element_von_mises(mesh(), static_->material(), eta_, static_->displacement())}};
 }
 
 void TopologyProblem::assemble_stiffness() {
@@ -197,20 +197,15 @@ void TopologyProblem::describe(io::Json &s) const {
   s["design_variables"] = static_cast<long long>(design_size());
   s["state_solves"] = solves_;
   s["krylov_iterations"] = krylov_;
-  io::Json stress = io::Json::array();
-  bool any = false;
-  for (std::size_t i = 0; i < stress_.size(); ++i)
-    if (stress_[i]) {
-      stress.push_back(stress_[i]->describe(names_[i]));
-      any = true;
-    }
-  if (any) s["stress"] = stress;
+  const io::Json stress = describe_stress(stress_, names_);
+  if (!stress.is_null()) s["stress"] = stress;
 }
 
 double TopologyProblem::response_value(const ResponseSettings &r, std::size_t index) {
   if (r.type == ResponseType::Compliance) return static_->compliance();
   if (r.type == ResponseType::VolumeFraction) return field_->volume_fraction();
-  if (r.type == ResponseType::Stress) return stress_[index]->evaluate(static_->displacement(), eta_);
+  if (r.type == ResponseType::Stress)
+    return stress_[index]->evaluate(static_->displacement(), eta_);
   if (r.type == ResponseType::Mass) return mass();
   // displacement: d . u(sensor point), at the location found once in create()
   const auto u = fem::probe_vector(mesh(), static_->displacement(), sensor_locations_[index]);

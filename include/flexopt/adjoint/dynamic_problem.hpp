@@ -6,6 +6,7 @@
 /// time grid, and runs the backward sweep with the design partials and the adjoint of the
 /// consistent initial state.
 #include "flexopt/adjoint/checkpoints.hpp"
+#include "flexopt/adjoint/ffrf_stress.hpp"
 #include "flexopt/adjoint/step_adjoint.hpp"
 #include "flexopt/bodies/ffrf_body.hpp"
 #include "flexopt/bodies/rigid_body.hpp"
@@ -158,6 +159,21 @@ public:
   int fd_levels() const override { return ffrf_design_ ? 6 : 1; }
   /// The mechanism's coordinates and the ACF bodies' node coordinates.
   long long dofs() const override;
+  /// The stress responses of the last evaluation: per response its key ("objective",
+  /// "constraint0", ...), body, true peak [Pa], its element's Gmsh tag and time [s].
+  struct StressSummary {
+    std::string key, body;
+    double peak = 0;
+    long long element = -1;
+    double time = 0;
+  };
+  std::vector<StressSummary> stress_summaries() const;
+  /// The same as summary.json's "stress" (FfrfStress::describe per stress response), or null.
+  io::Json stress_json() const;
+  /// The stress responses' adaptive normalization (docs/theory.md 5.1).
+  void end_iteration() override;
+  std::vector<double> response_scales() const override;
+  void restore_response_scales(const std::vector<double> &scales) override;
   /// forward, adjoint (the backward sweep and the initial state's adjoint) and, with an FFRF
   /// design body, reduction (0 when the design's factors did not change) and reduction_adjoint.
   std::vector<optimize::Timing> timings() const override;
@@ -190,6 +206,9 @@ private:
   /// The responses' names, sensors, strain-energy bodies and the sensors on the design body;
   /// refuses responses the design body's `model` cannot serve (collective errors).
   void bind_responses(dynamics::BodyModel model);
+  /// Response r's stress on an FFRF body (none for other types): refused on a rigid or ACF
+  /// body and in scenes with ACF bodies, with its location.
+  void bind_stress(const optimize::ResponseSettings &r);
   /// The rigid design body's mass parameters theta from the mass factors, the body replaced.
   void set_rigid_design();
   /// After a forward run of `seconds`: the run's figures and the response values into `out`
@@ -267,6 +286,10 @@ private:
   std::vector<char> sensor_on_design_;
   /// Per response: the FFRF body (mechanism index) whose strain energy it integrates, or -1.
   std::vector<int> strain_body_;
+  /// Per response: a stress response on an FFRF body (null: none) and that body's index in the
+  /// mechanism and in the case (docs/theory.md 10.3).
+  std::vector<std::unique_ptr<FfrfStress>> stress_;
+  std::vector<int> stress_body_, stress_case_body_;
   bool filter_limited_ = false; ///< the user's options loosen the filter's solves
   // Figures over the run (describe, timings).
   long long evaluations_ = 0;

@@ -195,5 +195,25 @@ Eigen::MatrixXd project_stiffness(const mesh::DistributedMesh &mesh,
 /// Displacement of local element e from the local form of a ghosted vector.
 ElementVector gather_element(const mesh::DistributedMesh &mesh, PetscInt e,
                              const PetscScalar *u_local);
+/// Adds the element vector f (3 nodes_per_element entries, node-major) of local element e into
+/// the local form of a ghosted vector (the transpose of gather_element).
+void add_element(const mesh::DistributedMesh &mesh, PetscInt e, const double *f,
+                 PetscScalar *local);
+/// Sets the ghosted vector v to the sum over the ranks of what `fill(local)` adds into its
+/// zeroed local form (owned and ghost entries: the ghosts' shares go to their owners).
+/// Collective.
+template <class Fill> void assemble_ghosted(Vec v, Fill &&fill) {
+  Vec local;
+  PetscScalar *a;
+  FX_PETSC(VecZeroEntries(v));
+  FX_PETSC(VecGhostGetLocalForm(v, &local));
+  FX_PETSC(VecZeroEntries(local));
+  FX_PETSC(VecGetArray(local, &a));
+  fill(a);
+  FX_PETSC(VecRestoreArray(local, &a));
+  FX_PETSC(VecGhostRestoreLocalForm(v, &local));
+  FX_PETSC(VecGhostUpdateBegin(v, ADD_VALUES, SCATTER_REVERSE));
+  FX_PETSC(VecGhostUpdateEnd(v, ADD_VALUES, SCATTER_REVERSE));
+}
 
 } // namespace flexopt::fem

@@ -27,8 +27,9 @@ struct DesignSettings {
   double penalty = 3.0;          ///< SIMP exponent p
   double min_stiffness = 1e-9;   ///< E_min / E_0
   /// The stress relaxation exponent q of the qp-approach (stress responses; 0 < q < penalty):
-  /// an element's measured stress is ~ rho^q times its solid stress (docs/theory.md 5.1).
-  double stress_exponent = 0.5;
+  /// an element's measured stress is ~ rho^q times its solid stress (docs/theory.md 5.1). 0:
+  /// not given, DesignField takes default_stress_exponent(penalty).
+  double stress_exponent = 0;
   /// Mass interpolation (dynamic analyses; static body forces); default pedersen for an FFRF or
   /// ACF design body and for a static design under gravity or loads.inertia, linear otherwise.
   MassInterpolation mass = MassInterpolation::Linear;
@@ -112,6 +113,10 @@ public:
   /// their derivatives, as stiffness_factors (docs/theory.md 5.1).
   void stress_factors(std::vector<double> &eta, std::vector<double> &deta) const;
   static constexpr double kStressShift = 1e-6;
+  /// q = max(p - 3/2, p/2): below p - 1, so that grey material carries no load more cheaply
+  /// than solid (docs/theory.md 5.1, "Relaxation"), and as close to it as the measured L-bracket
+  /// designs allow; 1.5 at p = 3.
+  static double default_stress_exponent(double penalty);
   /// The mass factors of `interpolation.mass` (linear: rho; pedersen: rho above 0.1, 1e5 rho^6
   /// below; docs/theory.md section 9.1) and their derivatives, as stiffness_factors.
   void mass_factors(std::vector<double> &w, std::vector<double> &dw) const;

@@ -132,6 +132,8 @@ public:
   virtual std::vector<std::pair<std::string, std::vector<double>>> cell_fields() const {
     return {};
   }
+  /// The names of cell_fields(), known before any evaluation (a restart carries them over).
+  virtual std::vector<std::string> cell_field_names() const { return {}; }
 
   Vec create_design_vector() const { return field().create_design_vector(); }
   void initial_design(Vec x) const { field().initial_design(x); }

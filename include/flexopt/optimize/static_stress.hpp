@@ -13,6 +13,25 @@
 
 namespace flexopt::optimize {
 
+/// The local elements of a stress response's aggregate: those of r.region, or all of `mesh`'s
+/// when it is empty. Collective; a region without elements on any rank throws a collective
+/// flexopt::Error naming the response.
+std::vector<PetscInt> stress_elements(const mesh::DistributedMesh &mesh, const ResponseSettings &r);
+
+/// summary.json's "stress": describe(name) of every stress response (null pointers skipped),
+/// with the responses' names; null when there is none.
+template <class Ptrs>
+io::Json describe_stress(const Ptrs &stress, const std::vector<std::string> &names) {
+  io::Json out = io::Json::array();
+  bool any = false;
+  for (std::size_t i = 0; i < stress.size(); ++i)
+    if (stress[i]) {
+      out.push_back(stress[i]->describe(names[i]));
+      any = true;
+    }
+  return any ? out : io::Json();
+}
+
 class StaticStress {
 public:
   /// The elements of r.region (all elements of `mesh` when empty). Collective (a missing

@@ -4,6 +4,7 @@
 /// its derivative with respect to each sample, and where the true peak lies (docs/theory.md
 /// section 5.1). Shared by the static problem and the dynamic one.
 #include <mpi.h>
+#include <vector>
 
 namespace flexopt::optimize {
 
@@ -51,5 +52,30 @@ private:
   double value_ = 0, peak_ = 0, sum_ = 0, peak_time_ = -1;
   long long peak_tag_ = -1;
 };
+
+/// The stress responses of a problem, one pointer per response (null: not a stress response),
+/// each with end_iteration(), scale() and set_scale(c) (the adaptive normalization, Le et al.
+/// 2010, docs/theory.md 5.1): after an iteration, the scales kept in restart.h5, their restore.
+template <class Ptrs> void end_iterations(const Ptrs &stress) {
+  for (const auto &s : stress)
+    if (s) s->end_iteration();
+}
+template <class Ptrs> std::vector<double> scales_of(const Ptrs &stress) {
+  std::vector<double> c;
+  for (const auto &s : stress)
+    if (s) c.push_back(s->scale());
+  return c;
+}
+template <class Ptrs> void restore_scales(const Ptrs &stress, const std::vector<double> &c) {
+  std::size_t k = 0;
+  for (const auto &s : stress)
+    if (s && k < c.size()) s->set_scale(c[k++]);
+}
+
+/// The scale c of the adaptive normalization: c <- (M / R + c) / 2 after each iteration, M the
+/// aggregate's true peak and R its value (alpha = 1/2 in Le et al.'s eq. 19).
+inline double next_scale(double c, const StressAggregate &a) {
+  return a.value() > 0 ? 0.5 * a.peak() / a.value() + 0.5 * c : c;
+}
 
 } // namespace flexopt::optimize

@@ -59,6 +59,7 @@ public:
   /// Cell fields of design.xdmf beyond the densities: with a stress response, "von_mises", the
   /// relaxed von Mises stress eta(rho) v of every element [Pa] (docs/theory.md 5.1).
   std::vector<std::pair<std::string, std::vector<double>>> cell_fields() const override;
+  std::vector<std::string> cell_field_names() const override;
   /// solve (assembly and state solve), adjoint (the sensitivities and their adjoint solves).
   std::vector<Timing> timings() const override {
     return {{"solve", "solve", solve_s_}, {"adjoint", "adjoint", adjoint_s_}};
@@ -100,8 +101,8 @@ private:
   std::vector<Vec> adjoints_;                         ///< per response (null: none)
   std::vector<std::unique_ptr<StaticStress>> stress_; ///< per response (null: not stress)
   std::vector<double> eta_, deta_;                    ///< stress relaxation factors
-  std::vector<double> factor_;       ///< SIMP modulus factors (all local elements)
-  std::vector<double> dfactor_;      ///< d factor / d filtered density
+  std::vector<double> factor_;                        ///< SIMP modulus factors (all local elements)
+  std::vector<double> dfactor_;                       ///< d factor / d filtered density
   std::vector<double> mass_, dmass_; ///< mass factors (body forces, mass) and derivatives
   bool needs_mass_ = false;          ///< a body load or a mass response
   std::vector<double> element_ku_;   ///< K_e^0 u_e, 3 * nodes_per_element per element
