@@ -215,6 +215,14 @@ void DynamicProblem::bind_stress(const optimize::ResponseSettings &r) {
                     "': stress responses of ACF bodies, and of FFRF bodies in scenes with ACF "
                     "bodies, are not built yet (FFRF bodies in scenes of rigid and FFRF bodies)",
                 true);
+  if (static_cast<int>(b) == design_body_ &&
+      settings_.adjoint.basis == reduce::BasisDerivative::Fixed)
+    print0(scene_.meshes[b].comm,
+           "%s: warning: adjoint.basis: fixed holds the stress shapes of body '%s' fixed, and "
+           "their change with the design dominates a stress gradient (measured 110-150 %% off, "
+           "63-90 degrees from the exact one on tests/gradient/ffrf_stress; docs/benchmarks.md): "
+           "use basis: exact\n",
+           r.where.str().c_str(), r.body.c_str());
   stress_.back() = std::make_unique<FfrfStress>(r, scene_.meshes[b], body.material);
   stress_body_.back() = scene_.bodies[b].mechanism;
   stress_case_body_.back() = static_cast<int>(b);
