@@ -32,7 +32,6 @@ double StaticStress::evaluate(Vec u, const std::vector<double> &eta) {
   aggregate_.clear();
   sigma_.resize(elements_.size());
   solid_.resize(elements_.size());
-  relaxed_.assign(static_cast<std::size_t>(mesh_.local_elements()), 0.0);
   Vec ul;
   const PetscScalar *ua;
   FX_PETSC(VecGhostGetLocalForm(u, &ul));
@@ -44,10 +43,8 @@ double StaticStress::evaluate(Vec u, const std::vector<double> &eta) {
         fem::element_stress_matrix(mesh_.type, mesh_.element_coordinates(e), material_, xi);
     sigma_[i] = S * fem::gather_element(mesh_, e, ua);
     solid_[i] = fem::von_mises(sigma_[i]);
-    const double s = eta[static_cast<std::size_t>(e)] * solid_[i];
-    relaxed_[static_cast<std::size_t>(e)] = s;
-    aggregate_.add(s, 1.0, static_cast<long long>(mesh_.element_tags[static_cast<std::size_t>(e)]),
-                   -1.0);
+    aggregate_.add(eta[static_cast<std::size_t>(e)] * solid_[i], 1.0,
+                   static_cast<long long>(mesh_.element_tags[static_cast<std::size_t>(e)]), -1.0);
   }
   FX_PETSC(VecRestoreArrayRead(ul, &ua));
   FX_PETSC(VecGhostRestoreLocalForm(u, &ul));
@@ -71,11 +68,12 @@ void StaticStress::adjoint_load(const std::vector<double> &eta, Vec rhs) const {
   });
 }
 
-void StaticStress::add_explicit(const std::vector<double> &deta, double *g) const {
+void StaticStress::add_explicit(const std::vector<double> &eta, const std::vector<double> &deta,
+                                double *g) const {
   for (std::size_t i = 0; i < elements_.size(); ++i) {
     const auto e = static_cast<std::size_t>(elements_[i]);
     if (deta[e] == 0.0) continue;
-    g[e] += scale_ * aggregate_.derivative(relaxed_[e], 1.0) * deta[e] * solid_[i];
+    g[e] += scale_ * aggregate_.derivative(eta[e] * solid_[i], 1.0) * deta[e] * solid_[i];
   }
 }
 

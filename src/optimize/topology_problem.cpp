@@ -14,6 +14,10 @@
 namespace flexopt::optimize {
 
 namespace {
+/// The responses whose gradient needs an adjoint solve (the compliance is self-adjoint).
+bool needs_adjoint(ResponseType t) {
+  return t == ResponseType::Displacement || t == ResponseType::Stress;
+}
 const char *kTopologySolverDefaults =
     "-mg_levels_ksp_type chebyshev -mg_levels_pc_type jacobi -pc_gamg_use_sa_esteig 0 "
     "-mg_levels_esteig_ksp_type cg -mg_levels_esteig_ksp_max_it 10 "
@@ -66,7 +70,15 @@ std::unique_ptr<TopologyProblem> TopologyProblem::create(MPI_Comm comm, const To
       p->needs_mass_ = true;
     }
   }
-  p->adjoints_.assign(p->responses_.size(), nullptr);
+  // One adjoint per response that needs a solve (its warm start is that response's last one).
+  for (const ResponseSettings &r : p->responses_) {
+    Vec a = nullptr;
+    if (needs_adjoint(r.type)) {
+      a = fem::create_ghosted_vector(m);
+      FX_PETSC(VecZeroEntries(a));
+    }
+    p->adjoints_.push_back(a);
+  }
   p->grad_physical_ = p->field_->filter().create_element_vector();
   p->adjoint_rhs_ = fem::create_ghosted_vector(m);
   return p;
@@ -96,29 +108,19 @@ void set_owned_values(Vec v, const std::vector<double> &values) {
 
 } // namespace
 
-namespace {
-/// The restart state's name of the adjoint of response i: "adjoint" for the first response
-/// with one (the name of the files before issue 43), "adjoint_<i>" for the others.
-std::string adjoint_key(const std::vector<Vec> &adjoints, std::size_t i) {
+/// The restart state's name of response i's adjoint: "adjoint" for the first response with
+/// one (the name of the files before issue 43), "adjoint_<i>" for the others.
+std::string TopologyProblem::adjoint_key(std::size_t i) const {
   for (std::size_t j = 0; j < i; ++j)
-    if (adjoints[j]) return "adjoint_" + std::to_string(i);
+    if (needs_adjoint(responses_[j].type)) return "adjoint_" + std::to_string(i);
   return "adjoint";
-}
-} // namespace
-
-Vec TopologyProblem::adjoint(std::size_t i) {
-  if (!adjoints_[i]) {
-    adjoints_[i] = fem::create_ghosted_vector(mesh());
-    FX_PETSC(VecZeroEntries(adjoints_[i]));
-  }
-  return adjoints_[i];
 }
 
 std::map<std::string, std::vector<double>> TopologyProblem::solver_state() const {
   if (!static_->warm_start()) return {};
   std::map<std::string, std::vector<double>> state{{"u", local_values(static_->displacement())}};
   for (std::size_t i = 0; i < adjoints_.size(); ++i)
-    if (adjoints_[i]) state[adjoint_key(adjoints_, i)] = local_values(adjoints_[i]);
+    if (adjoints_[i]) state[adjoint_key(i)] = local_values(adjoints_[i]);
   return state;
 }
 
@@ -133,13 +135,10 @@ void TopologyProblem::restore_solver_state(
   const auto u = state.find("u");
   if (u != state.end() && u->second.size() == n)
     set_owned_values(static_->displacement(), u->second);
-  // The adjoints exist from the first evaluation on; a restart creates those it restores.
   for (std::size_t i = 0; i < responses_.size(); ++i) {
-    const ResponseType t = responses_[i].type;
-    if (t != ResponseType::Displacement && t != ResponseType::Stress) continue;
-    adjoint(i);
-    const auto a = state.find(adjoint_key(adjoints_, i));
-    if (a != state.end() && a->second.size() == n) set_owned_values(adjoints_[i], a->second);
+    const auto a = state.find(adjoint_key(i));
+    if (adjoints_[i] && a != state.end() && a->second.size() == n)
+      set_owned_values(adjoints_[i], a->second);
   }
 }
 
@@ -271,7 +270,7 @@ void TopologyProblem::response_gradient(const ResponseSettings &r, std::size_t i
     } else {
       stress_[index]->adjoint_load(eta_, adjoint_rhs_);
     }
-    lambda = adjoint(index);
+    lambda = adjoints_[index];
     static_->solve_adjoint(adjoint_rhs_, lambda);
     ++solves_;
   }
@@ -302,7 +301,7 @@ void TopologyProblem::response_gradient(const ResponseSettings &r, std::size_t i
       ga[e] += load_weight * dw * lf;
     }
   }
-  if (r.type == ResponseType::Stress) stress_[index]->add_explicit(deta_, ga);
+  if (r.type == ResponseType::Stress) stress_[index]->add_explicit(eta_, deta_, ga);
   FX_PETSC(VecRestoreArray(g, &ga));
   FX_PETSC(VecRestoreArrayRead(ll, &l));
   FX_PETSC(VecGhostRestoreLocalForm(lambda, &ll));

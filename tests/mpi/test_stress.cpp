@@ -5,9 +5,8 @@
 #include "flexopt/io/case.hpp"
 #include "flexopt/optimize/topology_problem.hpp"
 
-#include <gtest/gtest.h>
-
 #include <cmath>
+#include <gtest/gtest.h>
 
 namespace {
 

@@ -44,10 +44,10 @@ public:
   /// dR/du of the last evaluate (times c) into the ghosted vector rhs (overwritten, summed over
   /// the ranks that share a node). Collective.
   void adjoint_load(const std::vector<double> &eta, Vec rhs) const;
-  /// Adds the explicit c g_e eta'(rho_e) v_e to g (one entry per local element).
-  void add_explicit(const std::vector<double> &deta, double *g) const;
-  /// The relaxed stress eta_e v_e of every local element [Pa] (0 outside the region).
-  const std::vector<double> &relaxed() const { return relaxed_; }
+  /// Adds the explicit c g_e eta'(rho_e) v_e to g (one entry per local element), at the
+  /// relaxation factors eta of the last evaluate and their derivatives deta.
+  void add_explicit(const std::vector<double> &eta, const std::vector<double> &deta,
+                    double *g) const;
   /// Adaptive normalization: c from the last evaluation, for the next (no-op without it).
   void end_iteration();
   double scale() const { return scale_; }
@@ -67,7 +67,6 @@ private:
   StressAggregate aggregate_;
   std::vector<fem::Voigt> sigma_; ///< solid stress per aggregate element (elements_ order)
   std::vector<double> solid_;     ///< its von Mises v_e
-  std::vector<double> relaxed_;   ///< eta_e v_e per local element
   double scale_ = 1.0;            ///< adaptive normalization c
 };
 

@@ -83,8 +83,8 @@ private:
   double mass() const;
   /// Value of response `index` (0: objective, i: constraint i - 1).
   double response_value(const ResponseSettings &r, std::size_t index);
-  /// The adjoint vector of response i (displacement, stress), created at first use.
-  Vec adjoint(std::size_t i);
+  /// The restart state's key of response i's adjoint ("adjoint", "adjoint_<i>").
+  std::string adjoint_key(std::size_t i) const;
   /// K_e^0 u_e of every local element, computed once per evaluation for all stiffness
   /// responses (their gradients are -ds_e lambda_e . K_e^0 u_e).
   const std::vector<double> &element_ku();
