@@ -28,7 +28,7 @@ void DensePass::sample(const dynamics::State &s) {
   for (std::size_t i = 0; i < nr; ++i)
     if (p_.stress_[i]) {
       const int o = mech.offset(p_.stress_body_[i]);
-      p_.stress_[i]->record(s.q.segment(o + 7, mech.size(p_.stress_body_[i]) - 7));
+      p_.ffrf_stress(i)->record(s.q.segment(o + 7, mech.size(p_.stress_body_[i]) - 7));
     }
   for (std::size_t i = 0; i < nr; ++i) {
     if (p_.sensor_of_[i] < 0) continue;
@@ -67,23 +67,6 @@ void DensePass::forward() {
     if (p_.strain_body_[i] >= 0) p_.ev_.sampled[i].value = strain_value_[i];
   }
   finish_stress();
-}
-
-void DensePass::finish_stress() {
-  // The stress aggregates over the recorded steps (docs/theory.md 10.3); on the design body with
-  // the relaxation of its densities, whose explicit gradient is complete here.
-  std::vector<double> eta, deta;
-  for (std::size_t i = 0; i < p_.specs_.size(); ++i) {
-    if (!p_.stress_[i]) continue;
-    const bool design = p_.stress_case_body_[i] == p_.design_body_;
-    if (design && eta.empty()) p_.field_->stress_factors(eta, deta);
-    p_.ev_.sampled[i].value =
-        p_.stress_[i]->finish(p_.settings_.time.step, design ? eta : std::vector<double>{},
-                              design ? deta : std::vector<double>{}, gradients_);
-    if (design && gradients_)
-      for (std::size_t e = 0; e < p_.stress_[i]->explicit_gradient().size(); ++e)
-        p_.ev_.element_gradient[i][e] += p_.stress_[i]->explicit_gradient()[e];
-  }
 }
 
 void DensePass::backward() {
@@ -141,7 +124,7 @@ Matrix DensePass::state_partials(long long j, const dynamics::State &state) cons
     if (p_.stress_[i]) { // dR/dzeta_j of the stress aggregate (section 10.3)
       const int o = scene.mechanism.offset(p_.stress_body_[i]) + 7;
       if (P.size() == 0) P.setZero(4 * n + m, static_cast<Eigen::Index>(p_.specs_.size()));
-      const Eigen::VectorXd dz = p_.stress_[i]->dzeta(static_cast<std::size_t>(j));
+      const Eigen::VectorXd dz = p_.ffrf_stress(i)->dzeta(static_cast<std::size_t>(j));
       P.col(static_cast<Eigen::Index>(i)).segment(o, dz.size()) = dz;
       continue;
     }

@@ -223,7 +223,7 @@ void DynamicProblem::add_ffrf_element_gradients(const Matrix &G, const StartAdjo
       // The stress shapes' cotangent into the basis vectors' (section 10.3), added to a
       // sensor's if the response has both.
       zero_basis_cotangent(*reduction_, n, c, owned);
-      stress_[i]->add_basis_cotangent(c.basis);
+      ffrf_stress(i)->add_basis_cotangent(c.basis);
       used = true;
     }
     if (start.q.size() > 0 && n > 0) {

@@ -35,6 +35,7 @@ std::vector<double> DistPass::displacement(const dynamics::DistState &s, std::si
 
 void DistPass::sample(const dynamics::DistState &s) {
   const dynamics::State small = da_.small_state(s);
+  sample_stress(s, small);
   for (std::size_t i = 0; i < p_.specs_.size(); ++i) {
     if (p_.sensor_of_[i] >= 0) {
       const dynamics::BoundSensor &bs =
@@ -60,6 +61,20 @@ void DistPass::sample(const dynamics::DistState &s) {
   }
 }
 
+void DistPass::sample_stress(const dynamics::DistState &s, const dynamics::State &small) {
+  // ACF bodies' co-rotated stress from their displacements (section 8.3); FFRF bodies' elastic
+  // coordinates from the small part (section 10.3).
+  for (std::size_t i = 0; i < p_.specs_.size(); ++i) {
+    const auto b = static_cast<std::size_t>(p_.stress_body_[i]);
+    if (AcfStress *acf = p_.acf_stress(i)) acf->record(displacement(s, b).data());
+    if (FfrfStress *ffrf = p_.ffrf_stress(i)) {
+      const dynamics::Mechanism &mech = p_.scene_.mechanism;
+      ffrf->record(small.q.segment(mech.offset(p_.stress_body_[i]) + 7,
+                                   mech.size(p_.stress_body_[i]) - 7));
+    }
+  }
+}
+
 void DistPass::forward() {
   const std::size_t nr = p_.specs_.size();
   const double h = p_.settings_.time.step;
@@ -73,6 +88,8 @@ void DistPass::forward() {
           strain_body_[i] = p_.scene_.bodies[b].acf;
   p_.ev_.samples.assign(nr, {});
   energy_.assign(nr, {});
+  for (const auto &st : p_.stress_)
+    if (st) st->clear();
   run_forward(
       da_,
       [&](bool disk) {
@@ -88,6 +105,7 @@ void DistPass::forward() {
       for (std::size_t n = 0; n <= N; ++n)
         p_.ev_.sampled[i].value += trapezoid_weight(n, N) * energy_[i][n];
   }
+  finish_stress();
 }
 
 void DistPass::direct_partials() {
@@ -141,6 +159,10 @@ std::vector<const dynamics::DistState *> DistPass::state_partials(std::size_t j,
       }
       any = true;
     }
+    if (p_.stress_[i]) {
+      add_stress_partial(i, j, s, P.q);
+      any = true;
+    }
     if (strain_body_[i] >= 0) {
       const auto b = static_cast<std::size_t>(strain_body_[i]);
       const std::vector<double> u = displacement(s, b);
@@ -156,6 +178,25 @@ std::vector<const dynamics::DistState *> DistPass::state_partials(std::size_t j,
     if (any) ptr[a] = &P;
   }
   return ptr;
+}
+
+void DistPass::add_stress_partial(std::size_t i, std::size_t j, const dynamics::DistState &s,
+                                  Vec q) const {
+  const auto b = static_cast<std::size_t>(p_.stress_body_[i]);
+  if (const FfrfStress *ffrf = p_.ffrf_stress(i)) { // dR/dzeta_j on the small part (10.3)
+    const dynamics::Mechanism &mech = p_.scene_.mechanism;
+    Vector d = Vector::Zero(mech.coordinates());
+    const Eigen::VectorXd dz = ffrf->dzeta(j);
+    d.segment(mech.offset(p_.stress_body_[i]) + 7, dz.size()) = dz;
+    da_.add_small(q, d);
+    return;
+  }
+  // dR/dx_j of an ACF body's co-rotated stress (8.3), element by element; ghosts' shares are
+  // added on their owners.
+  const std::vector<double> u = displacement(s, b);
+  std::vector<double> force(u.size(), 0.0);
+  p_.acf_stress(i)->add_state_partial(j, u.data(), force.data());
+  da_.add_local_values(q, b, force);
 }
 
 void DistPass::add_partials(const dynamics::DistState &s,
@@ -345,7 +386,7 @@ void DistPass::backward() {
   // the responses that depend on the state (the volume fraction and the mass do not: their
   // multipliers are zero).
   for (std::size_t i = 0; i < p_.specs_.size(); ++i)
-    if (p_.sensor_of_[i] >= 0 || strain_body_[i] >= 0) active_.push_back(i);
+    if (p_.sensor_of_[i] >= 0 || strain_body_[i] >= 0 || p_.stress_[i]) active_.push_back(i);
   if (active_.empty()) { // no backward sweep: every gradient is the direct partial
     p_.recomputed_ = 0;
     p_.adjoint_factorizations_ = 0;

@@ -210,11 +210,13 @@ void DynamicProblem::bind_stress(const optimize::ResponseSettings &r) {
                     "': a rigid body has no stress (the plan made it rigid: give it model: ffrf "
                     "or model: acf)",
                 true);
-  if (bm == BodyModel::Acf || !scene_.acf.empty())
-    throw Error(r.where.str() + ": stress of body '" + r.body +
-                    "': stress responses of ACF bodies, and of FFRF bodies in scenes with ACF "
-                    "bodies, are not built yet (FFRF bodies in scenes of rigid and FFRF bodies)",
-                true);
+  stress_case_body_.back() = static_cast<int>(b);
+  if (bm == BodyModel::Acf) { // the co-rotated stress (docs/theory.md 8.3)
+    const int a = scene_.bodies[b].acf;
+    stress_.back() = std::make_unique<AcfStress>(r, *scene_.acf[static_cast<std::size_t>(a)]);
+    stress_body_.back() = a;
+    return;
+  }
   if (static_cast<int>(b) == design_body_ &&
       settings_.adjoint.basis == reduce::BasisDerivative::Fixed)
     print0(scene_.meshes[b].comm,
@@ -223,10 +225,10 @@ void DynamicProblem::bind_stress(const optimize::ResponseSettings &r) {
            "63-90 degrees from the exact one on tests/gradient/ffrf_stress; docs/benchmarks.md): "
            "use basis: exact\n",
            r.where.str().c_str(), r.body.c_str());
-  stress_.back() = std::make_unique<FfrfStress>(r, scene_.meshes[b], body.material);
+  auto ffrf = std::make_unique<FfrfStress>(r, scene_.meshes[b], body.material);
+  ffrf->set_basis(scene_.bodies[b].reduction->basis);
+  stress_.back() = std::move(ffrf);
   stress_body_.back() = scene_.bodies[b].mechanism;
-  stress_case_body_.back() = static_cast<int>(b);
-  stress_.back()->set_basis(scene_.bodies[b].reduction->basis);
 }
 
 void DynamicProblem::end_iteration() {
@@ -286,7 +288,7 @@ void DynamicProblem::apply_design(Vec x) {
       ev_.reduction_s = reduction_s_;
       for (std::size_t i = 0; i < stress_.size(); ++i)
         if (stress_[i] && stress_case_body_[i] == design_body_)
-          stress_[i]->set_basis(reduction_->basis);
+          ffrf_stress(i)->set_basis(reduction_->basis);
     }
   } else {
     set_rigid_design();

@@ -38,8 +38,7 @@ template <class F> void for_each_tile(const Eigen::MatrixXd &T, const Eigen::Mat
 
 FfrfStress::FfrfStress(const optimize::ResponseSettings &r, const mesh::DistributedMesh &mesh,
                        const fem::IsotropicMaterial &material)
-    : r_(r), mesh_(mesh), material_(material), elements_(optimize::stress_elements(mesh, r)),
-      aggregate_(r.aggregate) {}
+    : BodyStress(r, mesh, material) {}
 
 void FfrfStress::set_basis(const std::vector<Vec> &basis) {
   shapes_ = reduce::stress_shapes(mesh_, material_, basis, elements_);
@@ -52,10 +51,6 @@ double FfrfStress::finish(double h, const std::vector<double> &eta, const std::v
   const std::size_t N = zeta_.empty() ? 0 : zeta_.size() - 1;
   Eigen::MatrixXd Z(shapes_.cols(), steps);
   for (Eigen::Index n = 0; n < steps; ++n) Z.col(n) = zeta_[static_cast<std::size_t>(n)];
-  auto eta_of = [&](Eigen::Index i) {
-    return eta.empty() ? 1.0
-                       : eta[static_cast<std::size_t>(elements_[static_cast<std::size_t>(i)])];
-  };
   for_each_tile(
       shapes_, Z,
       [&](Eigen::Index i0, Eigen::Index ni, Eigen::Index n0, Eigen::Index nb, const auto &S) {
@@ -64,9 +59,8 @@ double FfrfStress::finish(double h, const std::vector<double> &eta, const std::v
           const double t = static_cast<double>(n0 + b) * h;
           for (Eigen::Index k = 0; k < ni; ++k) {
             const fem::Voigt s = S.template block<6, 1>(6 * k, b);
-            const auto e = static_cast<std::size_t>(elements_[static_cast<std::size_t>(i0 + k)]);
-            aggregate_.add(eta_of(i0 + k) * fem::von_mises(s), w,
-                           static_cast<long long>(mesh_.element_tags[e]), t);
+            const auto i = static_cast<std::size_t>(i0 + k);
+            aggregate_.add(eta_of(eta, i) * fem::von_mises(s), w, tag_of(i), t);
           }
         }
       });
@@ -99,10 +93,7 @@ void FfrfStress::adjoint_pieces(const Eigen::MatrixXd &Z, const std::vector<doub
               a.template block<6, 1>(6 * k, b).setZero();
               continue;
             }
-            fem::Voigt dv;
-            dv << 2 * s[0] - s[1] - s[2], 2 * s[1] - s[2] - s[0], 2 * s[2] - s[0] - s[1], 6 * s[3],
-                6 * s[4], 6 * s[5];
-            a.template block<6, 1>(6 * k, b) = (g * et / (2 * v)) * dv; // g eta dv/dsigma (5.1)
+            a.template block<6, 1>(6 * k, b) = (g * et) * fem::von_mises_gradient(s); // (5.1)
             if (!deta.empty()) explicit_[e] += g * deta[e] * v;
           }
         }
@@ -115,30 +106,8 @@ void FfrfStress::adjoint_pieces(const Eigen::MatrixXd &Z, const std::vector<doub
                 mesh_.comm);
 }
 
-void FfrfStress::end_iteration() {
-  if (r_.adaptive) scale_ = optimize::next_scale(scale_, aggregate_);
-}
-
 void FfrfStress::add_basis_cotangent(const std::vector<Vec> &out) const {
   reduce::add_stress_shape_cotangent(mesh_, material_, elements_, shape_cotangent_, out);
-}
-
-io::Json FfrfStress::describe(const std::string &name) const {
-  io::Json j = io::Json::object();
-  j["response"] = name;
-  j["body"] = r_.body;
-  j["aggregate"] = r_.aggregate.type == optimize::StressAggregateType::Ks ? "ks" : "pnorm";
-  j["value"] = scale_ * aggregate_.value();
-  j["unscaled_value"] = aggregate_.value();
-  j["scale"] = scale_;
-  j["peak"] = aggregate_.peak();
-  j["peak_element"] = aggregate_.peak_tag();
-  j["peak_time"] = aggregate_.peak_time();
-  if (r_.has_max) {
-    j["max"] = r_.max;
-    j["peak_over_max"] = aggregate_.peak() / r_.max;
-  }
-  return j;
 }
 
 } // namespace flexopt::adjoint

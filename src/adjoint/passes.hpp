@@ -68,6 +68,24 @@ protected:
                         });
   }
 
+  /// The stress responses' aggregates after the forward run (docs/theory.md 8.3, 10.3); on the
+  /// design body with the relaxation of its densities, whose explicit gradient is complete
+  /// here (with gradients).
+  void finish_stress() {
+    std::vector<double> eta, deta;
+    for (std::size_t i = 0; i < p_.specs_.size(); ++i) {
+      if (!p_.stress_[i]) continue;
+      const bool design = p_.stress_case_body_[i] == p_.design_body_;
+      if (design && eta.empty()) p_.field_->stress_factors(eta, deta);
+      p_.ev_.sampled[i].value =
+          p_.stress_[i]->finish(p_.settings_.time.step, design ? eta : std::vector<double>{},
+                                design ? deta : std::vector<double>{}, gradients_);
+      if (design && gradients_)
+        for (std::size_t e = 0; e < p_.stress_[i]->explicit_gradient().size(); ++e)
+          p_.ev_.element_gradient[i][e] += p_.stress_[i]->explicit_gradient()[e];
+    }
+  }
+
   DynamicProblem &p_;
   const bool gradients_;
   const dynamics::Integrator integrator_;
@@ -98,9 +116,6 @@ private:
   /// The responses' samples at state s (sensor values, the FFRF strain energies' trapezoidal
   /// sums and, for the design body, sum_n w_n 1/2 zeta_n zeta_n^T; the sensor frames on it).
   void sample(const dynamics::State &s);
-  /// The stress responses' aggregates after the forward run (and, with gradients, their
-  /// adjoint pieces and the relaxation's explicit element gradient).
-  void finish_stress();
   /// (dPsi/ds)^T at main step j with state `state` (empty if zero), one column per response.
   Matrix state_partials(long long j, const dynamics::State &state) const;
   /// Main step j recomputed from the record of step j - 1 along the forward run's substeps.
@@ -120,8 +135,12 @@ public:
 private:
   /// Local displacements of ACF body b at a state (mesh numbering, owned and ghosts).
   std::vector<double> displacement(const dynamics::DistState &s, std::size_t b) const;
-  /// The responses' samples at state s (sensor values, ACF strain energies).
+  /// The responses' samples at state s (sensor values, ACF strain energies, stresses).
   void sample(const dynamics::DistState &s);
+  /// The stress responses' samples at state s (its small part `small`).
+  void sample_stress(const dynamics::DistState &s, const dynamics::State &small);
+  /// Adds stress response i's partial at main step j, state s, into the coordinates q.
+  void add_stress_partial(std::size_t i, std::size_t j, const dynamics::DistState &s, Vec q) const;
   /// The direct partials of an ACF design body: the strain energy's sum_n w_n U_e / s_e, the
   /// mass's rho V_e.
   void direct_partials();

@@ -33,18 +33,12 @@ void AcfBody::set_factors(const std::vector<double> &modulus_factor,
   MPI_Allreduce(&local, &mass_, 1, MPI_DOUBLE, MPI_SUM, mesh_.comm);
 }
 
-namespace {
-
-/// The element's current positions from the local displacement array.
-fem::ElementCoords positions(const mesh::DistributedMesh &mesh, const fem::CorotatedElement &ce,
-                             PetscInt e, const double *u) {
-  const fem::ElementVector ue = fem::gather_element(mesh, e, u);
-  fem::ElementCoords x = ce.X;
+fem::ElementCoords AcfBody::positions(PetscInt e, const double *u) const {
+  const fem::ElementVector ue = fem::gather_element(mesh_, e, u);
+  fem::ElementCoords x = elements_[static_cast<std::size_t>(e)].X;
   for (int a = 0; a < x.rows(); ++a) x.row(a) += ue.segment<3>(3 * a).transpose();
   return x;
 }
-
-} // namespace
 
 void AcfBody::design_partials(const double *u, const double *v, const double *acc,
                               const std::vector<const double *> &mu, const Eigen::Vector3d &gravity,
@@ -57,7 +51,7 @@ void AcfBody::design_partials(const double *u, const double *v, const double *ac
   for (std::size_t k = 0; k < n; ++k) {
     const auto e = static_cast<PetscInt>(k);
     const fem::CorotatedElement &ce = elements_[k];
-    const fem::ElementCoords x = positions(mesh_, ce, e, u);
+    const fem::ElementCoords x = positions(e, u);
     fem::corotated_state(ce, x, &f, nullptr);
     if (v && damping_ > 0) {
       fem::corotated_damping(ce, x, fem::gather_element(mesh_, e, v), damping_, &fd, nullptr,
@@ -86,7 +80,7 @@ std::vector<double> AcfBody::element_energies(const double *u, double *force) co
   for (PetscInt e = 0; e < n; ++e) {
     const fem::CorotatedElement &ce = elements_[static_cast<std::size_t>(e)];
     out[static_cast<std::size_t>(e)] =
-        fem::corotated_state(ce, positions(mesh_, ce, e, u), force ? &f : nullptr, nullptr);
+        fem::corotated_state(ce, positions(e, u), force ? &f : nullptr, nullptr);
     if (force)
       for (int a = 0; a < npe; ++a) {
         const PetscInt node = mesh_.connectivity[static_cast<std::size_t>(e * npe + a)];

@@ -252,6 +252,24 @@ double damping_impl(const CorotatedElement &e, const ElementCoords &x, const Ele
   return power;
 }
 
+/// The von Mises stress of sigma = S u~ and its gradient (section 8.3).
+template <int NN>
+double von_mises_impl(const CorotatedElement &e, const StressMatrix &S, const ElementCoords &x,
+                      ElementVector *grad) {
+  using Kin = Kinematics<NN>;
+  const Kin k(e, x, false);
+  const typename Kin::Vecd u = k.displacement();
+  const Voigt sigma = S * u;
+  const double v = von_mises(sigma);
+  if (!grad) return v;
+  // (du~/dx)^T g = R_blk f~(g) for local forces g with sum_a g_a = 0, which S^T a is (the
+  // columns of B sum to zero over the nodes).
+  const typename Kin::Vecd g = S.transpose() * von_mises_gradient(sigma);
+  Vec3 c;
+  *grad = k.global(k.force(g, c));
+  return v;
+}
+
 } // namespace
 
 Eigen::Matrix3d polar_rotation(const Eigen::Matrix3d &F) {
@@ -321,6 +339,23 @@ double corotated_damping(const CorotatedElement &e, const ElementCoords &x, cons
     return damping_impl<8>(e, x, v, beta, f, Cv, Cx);
   }
   throw Error("corotated_damping: invalid element type");
+}
+
+double corotated_von_mises(const CorotatedElement &e, const StressMatrix &S, const ElementCoords &x,
+                           ElementVector *grad) {
+  if (x.rows() != e.nodes() || S.cols() != 3 * e.nodes())
+    throw Error("corotated_von_mises: " + std::to_string(x.rows()) + " positions and a stress "
+                "matrix of " + std::to_string(S.cols()) + " columns for a " +
+                element_name(e.type) + " element");
+  switch (e.type) {
+  case ElementType::Tet4:
+    return von_mises_impl<4>(e, S, x, grad);
+  case ElementType::Tet10:
+    return von_mises_impl<10>(e, S, x, grad);
+  case ElementType::Hex8:
+    return von_mises_impl<8>(e, S, x, grad);
+  }
+  throw Error("corotated_von_mises: invalid element type");
 }
 
 } // namespace flexopt::fem

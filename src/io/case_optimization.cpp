@@ -128,11 +128,6 @@ void read_stress(const Reader &r, const YAML::Node &v, const std::string &path, 
       r.fail(v["body"], path + ".body: '" + s.body +
                             "' is a rigid body, which has no stress: a stress response needs an "
                             "FFRF or ACF body (model: ffrf or acf)");
-  for (const dynamics::BodyDescription &b : c.scene.bodies)
-    if (b.name == s.body && c.dynamic() && b.model == BodyModel::Acf)
-      r.fail(v["body"], path + ".body: '" + s.body +
-                            "' is an ACF body, whose stress responses are not built yet (FFRF "
-                            "bodies' are: model: ffrf)");
   optimize::StressAggregateSettings &a = s.aggregate;
   if (v["aggregate"])
     a.type = r.enumerated(v["aggregate"], path + ".aggregate",

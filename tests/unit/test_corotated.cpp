@@ -298,3 +298,42 @@ TEST(CorotatedDamping, ForceIsTheGradientAndBothTangentsTheDerivatives) {
         << element_name(type);
   });
 }
+
+// The co-rotated von Mises stress (docs/theory.md section 8.3): invariant under rigid motions,
+// equal to the linear stress in the small-displacement limit (where R -> I to first order), and
+// its gradient (through the variation of R) against central differences.
+TEST(CorotatedStress, InvariantLinearInTheLimitAndItsGradient) {
+  for_each_sample(16, [](ElementType type, const Sample &sm, std::mt19937 &rng) {
+    const ElementCoords &X = sm.X, &x = sm.x;
+    const CorotatedElement &e = sm.e;
+    const StressMatrix S = element_stress_matrix(type, X, kSteel, reference_centroid(type));
+    ElementVector grad;
+    const double v = corotated_von_mises(e, S, x, &grad);
+    EXPECT_GT(v, 0) << element_name(type);
+    const Matrix3d Q = random_rotation(rng);
+    EXPECT_NEAR(corotated_von_mises(e, S, moved(x, Q, Vector3d(2, -1, 0.5)), nullptr), v,
+                1e-12 * v)
+        << element_name(type);
+    // A displacement of 1e-6 of the element size: the co-rotated stress is the linear one but
+    // for terms quadratic in it (a relative 1e-6 and below).
+    std::uniform_real_distribution<double> u(-1, 1);
+    ElementVector du(3 * X.rows());
+    for (int j = 0; j < du.size(); ++j) du(j) = 1e-7 * u(rng);
+    ElementCoords xs = X;
+    for (int a = 0; a < X.rows(); ++a) xs.row(a) += du.segment<3>(3 * a).transpose();
+    const double vs = corotated_von_mises(e, S, xs, nullptr), vl = von_mises(S * du);
+    EXPECT_NEAR(vs, vl, 1e-5 * vl) << element_name(type);
+    // Central differences, step 1e-7 m (strain 1e-6 against the 2e-2 deformation): truncation
+    // ~1e-12 relative, round-off ~1e-16 |v| / 1e-7 ~ 1e-9 of |grad| * size.
+    const double step = 1e-7;
+    ElementVector gfd(grad.size());
+    for (int j = 0; j < grad.size(); ++j) {
+      ElementCoords xp = x, xm = x;
+      xp(j / 3, j % 3) += step;
+      xm(j / 3, j % 3) -= step;
+      gfd(j) = (corotated_von_mises(e, S, xp, nullptr) - corotated_von_mises(e, S, xm, nullptr)) /
+               (2 * step);
+    }
+    EXPECT_LT(max_abs(grad - gfd), 1e-6 * max_abs(grad)) << element_name(type);
+  });
+}

@@ -168,7 +168,7 @@ public:
     double time = 0;
   };
   std::vector<StressSummary> stress_summaries() const;
-  /// The same as summary.json's "stress" (FfrfStress::describe per stress response), or null.
+  /// The same as summary.json's "stress" (BodyStress::describe per stress response), or null.
   io::Json stress_json() const;
   /// The stress responses' adaptive normalization (docs/theory.md 5.1).
   void end_iteration() override;
@@ -206,8 +206,8 @@ private:
   /// The responses' names, sensors, strain-energy bodies and the sensors on the design body;
   /// refuses responses the design body's `model` cannot serve (collective errors).
   void bind_responses(dynamics::BodyModel model);
-  /// Response r's stress on an FFRF body (none for other types): refused on a rigid or ACF
-  /// body and in scenes with ACF bodies, with its location.
+  /// Response r's stress on an FFRF or ACF body (none for other types): refused on a rigid
+  /// body with its location.
   void bind_stress(const optimize::ResponseSettings &r);
   /// The rigid design body's mass parameters theta from the mass factors, the body replaced.
   void set_rigid_design();
@@ -286,10 +286,16 @@ private:
   std::vector<char> sensor_on_design_;
   /// Per response: the FFRF body (mechanism index) whose strain energy it integrates, or -1.
   std::vector<int> strain_body_;
-  /// Per response: a stress response on an FFRF body (null: none) and that body's index in the
-  /// mechanism and in the case (docs/theory.md 10.3).
-  std::vector<std::unique_ptr<FfrfStress>> stress_;
+  /// Per response: a stress response on an FFRF or ACF body (null: none) and that body's
+  /// index in the mechanism (FFRF) or among the scene's ACF bodies (ACF), and in the case
+  /// (docs/theory.md 8.3, 10.3).
+  std::vector<std::unique_ptr<BodyStress>> stress_;
   std::vector<int> stress_body_, stress_case_body_;
+  /// Response i's stress as an FFRF body's or an ACF body's (null: neither).
+  FfrfStress *ffrf_stress(std::size_t i) const {
+    return dynamic_cast<FfrfStress *>(stress_[i].get());
+  }
+  AcfStress *acf_stress(std::size_t i) const { return dynamic_cast<AcfStress *>(stress_[i].get()); }
   bool filter_limited_ = false; ///< the user's options loosen the filter's solves
   // Figures over the run (describe, timings).
   long long evaluations_ = 0;

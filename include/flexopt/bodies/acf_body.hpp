@@ -44,6 +44,9 @@ public:
   /// local node). Not collective.
   std::vector<double> element_energies(const double *u, double *force = nullptr) const;
 
+  /// Local element e's current node positions (one row per node) at the local displacements u.
+  fem::ElementCoords positions(PetscInt e, const double *u) const;
+
   const std::string &name() const { return name_; }
   const mesh::DistributedMesh &mesh() const { return mesh_; }
   const std::vector<fem::CorotatedElement> &elements() const { return elements_; }

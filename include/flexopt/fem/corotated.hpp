@@ -47,6 +47,14 @@ double corotated_state(const CorotatedElement &e, const ElementCoords &x, Elemen
 double corotated_damping(const CorotatedElement &e, const ElementCoords &x, const ElementVector &v,
                          double beta, ElementVector *f, ElementMatrix *Cv, ElementMatrix *Cx);
 
+/// The von Mises stress [Pa] of the co-rotated stress sigma = S u~ (docs/theory.md section
+/// 8.3), S the element's stress matrix at the reference centroid (element_stress_matrix at
+/// reference_centroid, of the solid material: no modulus factor), and, if `grad` is non-null,
+/// its exact gradient dv/dx [Pa/m] (3n, including the variation of R; zero where v = 0).
+/// v is invariant under rigid motions of the element. Throws like corotated_state.
+double corotated_von_mises(const CorotatedElement &e, const StressMatrix &S, const ElementCoords &x,
+                           ElementVector *grad);
+
 /// The rotation of the polar decomposition F = R U (U symmetric positive definite) of a matrix
 /// with det F > 0, by Higham's iteration R <- (R + R^-T) / 2 from R = F, to round-off.
 Eigen::Matrix3d polar_rotation(const Eigen::Matrix3d &F);
