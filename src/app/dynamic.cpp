@@ -80,7 +80,13 @@ private:
   void plan_output();
   Residuals monitor();
   void sample(double t);
+  /// Writes the frame at time t: positions, elastic displacements and, on flexible bodies,
+  /// the element von Mises stress.
   void frame(double t);
+  /// An FFRF or ACF body: it has stress.
+  bool flexible(std::size_t b) const {
+    return scene_.bodies[b].acf >= 0 || scene_.bodies[b].reduction != nullptr;
+  }
   /// After main step n + 1 (the integrator holds its state): the checks, the figures, the
   /// output.
   void after_step(long long n, const dynamics::StepInfo &info);
@@ -107,6 +113,12 @@ private:
   std::vector<double> out_t_, frame_t_, energy_;
   std::vector<std::vector<bodies::Vec3>> sensor_values_;
   std::vector<double> elastic_max_;   ///< per body: the largest |elastic displacement| of a node
+  /// Per body: the largest element von Mises stress over the frames (flexible bodies).
+  std::vector<double> von_mises_max_;
+  /// A design's body and its stress relaxation factors eta (run_design): its frames' von Mises
+  /// stress is the relaxed one that its stress responses take.
+  std::size_t relaxed_body_ = static_cast<std::size_t>(-1);
+  std::vector<double> relaxation_;
   std::vector<std::string> warnings_; ///< summary.json `warnings`
   double max_violation_ = 0;
   dynamics::Vector all_;
@@ -198,10 +210,13 @@ void MotionRun::plan_output() {
   schedule_ = std::make_unique<io::FrameSchedule>(c_.output, steps, h, max_frames_);
   sample_every_step_ = !c_.output.given();
   std::vector<std::vector<std::string>> fields(c_.scene.bodies.size());
-  for (std::size_t b = 0; b < c_.scene.bodies.size(); ++b)
+  std::vector<std::vector<std::string>> cells(c_.scene.bodies.size());
+  for (std::size_t b = 0; b < c_.scene.bodies.size(); ++b) {
     if (writes_elastic(scene_, b)) fields[b] = {"elastic_displacement"};
+    if (flexible(b)) cells[b] = {"von_mises"};
+  }
   const long long frames = schedule_->frames();
-  motion_bytes_ = io::estimate_motion_bytes(mb, fields, frames);
+  motion_bytes_ = io::estimate_motion_bytes(mb, fields, frames, cells);
   if (schedule_->interval_below_step())
     print0(ctx_.comm(),
            "output: warning: output.interval = %g s is shorter than time.step = %g s: every step "
@@ -212,8 +227,8 @@ void MotionRun::plan_output() {
          sample_every_step_ ? "every step" : "the frames' steps");
   if (motion_bytes_ > kLargeMotionBytes) {
     // The estimate is linear in the frame count: what fits in kLargeMotionBytes?
-    const double fixed = io::estimate_motion_bytes(mb, fields, 0);
-    const double per_frame = io::estimate_motion_bytes(mb, fields, 1) - fixed;
+    const double fixed = io::estimate_motion_bytes(mb, fields, 0, cells);
+    const double per_frame = io::estimate_motion_bytes(mb, fields, 1, cells) - fixed;
     const double fit = std::floor((kLargeMotionBytes - fixed) / per_frame);
     std::string hint = "write fewer frames with output: {every: N} (steps) or output: {interval: "
                        "SECONDS} in case.yaml";
@@ -257,9 +272,17 @@ void MotionRun::frame(double t) {
   writer_->begin_step(t);
   std::vector<double> elastic;
   elastic_max_.resize(c_.scene.bodies.size(), 0.0);
+  von_mises_max_.resize(c_.scene.bodies.size(), 0.0);
   for (std::size_t b = 0; b < c_.scene.bodies.size(); ++b) {
     const auto x = run_->positions(b, elastic);
     writer_->positions(b, x.data());
+    if (flexible(b)) {
+      std::vector<double> v = run_->von_mises(b, c_.scene.bodies[b].material);
+      if (b == relaxed_body_)
+        for (std::size_t e = 0; e < v.size(); ++e) v[e] *= relaxation_[e];
+      writer_->cell_scalar(b, "von_mises", v.data());
+      for (double ve : v) von_mises_max_[b] = std::max(von_mises_max_[b], ve);
+    }
     if (elastic.empty()) continue;
     writer_->node_vector(b, "elastic_displacement", elastic.data());
     for (std::size_t k = 0; k + 2 < elastic.size(); k += 3)
@@ -370,6 +393,9 @@ void MotionRun::run_design(adjoint::DynamicProblem &design, Vec x, bool gradient
   // The design's densities on its body (the caller applied x), in every frame; every other
   // body is solid (1), so that thresholding physical_density at 0.5 keeps the whole mechanism.
   const optimize::DesignField &f = design.field();
+  std::vector<double> deta;
+  f.stress_factors(relaxation_, deta);
+  relaxed_body_ = design.design_body();
   for (const auto &[field, v] :
        {std::pair{"density", f.density()}, {"physical_density", f.physical()}}) {
     const PetscScalar *a;
@@ -508,6 +534,13 @@ void MotionRun::finish() {
   }
   s_["sensors"] = sensors;
   s_["bodies"] = bodies_json();
+  von_mises_max_.resize(c_.scene.bodies.size(), 0.0);
+  MPI_Allreduce(MPI_IN_PLACE, von_mises_max_.data(), static_cast<int>(von_mises_max_.size()),
+                MPI_DOUBLE, MPI_MAX, ctx_.comm());
+  io::Json vm = io::Json::object();
+  for (std::size_t b = 0; b < von_mises_max_.size(); ++b)
+    if (flexible(b)) vm[c_.scene.bodies[b].name] = von_mises_max_[b];
+  s_["von_mises_max"] = vm; // flexible bodies, over the frames (the design body's relaxed)
   check_linear_range();
   if (!warnings_.empty()) {
     io::Json w = io::Json::array();

@@ -1,6 +1,8 @@
 #include "flexopt/dynamics/integrator.hpp"
 
 #include "flexopt/core/error.hpp"
+#include "flexopt/fem/corotated.hpp"
+#include "flexopt/reduce/stress_shapes.hpp"
 
 #include <cmath>
 #include <petscsys.h>
@@ -145,6 +147,48 @@ std::vector<double> Integrator::positions(std::size_t b, std::vector<double> &el
     for (int k = 0; k < 3; ++k) elastic[3 * i + static_cast<std::size_t>(k)] = e(k);
   }
   return x;
+}
+
+std::vector<double> Integrator::von_mises(std::size_t b,
+                                          const fem::IsotropicMaterial &material) const {
+  const SceneBody &sb = scene_.bodies[b];
+  const mesh::DistributedMesh &m = scene_.meshes[b];
+  const auto ne = static_cast<std::size_t>(m.local_elements());
+  std::vector<double> v;
+  if (sb.acf >= 0) { // the co-rotated stress (docs/theory.md 8.3)
+    const auto a = static_cast<std::size_t>(sb.acf);
+    const bodies::AcfBody &body = *scene_.acf[a];
+    std::vector<double> u;
+    dist_->local_values(dist_state_.state.q, a, u);
+    for (std::size_t k = 0; k < u.size(); ++k) u[k] -= m.coordinates[k];
+    const Eigen::Vector3d xi = fem::reference_centroid(m.type);
+    v.resize(ne);
+    for (std::size_t e = 0; e < ne; ++e) {
+      const auto pe = static_cast<PetscInt>(e);
+      const fem::StressMatrix S =
+          fem::element_stress_matrix(m.type, m.element_coordinates(pe), body.material(), xi);
+      v[e] = fem::corotated_von_mises(body.elements()[e], S, body.positions(pe, u.data()), nullptr);
+    }
+    return v;
+  }
+  if (!sb.reduction) return v;
+  // An FFRF body: sigma_e = T_e zeta (docs/theory.md 10.3), T made again when the body's
+  // reduction changed (a new design).
+  shapes_.resize(scene_.bodies.size());
+  StressShapes &sh = shapes_[b];
+  if (sh.reduction.lock() != sb.reduction) {
+    std::vector<PetscInt> all(ne);
+    for (std::size_t e = 0; e < ne; ++e) all[e] = static_cast<PetscInt>(e);
+    sh.T = reduce::stress_shapes(m, material, sb.reduction->basis, all);
+    sh.reduction = sb.reduction;
+  }
+  const Mechanism &mech = scene_.mechanism;
+  const int mb = sb.mechanism, o = mech.offset(mb) + 7, nz = mech.size(mb) - 7;
+  const Eigen::VectorXd sigma = sh.T * small_.q.segment(o, nz);
+  v.resize(ne);
+  for (std::size_t e = 0; e < ne; ++e)
+    v[e] = fem::von_mises(sigma.segment<6>(6 * static_cast<Eigen::Index>(e)));
+  return v;
 }
 
 } // namespace flexopt::dynamics

@@ -450,7 +450,8 @@ using namespace detail;
 
 double estimate_motion_bytes(const std::vector<MotionBody> &bodies,
                              const std::vector<std::vector<std::string>> &node_vectors,
-                             long long frames) {
+                             long long frames,
+                             const std::vector<std::vector<std::string>> &cell_scalars) {
   const double h5 = 9;             // "motion.h5"
   const double k = digits(frames); // step number K, at most this many digits
   double once = kH5FileBytes, per_frame = 8 + kXdmfStepChars + k; // /time and the step's XDMF text
@@ -466,12 +467,19 @@ double estimate_motion_bytes(const std::vector<MotionBody> &bodies,
     per_frame += kH5GroupBytes + 24 * nodes + kH5DatasetBytes;
     per_frame += kXdmfBodyChars + 3 * name + 2 * h5 + 2 * digits(g.global_cells) +
                  digits(g.nodes_per_cell) + nn + static_cast<double>(g.topology_type.size()) + k;
-    if (b >= node_vectors.size()) continue;
-    for (const std::string &field : node_vectors[b]) {
-      const auto f = static_cast<double>(field.size());
-      per_frame += 24 * nodes + kH5DatasetBytes;
-      per_frame += kXdmfFieldChars + 2 * f + name + h5 + nn + k;
-    }
+    if (b < node_vectors.size())
+      for (const std::string &field : node_vectors[b]) {
+        const auto f = static_cast<double>(field.size());
+        per_frame += 24 * nodes + kH5DatasetBytes;
+        per_frame += kXdmfFieldChars + 2 * f + name + h5 + nn + k;
+      }
+    if (b < cell_scalars.size())
+      for (const std::string &field : cell_scalars[b]) {
+        // float64 per cell; the attribute's text as a vector's without its " 3".
+        const auto f = static_cast<double>(field.size());
+        per_frame += 8 * static_cast<double>(g.global_cells) + kH5DatasetBytes;
+        per_frame += kXdmfFieldChars - 2 + 2 * f + name + h5 + digits(g.global_cells) + k;
+      }
   }
   return once + static_cast<double>(frames) * per_frame;
 }

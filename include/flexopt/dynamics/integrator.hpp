@@ -144,6 +144,12 @@ public:
   /// displacement field into `elastic` (FFRF: Psi zeta in the frame's axes; ACF: in the frame of
   /// its first interface node; empty: none). Not collective.
   std::vector<double> positions(std::size_t b, std::vector<double> &elastic) const;
+  /// The von Mises stress [Pa] at the centroid of every local element of case body b at the
+  /// current state, of the solid material (no design's factors): an FFRF body's linear stress of
+  /// Psi zeta through its stress shapes (docs/theory.md 10.3; `material` is its material, the
+  /// shapes kept until its reduction changes), an ACF body's co-rotated stress (8.3); empty for
+  /// a rigid body. Collective (an FFRF body's shapes, when its reduction changed).
+  std::vector<double> von_mises(std::size_t b, const fem::IsotropicMaterial &material) const;
 
 private:
   const Scene &scene_;
@@ -153,6 +159,13 @@ private:
   Record<State> state_;          ///< dense backend
   Record<DistState> dist_state_; ///< distributed backend
   State small_;                  ///< the mechanism's state (dense: state_.state)
+  /// Per case body: the FFRF stress shapes of every local element for the reduction they were
+  /// made of (von_mises).
+  struct StressShapes {
+    std::weak_ptr<const reduce::FlexibleReduction> reduction; ///< (a freed one never matches)
+    Eigen::MatrixXd T;
+  };
+  mutable std::vector<StressShapes> shapes_;
 };
 
 } // namespace flexopt::dynamics

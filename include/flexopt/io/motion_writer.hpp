@@ -31,14 +31,16 @@ struct MotionBody {
 };
 
 /// Estimated size in bytes of `motion.h5` plus `motion.xdmf` after `frames` steps in which
-/// body b writes its positions and the node vector fields named in `node_vectors[b]` (missing
-/// entries: none): the reference meshes once (float64 coordinates, int64 cell nodes), 24
-/// bytes per node, field and frame (float64 x, y, z), and per frame and body the HDF5 group
-/// and dataset headers (measured constants) and the XDMF text (counted). Linear in `frames`.
-/// docs/output.md ("Size") gives its accuracy. Not collective.
+/// body b writes its positions, the node vector fields named in `node_vectors[b]` and the cell
+/// scalar fields named in `cell_scalars[b]` (missing entries: none): the reference meshes once
+/// (float64 coordinates, int64 cell nodes), 24 bytes per node and 8 per cell, field and frame,
+/// and per frame and body the HDF5 group and dataset headers (measured constants) and the XDMF
+/// text (counted). Linear in `frames`. docs/output.md ("Size") gives its accuracy. Not
+/// collective.
 double estimate_motion_bytes(const std::vector<MotionBody> &bodies,
                              const std::vector<std::vector<std::string>> &node_vectors,
-                             long long frames);
+                             long long frames,
+                             const std::vector<std::vector<std::string>> &cell_scalars = {});
 
 class MotionWriter {
 public:
