@@ -8,7 +8,9 @@
     r the filter returns r and K scales with s(r) = e_min + r^3 (1 - e_min), so
     C(uniform 0.4) = C(uniform 0.5) s(0.5) / s(0.4), C(uniform 0.5) being iteration 1;
   - 1 and 2 ranks give the same objective history to 1e-6 relative (MMA amplifies the
-    rounding differences of parallel sums, docs/theory-mma.md; measured 1e-8 after 25 iterations).
+    rounding differences of parallel sums, docs/theory-mma.md; measured 1e-8 after 25 iterations);
+  - a run that ends over a constraint's bound (one iteration toward a volume fraction of 0.1)
+    says so in its log and in summary.json's warnings; the feasible one does not.
 Usage: check_optimize.py FLEXOPT CASE OUT
 """
 import csv
@@ -69,4 +71,22 @@ expect(s["objective"][-1] < 0.7 * uniform,
 a, b = runs[1]["objective"], runs[2]["objective"]
 diff = max(abs(x - y) / abs(x) for x, y in zip(a, b)) if len(a) == len(b) else float("inf")
 expect(diff <= 1e-6, f"1 vs 2 ranks: objective histories agree, max relative difference {diff:.2e} <= 1e-6")
+# The feasible design ends without a warning; a run stopped far from its volume bound (0.1, one
+# iteration at move limit 0.05 from 0.5: at least 0.45) says that its final design violates it.
+expect(not any("violates" in w for w in s.get("warnings", [])), "the feasible final design: no violation warning")
+variant = os.path.join(out, "infeasible")
+os.makedirs(variant, exist_ok=True)
+text = open(os.path.join(case, "case.yaml")).read()
+text = text.replace("../../../meshes/", os.path.abspath(os.path.join(case, "..", "..", "..", "meshes")) + "/")
+text = text.replace("{type: volume_fraction, max: 0.4}", "{type: volume_fraction, max: 0.1}")
+text = text.replace("move_limit: 0.2", "move_limit: 0.05")
+open(os.path.join(variant, "case.yaml"), "w").write(text)
+p = mpi_job.run(["mpirun", "-n", "1", flexopt, "optimize", variant, "--out", os.path.join(variant, "out"),
+                 "--max-iterations", "1"], env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                text=True, timeout=600)
+print(p.stdout)
+w = json.load(open(os.path.join(variant, "out", "summary.json"))).get("warnings", []) if p.returncode == 0 else []
+expect(p.returncode == 0 and "warning: the final design violates" in p.stdout
+       and any("volume_fraction" in x and "violates" in x for x in w),
+       "an infeasible final design is reported in the log and in summary.json warnings")
 sys.exit(1 if failures else 0)

@@ -111,6 +111,9 @@ private:
   void carry_design_frames(int done);
   bool iteration(int k, Evaluation &e);
   std::vector<double> scaled_constraints(const Evaluation &e);
+  /// Reports (log and summary.json warnings) every constraint that the final design `e`
+  /// exceeds by more than kInfeasible.
+  void report_infeasible(const Evaluation &e);
   std::vector<double> iteration_split(double seconds) const;
   void record(int k, const Evaluation &e, double change, double seconds,
               const std::vector<double> &split);
@@ -427,19 +430,48 @@ void OptimizationRun::iterate() {
     if (iteration(k, e_)) break;
 }
 
+namespace {
+/// The scale of a constraint's bound: the bound, its magnitude when negative, 1 when zero.
+double bound_scale(double bound) {
+  return bound > 0 ? bound : bound < 0 ? -bound : 1.0;
+}
+/// R <= max as g = R / max - 1 <= 0 for a positive bound; a bound <= 0 (a sensor component that
+/// must stay negative) as g = (R - max) / |max| (or R when max = 0).
+double scaled_constraint(double value, double bound) {
+  return bound > 0 ? value / bound - 1.0 : (value - bound) / bound_scale(bound);
+}
+/// A final design whose constraint is over its bound by more than this (of the bound's scale)
+/// is reported as infeasible.
+constexpr double kInfeasible = 1e-2;
+} // namespace
+
 /// The constraints g_i for MMA and their scaled gradients dg_i (docs/theory-mma.md §6).
 std::vector<double> OptimizationRun::scaled_constraints(const Evaluation &e) {
   std::vector<double> g(m_);
   for (std::size_t i = 0; i < m_; ++i) {
-    // R <= max as g = R / max - 1 <= 0 for a positive bound; a bound <= 0 (a sensor
-    // component that must stay negative) as g = (R - max) / |max| (or R when max = 0).
-    const double bound = c_.bounds[i];
-    const double scale = bound > 0 ? bound : bound < 0 ? -bound : 1.0;
-    g[i] = bound > 0 ? e.constraints[i] / bound - 1.0 : (e.constraints[i] - bound) / scale;
+    g[i] = scaled_constraint(e.constraints[i], c_.bounds[i]);
     FX_PETSC(VecCopy(e.d_constraints[i], dg_[i]));
-    FX_PETSC(VecScale(dg_[i], 1.0 / scale));
+    FX_PETSC(VecScale(dg_[i], 1.0 / bound_scale(c_.bounds[i])));
   }
   return g;
+}
+
+void OptimizationRun::report_infeasible(const Evaluation &e) {
+  const std::vector<std::string> &names = problem_->response_names();
+  for (std::size_t i = 0; i < m_; ++i) {
+    const double g = scaled_constraint(e.constraints[i], c_.bounds[i]);
+    if (!(g > kInfeasible)) continue;
+    char buf[512];
+    std::snprintf(buf, sizeof buf,
+                  "the final design violates %s: %.6g against the bound %.6g, "
+                  "over by %.1f %% of it; more iterations (optimizer.max_iterations) or, if it "
+                  "oscillates about its bound in history.csv, a smaller optimizer.move_limit (now "
+                  "%g) may reach a feasible design",
+                  names[i + 1].c_str(), e.constraints[i], c_.bounds[i], 100 * g,
+                  c_.move_limit);
+    print0(comm_, "optimize: warning: %s\n", buf);
+    result_.warnings.emplace_back(buf);
+  }
 }
 
 /// The split of an iteration's seconds: the problem's parts, then the update (the rest).
@@ -585,6 +617,7 @@ OptimizationResult OptimizationRun::finish() {
         split_list_.begin() + static_cast<std::ptrdiff_t>((k + 1) * nsplit_));
   // Final state: the design after the last update.
   problem->evaluate(x_, false, e);
+  report_infeasible(e);
   write_densities(*writer_, *problem, result.iterations);
   result.volume_fraction = problem->field().volume_fraction();
   result.output = writer_->close();
