@@ -76,7 +76,8 @@ double AcfStress::finish(double h, const std::vector<double> &eta, const std::ve
       const double v = v_[n * ne + i], et = eta_of(eta, i);
       const double g = scale_ * aggregate_.derivative(et * v, trapezoid_weight(n, N));
       g_[n * ne + i] = g * et;
-      if (!deta.empty()) explicit_[static_cast<std::size_t>(elements_[i])] += g * deta[elements_[i]] * v;
+      if (!deta.empty())
+        explicit_[static_cast<std::size_t>(elements_[i])] += g * deta[elements_[i]] * v;
     }
   return scale_ * aggregate_.value();
 }

@@ -69,8 +69,8 @@ void DistPass::sample_stress(const dynamics::DistState &s, const dynamics::State
     if (AcfStress *acf = p_.acf_stress(i)) acf->record(displacement(s, b).data());
     if (FfrfStress *ffrf = p_.ffrf_stress(i)) {
       const dynamics::Mechanism &mech = p_.scene_.mechanism;
-      ffrf->record(small.q.segment(mech.offset(p_.stress_body_[i]) + 7,
-                                   mech.size(p_.stress_body_[i]) - 7));
+      ffrf->record(
+          small.q.segment(mech.offset(p_.stress_body_[i]) + 7, mech.size(p_.stress_body_[i]) - 7));
     }
   }
 }

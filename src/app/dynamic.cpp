@@ -112,7 +112,7 @@ private:
   double motion_bytes_ = 0;
   std::vector<double> out_t_, frame_t_, energy_;
   std::vector<std::vector<bodies::Vec3>> sensor_values_;
-  std::vector<double> elastic_max_;   ///< per body: the largest |elastic displacement| of a node
+  std::vector<double> elastic_max_; ///< per body: the largest |elastic displacement| of a node
   /// Per body: the largest element von Mises stress over the frames (flexible bodies).
   std::vector<double> von_mises_max_;
   /// A design's body and its stress relaxation factors eta (run_design): its frames' von Mises

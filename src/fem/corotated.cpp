@@ -344,9 +344,10 @@ double corotated_damping(const CorotatedElement &e, const ElementCoords &x, cons
 double corotated_von_mises(const CorotatedElement &e, const StressMatrix &S, const ElementCoords &x,
                            ElementVector *grad) {
   if (x.rows() != e.nodes() || S.cols() != 3 * e.nodes())
-    throw Error("corotated_von_mises: " + std::to_string(x.rows()) + " positions and a stress "
-                "matrix of " + std::to_string(S.cols()) + " columns for a " +
-                element_name(e.type) + " element");
+    throw Error("corotated_von_mises: " + std::to_string(x.rows()) +
+                " positions and a stress "
+                "matrix of " +
+                std::to_string(S.cols()) + " columns for a " + element_name(e.type) + " element");
   switch (e.type) {
   case ElementType::Tet4:
     return von_mises_impl<4>(e, S, x, grad);

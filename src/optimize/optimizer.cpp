@@ -467,8 +467,7 @@ void OptimizationRun::report_infeasible(const Evaluation &e) {
                   "over by %.1f %% of it; more iterations (optimizer.max_iterations) or, if it "
                   "oscillates about its bound in history.csv, a smaller optimizer.move_limit (now "
                   "%g) may reach a feasible design",
-                  names[i + 1].c_str(), e.constraints[i], c_.bounds[i], 100 * g,
-                  c_.move_limit);
+                  names[i + 1].c_str(), e.constraints[i], c_.bounds[i], 100 * g, c_.move_limit);
     print0(comm_, "optimize: warning: %s\n", buf);
     result_.warnings.emplace_back(buf);
   }

@@ -311,8 +311,7 @@ TEST(CorotatedStress, InvariantLinearInTheLimitAndItsGradient) {
     const double v = corotated_von_mises(e, S, x, &grad);
     EXPECT_GT(v, 0) << element_name(type);
     const Matrix3d Q = random_rotation(rng);
-    EXPECT_NEAR(corotated_von_mises(e, S, moved(x, Q, Vector3d(2, -1, 0.5)), nullptr), v,
-                1e-12 * v)
+    EXPECT_NEAR(corotated_von_mises(e, S, moved(x, Q, Vector3d(2, -1, 0.5)), nullptr), v, 1e-12 * v)
         << element_name(type);
     // A displacement of 1e-6 of the element size: the co-rotated stress is the linear one but
     // for terms quadratic in it (a relative 1e-6 and below).
