@@ -10,7 +10,8 @@
   - 1 and 2 ranks give the same objective history to 1e-6 relative (MMA amplifies the
     rounding differences of parallel sums, docs/theory-mma.md; measured 1e-8 after 25 iterations);
   - a run that ends over a constraint's bound (one iteration toward a volume fraction of 0.1)
-    says so in its log and in summary.json's warnings; the feasible one does not.
+    says so in its log and in summary.json's warnings; the feasible one does not;
+  - a stress response whose peak lies outside the design region is reported.
 Usage: check_optimize.py FLEXOPT CASE OUT
 """
 import csv
@@ -89,4 +90,13 @@ w = json.load(open(os.path.join(variant, "out", "summary.json"))).get("warnings"
 expect(p.returncode == 0 and "warning: the final design violates" in p.stdout
        and any("volume_fraction" in x and "violates" in x for x in w),
        "an infeasible final design is reported in the log and in summary.json warnings")
+# A stress response whose peak lies outside the design region (tests/optimize/stress_outside: the
+# solid cantilever's undesigned root) is named at the first iteration, with the region key.
+outside = os.path.join(os.path.dirname(os.path.abspath(__file__)), "optimize", "stress_outside")
+p = mpi_job.run(["mpirun", "-n", "2", flexopt, "optimize", outside, "--out", os.path.join(out, "stress_outside")],
+                env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, timeout=600)
+print(p.stdout)
+expect(p.returncode == 0 and "lies outside the design region 'design'" in p.stdout
+       and "region: design" in p.stdout,
+       "a stress peak outside the design region is reported with the region key")
 sys.exit(1 if failures else 0)

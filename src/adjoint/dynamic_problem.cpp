@@ -239,6 +239,15 @@ std::vector<double> DynamicProblem::response_scales() const {
   return optimize::scales_of(stress_);
 }
 
+std::vector<std::pair<std::size_t, const optimize::StressAggregate *>>
+DynamicProblem::design_stress() const {
+  std::vector<std::pair<std::size_t, const optimize::StressAggregate *>> out;
+  for (std::size_t i = 0; i < stress_.size(); ++i)
+    if (stress_[i] && stress_case_body_[i] == design_body_)
+      out.emplace_back(i, &stress_[i]->aggregate());
+  return out;
+}
+
 void DynamicProblem::restore_response_scales(const std::vector<double> &scales) {
   optimize::restore_scales(stress_, scales);
 }

@@ -35,6 +35,29 @@ std::vector<std::string> stuck_responses(const DesignProblem &p, const Evaluatio
       out.emplace_back(buf);
     }
   }
+  // A stress peak outside the design region: the design changes it only through the loads (a
+  // support, a joint's rigid interface or a concentrated load makes it a singularity of the
+  // model). Collective.
+  const DesignField &f = p.field();
+  const mesh::DistributedMesh &m = f.mesh();
+  for (const auto &[i, a] : p.design_stress()) {
+    int inside = 0;
+    for (PetscInt e : f.design_elements())
+      if (static_cast<long long>(m.element_tags[static_cast<std::size_t>(e)]) == a->peak_tag())
+        inside = 1;
+    MPI_Allreduce(MPI_IN_PLACE, &inside, 1, MPI_INT, MPI_LOR, m.comm);
+    if (inside) continue;
+    char buf[600];
+    std::snprintf(buf, sizeof buf,
+                  "response %s: its true peak (%.4g Pa at element %lld) lies outside the design "
+                  "region '%s', where the design changes the stress only through the loads; a "
+                  "stress at a support, at a joint's rigid interface or under a concentrated load "
+                  "is a singularity of the model, which a limit cannot bound: give the response "
+                  "region: %s to take the stress where the design acts",
+                  names[i].c_str(), a->peak(), a->peak_tag(), f.settings().region.c_str(),
+                  f.settings().region.c_str());
+    out.emplace_back(buf);
+  }
   return out;
 }
 

@@ -146,6 +146,14 @@ void TopologyProblem::end_iteration() {
   end_iterations(stress_);
 }
 
+std::vector<std::pair<std::size_t, const StressAggregate *>>
+TopologyProblem::design_stress() const {
+  std::vector<std::pair<std::size_t, const StressAggregate *>> out;
+  for (std::size_t i = 0; i < stress_.size(); ++i)
+    if (stress_[i]) out.emplace_back(i, &stress_[i]->aggregate());
+  return out;
+}
+
 std::vector<double> TopologyProblem::response_scales() const {
   return scales_of(stress_);
 }

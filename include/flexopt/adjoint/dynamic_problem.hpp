@@ -173,6 +173,8 @@ public:
   /// The stress responses' adaptive normalization (docs/theory.md 5.1).
   void end_iteration() override;
   std::vector<double> response_scales() const override;
+  std::vector<std::pair<std::size_t, const optimize::StressAggregate *>>
+  design_stress() const override;
   void restore_response_scales(const std::vector<double> &scales) override;
   /// forward, adjoint (the backward sweep and the initial state's adjoint) and, with an FFRF
   /// design body, reduction (0 when the design's factors did not change) and reduction_adjoint.

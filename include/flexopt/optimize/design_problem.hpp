@@ -5,6 +5,7 @@
 #include "flexopt/io/json.hpp"
 #include "flexopt/mesh/distributed_mesh.hpp"
 #include "flexopt/optimize/design_field.hpp"
+#include "flexopt/optimize/stress_aggregate.hpp"
 
 #include <cstdint>
 #include <map>
@@ -134,6 +135,11 @@ public:
   }
   /// The names of cell_fields(), known before any evaluation (a restart carries them over).
   virtual std::vector<std::string> cell_field_names() const { return {}; }
+  /// The stress responses on the design body: their response index (0 the objective) and the
+  /// aggregate of the last evaluation (stuck_responses checks where its peak lies).
+  virtual std::vector<std::pair<std::size_t, const StressAggregate *>> design_stress() const {
+    return {};
+  }
 
   Vec create_design_vector() const { return field().create_design_vector(); }
   void initial_design(Vec x) const { field().initial_design(x); }

@@ -55,6 +55,7 @@ public:
   /// The stress responses' adaptive normalization (docs/theory.md 5.1).
   void end_iteration() override;
   std::vector<double> response_scales() const override;
+  std::vector<std::pair<std::size_t, const StressAggregate *>> design_stress() const override;
   void restore_response_scales(const std::vector<double> &scales) override;
   /// Cell fields of design.xdmf beyond the densities: with a stress response, "von_mises", the
   /// relaxed von Mises stress eta(rho) v of every element [Pa] (docs/theory.md 5.1).
