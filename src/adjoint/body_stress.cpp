@@ -45,57 +45,53 @@ AcfStress::AcfStress(const optimize::ResponseSettings &r, const bodies::AcfBody 
         fem::element_stress_matrix(mesh_.type, mesh_.element_coordinates(e), material_, xi));
 }
 
+void AcfStress::start(std::size_t steps, double h, const std::vector<double> &eta,
+                      const std::vector<double> &deta) {
+  aggregate_.clear();
+  steps_ = steps;
+  recorded_ = 0;
+  h_ = h;
+  eta_ = eta;
+  deta_ = deta;
+}
+
 void AcfStress::record(const double *u) {
   const std::vector<fem::CorotatedElement> &ce = body_.elements();
+  const double w = trapezoid_weight(recorded_, steps_), t = static_cast<double>(recorded_) * h_;
   for (std::size_t i = 0; i < elements_.size(); ++i) {
     const PetscInt e = elements_[i];
-    const fem::CorotatedElement &el = ce[static_cast<std::size_t>(e)];
-    v_.push_back(fem::corotated_von_mises(el, S_[i], body_.positions(e, u), nullptr));
+    const double v = fem::corotated_von_mises(ce[static_cast<std::size_t>(e)], S_[i],
+                                              body_.positions(e, u), nullptr);
+    aggregate_.add(eta_of(eta_, i) * v, w, tag_of(i), t);
   }
+  ++recorded_;
 }
 
 double AcfStress::finish(double h, const std::vector<double> &eta, const std::vector<double> &deta,
                          bool gradients) {
-  aggregate_.clear();
-  const std::size_t ne = elements_.size(), steps = ne == 0 ? 0 : v_.size() / ne;
-  // The step count is the same on every rank (a rank without elements of the region samples
-  // nothing): the weights need the last step's index.
-  unsigned long long local = steps, all = 0;
-  MPI_Allreduce(&local, &all, 1, MPI_UNSIGNED_LONG_LONG, MPI_MAX, mesh_.comm);
-  const std::size_t N = all == 0 ? 0 : static_cast<std::size_t>(all) - 1;
-  for (std::size_t n = 0; n < steps; ++n)
-    for (std::size_t i = 0; i < ne; ++i)
-      aggregate_.add(eta_of(eta, i) * v_[n * ne + i], trapezoid_weight(n, N), tag_of(i),
-                     static_cast<double>(n) * h);
+  (void)h, (void)eta, (void)deta, (void)gradients; // start()'s; the explicit part comes later
   aggregate_.reduce(mesh_.comm);
-  if (!gradients) return scale_ * aggregate_.value();
-  g_.assign(v_.size(), 0.0);
-  explicit_.assign(static_cast<std::size_t>(mesh_.local_elements()), 0.0);
-  for (std::size_t n = 0; n < steps; ++n)
-    for (std::size_t i = 0; i < ne; ++i) {
-      const double v = v_[n * ne + i], et = eta_of(eta, i);
-      const double g = scale_ * aggregate_.derivative(et * v, trapezoid_weight(n, N));
-      g_[n * ne + i] = g * et;
-      if (!deta.empty())
-        explicit_[static_cast<std::size_t>(elements_[i])] += g * deta[elements_[i]] * v;
-    }
   return scale_ * aggregate_.value();
 }
 
-void AcfStress::add_state_partial(std::size_t n, const double *u, double *force) const {
+void AcfStress::add_state_partial(std::size_t n, const double *u, double *force,
+                                  double *explicit_gradient) const {
+  // The samples of step n again (the state is the forward run's), each with its weight in R
+  // (section 8.3): g = c dR/dsigma^, force += g eta dv/dx, explicit += g eta' v.
   const std::vector<fem::CorotatedElement> &ce = body_.elements();
-  const std::size_t ne = elements_.size();
   const int npe = mesh_.nodes_per_element();
+  const double w = trapezoid_weight(n, steps_);
   fem::ElementVector grad;
-  for (std::size_t i = 0; i < ne; ++i) {
-    const double g = g_[n * ne + i];
-    if (g == 0.0) continue;
+  for (std::size_t i = 0; i < elements_.size(); ++i) {
     const PetscInt e = elements_[i];
-    const fem::CorotatedElement &el = ce[static_cast<std::size_t>(e)];
-    fem::corotated_von_mises(el, S_[i], body_.positions(e, u), &grad);
+    const auto k = static_cast<std::size_t>(e);
+    const double v = fem::corotated_von_mises(ce[k], S_[i], body_.positions(e, u), &grad);
+    const double et = eta_of(eta_, i), g = scale_ * aggregate_.derivative(et * v, w);
+    if (g == 0.0) continue;
+    if (explicit_gradient && !deta_.empty()) explicit_gradient[k] += g * deta_[k] * v;
     for (int a = 0; a < npe; ++a) {
       const PetscInt node = mesh_.connectivity[static_cast<std::size_t>(e * npe + a)];
-      for (int c = 0; c < 3; ++c) force[3 * node + c] += g * grad(3 * a + c);
+      for (int c = 0; c < 3; ++c) force[3 * node + c] += g * et * grad(3 * a + c);
     }
   }
 }

@@ -75,6 +75,20 @@ void DistPass::sample_stress(const dynamics::DistState &s, const dynamics::State
   }
 }
 
+void DistPass::start_stress() {
+  // The ACF bodies' stress aggregates as the steps come (section 8.3), on the design body with
+  // the relaxation of its densities.
+  std::vector<double> eta, deta;
+  for (std::size_t i = 0; i < p_.specs_.size(); ++i) {
+    AcfStress *acf = p_.acf_stress(i);
+    if (!acf) continue;
+    const bool design = p_.stress_case_body_[i] == p_.design_body_;
+    if (design && eta.empty()) p_.field_->stress_factors(eta, deta);
+    acf->start(static_cast<std::size_t>(p_.steps_), p_.settings_.time.step,
+               design ? eta : std::vector<double>{}, design ? deta : std::vector<double>{});
+  }
+}
+
 void DistPass::forward() {
   const std::size_t nr = p_.specs_.size();
   const double h = p_.settings_.time.step;
@@ -90,6 +104,7 @@ void DistPass::forward() {
   energy_.assign(nr, {});
   for (const auto &st : p_.stress_)
     if (st) st->clear();
+  start_stress();
   run_forward(
       da_,
       [&](bool disk) {
@@ -181,7 +196,7 @@ std::vector<const dynamics::DistState *> DistPass::state_partials(std::size_t j,
 }
 
 void DistPass::add_stress_partial(std::size_t i, std::size_t j, const dynamics::DistState &s,
-                                  Vec q) const {
+                                  Vec q) {
   const auto b = static_cast<std::size_t>(p_.stress_body_[i]);
   if (const FfrfStress *ffrf = p_.ffrf_stress(i)) { // dR/dzeta_j on the small part (10.3)
     const dynamics::Mechanism &mech = p_.scene_.mechanism;
@@ -195,7 +210,9 @@ void DistPass::add_stress_partial(std::size_t i, std::size_t j, const dynamics::
   // added on their owners.
   const std::vector<double> u = displacement(s, b);
   std::vector<double> force(u.size(), 0.0);
-  p_.acf_stress(i)->add_state_partial(j, u.data(), force.data());
+  const bool design = p_.stress_case_body_[i] == p_.design_body_;
+  p_.acf_stress(i)->add_state_partial(j, u.data(), force.data(),
+                                      design ? p_.ev_.element_gradient[i].data() : nullptr);
   da_.add_local_values(q, b, force);
 }
 

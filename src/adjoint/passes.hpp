@@ -137,10 +137,12 @@ private:
   std::vector<double> displacement(const dynamics::DistState &s, std::size_t b) const;
   /// The responses' samples at state s (sensor values, ACF strain energies, stresses).
   void sample(const dynamics::DistState &s);
+  /// The ACF bodies' stress responses told the run's steps and relaxation.
+  void start_stress();
   /// The stress responses' samples at state s (its small part `small`).
   void sample_stress(const dynamics::DistState &s, const dynamics::State &small);
   /// Adds stress response i's partial at main step j, state s, into the coordinates q.
-  void add_stress_partial(std::size_t i, std::size_t j, const dynamics::DistState &s, Vec q) const;
+  void add_stress_partial(std::size_t i, std::size_t j, const dynamics::DistState &s, Vec q);
   /// The direct partials of an ACF design body: the strain energy's sum_n w_n U_e / s_e, the
   /// mass's rho V_e.
   void direct_partials();

@@ -65,28 +65,36 @@ protected:
 };
 
 /// A stress response on an ACF body (docs/theory.md section 8.3): the co-rotated centroid
-/// stress sigma_e = S_e u~_e of each element at every main step, recorded as von Mises values
-/// (|elements| per step) during the forward run, aggregated after it; in the backward sweep the
-/// response's partial dR/dx_n at main step n, element by element.
+/// stress sigma_e = S_e u~_e of each element at every main step, aggregated as the steps come
+/// (nothing is kept per step); in the backward sweep the stress of step n is computed again at
+/// its recomputed state, with the response's partial dR/dx_n and the relaxation's explicit part.
 class AcfStress : public BodyStress {
 public:
   /// The response r on `body` (which must outlive this). Collective.
   AcfStress(const optimize::ResponseSettings &r, const bodies::AcfBody &body);
-  void clear() override { v_.clear(); }
+  /// A new forward run of `steps` main steps of size h, with relaxation factors eta and their
+  /// derivatives deta (per local element of the body; empty: 1 and 0, a body not designed).
+  void start(std::size_t steps, double h, const std::vector<double> &eta,
+             const std::vector<double> &deta);
+  void clear() override { aggregate_.clear(); }
   /// Samples the next main step at the body's local displacements u (3 per local node, ghosts
   /// current). Not collective.
   void record(const double *u);
+  /// The aggregate of the recorded steps (its arguments are start()'s). Collective.
   double finish(double h, const std::vector<double> &eta, const std::vector<double> &deta,
                 bool gradients) override;
-  /// Adds dR/dx at main step n, the body's local displacements u, into `force` (3 per local
-  /// node; ghosts' shares to be added on their owners). Not collective.
-  void add_state_partial(std::size_t n, const double *u, double *force) const;
+  /// At main step n with the body's local displacements u: adds dR/dx into `force` (3 per local
+  /// node; ghosts' shares to be added on their owners) and, if `explicit_gradient` is not null
+  /// (the design body), sum_e g eta' v into it (one per local element). Not collective.
+  void add_state_partial(std::size_t n, const double *u, double *force,
+                         double *explicit_gradient) const;
 
 private:
   const bodies::AcfBody &body_;
   std::vector<fem::StressMatrix> S_; ///< per aggregate element: S_e of the solid material
-  std::vector<double> v_;            ///< v_{e,n}, |elements| per recorded step
-  std::vector<double> g_;            ///< c dR/dv_{e,n} (eta included), the same layout
+  std::vector<double> eta_, deta_;   ///< start()'s relaxation
+  std::size_t steps_ = 0, recorded_ = 0;
+  double h_ = 0;
 };
 
 } // namespace flexopt::adjoint
