@@ -10,7 +10,6 @@ DensePass::DensePass(DynamicProblem &p, bool gradients) : PassRun(p, gradients) 
 void DensePass::sample(const dynamics::State &s) {
   const dynamics::Mechanism &mech = p_.scene_.mechanism;
   const std::size_t nr = p_.specs_.size();
-  const int od = mech.offset(p_.mechanism_body_), nd = mech.size(p_.mechanism_body_);
   // FFRF strain energies U_n = 1/2 zeta^T K_r zeta, summed with the trapezoid weights as the
   // steps come (their number is known), and sum_n w_n 1/2 zeta_n zeta_n^T for the design body.
   const double w = trapezoid_weight(static_cast<std::size_t>(sampled_steps_++),
@@ -34,12 +33,7 @@ void DensePass::sample(const dynamics::State &s) {
     if (p_.sensor_of_[i] < 0) continue;
     const dynamics::BoundSensor &bs = p_.scene_.sensors[static_cast<std::size_t>(p_.sensor_of_[i])];
     p_.ev_.samples[i].push_back(dynamics::sensor_value(p_.scene_, bs, s.q));
-    if (p_.sensor_on_design_[i])
-      p_.ev_.sensor_frames[i].emplace_back(bs.quantity ==
-                                                   dynamics::SensorQuantity::ElasticDisplacement
-                                               ? bodies::Mat3::Identity()
-                                               : bodies::rotation(s.q.segment<4>(od + 3)),
-                                           s.q.segment(od + 7, nd - 7));
+    p_.record_design_frame(i, s.q);
   }
 }
 

@@ -76,6 +76,17 @@ void zero_basis_cotangent(const reduce::FlexibleReduction &r, int n, reduce::Red
 
 } // namespace
 
+void DynamicProblem::record_design_frame(std::size_t i, const Vector &q) {
+  if (!sensor_on_design_[i]) return;
+  const dynamics::Mechanism &mech = scene_.mechanism;
+  const int od = mech.offset(mechanism_body_), nd = mech.size(mechanism_body_);
+  const dynamics::BoundSensor &bs = scene_.sensors[static_cast<std::size_t>(sensor_of_[i])];
+  ev_.sensor_frames[i].emplace_back(bs.quantity == dynamics::SensorQuantity::ElasticDisplacement
+                                        ? bodies::Mat3::Identity()
+                                        : bodies::rotation(q.segment<4>(od + 3)),
+                                    q.segment(od + 7, nd - 7));
+}
+
 int DynamicProblem::design_parameters() const {
   if (!ffrf_design_) return 10;
   const auto &body = dynamic_cast<const bodies::FfrfBody &>(scene_.mechanism.body(mechanism_body_));

@@ -1,6 +1,7 @@
-// One evaluation on the distributed backend (docs/theory.md sections 9.6 and 9.7), for a scene
-// with ACF bodies whose design body is ACF (element partials) or rigid (mass-parameter partials
-// on the small part): the forward run with the states kept or checkpointed, the responses, the
+// One evaluation on the distributed backend (docs/theory.md sections 9.6-9.8), for a scene
+// with ACF bodies whose design body is ACF (element partials), rigid (mass-parameter partials
+// on the small part) or FFRF (its model's partials on the small part, through the reduction's
+// adjoint): the forward run with the states kept or checkpointed, the responses, the
 // backward sweep with the design partials, and the adjoint of the consistent start (9.2).
 #include "flexopt/core/context.hpp"
 #include "flexopt/core/error.hpp"
@@ -20,7 +21,7 @@ DistPass::DistPass(DynamicProblem &p, bool gradients)
     : PassRun(p, gradients), da_(integrator_.dist()), acf_(p.acf_design_ >= 0),
       design_(static_cast<std::size_t>(acf_ ? p.acf_design_ : 0)) {
   body_ = acf_ ? p_.scene_.acf[design_].get() : nullptr;
-  G_ = Matrix::Zero(10, static_cast<Eigen::Index>(p_.specs_.size()));
+  G_ = Matrix::Zero(p_.design_parameters(), static_cast<Eigen::Index>(p_.specs_.size()));
 }
 
 DistPass::~DistPass() = default;
@@ -43,6 +44,7 @@ void DistPass::sample(const dynamics::DistState &s) {
       p_.ev_.samples[i].push_back(bs.acf_body >= 0
                                       ? dynamics::acf_sensor_value(p_.scene_, da_, bs, s, small)
                                       : dynamics::sensor_value(p_.scene_, bs, small.q));
+      p_.record_design_frame(i, small.q);
     }
     if (strain_body_[i] >= 0) {
       const auto b = static_cast<std::size_t>(strain_body_[i]);
@@ -101,6 +103,8 @@ void DistPass::forward() {
         if (p_.settings_.scene.bodies[b].name == p_.specs_[i]->body)
           strain_body_[i] = p_.scene_.bodies[b].acf;
   p_.ev_.samples.assign(nr, {});
+  p_.ev_.sensor_frames.assign(nr, {});
+  p_.ev_.strain_kbar.assign(nr, Matrix());
   energy_.assign(nr, {});
   for (const auto &st : p_.stress_)
     if (st) st->clear();
@@ -300,9 +304,12 @@ void DistPass::add_mass_terms(const std::vector<std::vector<double>> &mus,
 }
 
 void DistPass::add_small_mass_terms(const Matrix &mus, const Vector &velocity) {
-  // -(dM/dtheta u)^T mu of a rigid design body.
+  // -(dM/dtheta u)^T mu of a rigid or FFRF design body in the small part: the mass part of r
+  // only, r(q, 0, u) - r(q, 0, 0) (an FFRF body's r also holds K_r zeta; section 9.8).
   const dynamics::State sm = da_.small_state(s0_);
-  const Matrix P = p_.design_partials(sm.q, Vector::Zero(sm.q.size()), velocity, false, mus);
+  const Vector zero = Vector::Zero(sm.q.size());
+  const Matrix P = p_.design_partials(sm.q, zero, velocity, false, mus) -
+                   p_.design_partials(sm.q, zero, zero, false, mus);
   for (std::size_t a = 0; a < active_.size(); ++a)
     G_.col(static_cast<Eigen::Index>(active_[a])) -= P.col(static_cast<Eigen::Index>(a));
 }
@@ -415,7 +422,11 @@ void DistPass::backward() {
   long long bytes = store_->peak_bytes();
   MPI_Allreduce(MPI_IN_PLACE, &bytes, 1, MPI_LONG_LONG, MPI_SUM, p_.mesh().comm);
   p_.checkpoint_bytes_ = bytes;
-  if (!acf_) p_.add_rigid_element_gradients(G_);
+  if (acf_) return;
+  if (p_.ffrf_design_) // through the reduction's adjoint (sections 9.8, 10)
+    p_.add_ffrf_element_gradients(G_, StartAdjoint{});
+  else
+    p_.add_rigid_element_gradients(G_);
 }
 
 } // namespace flexopt::adjoint::detail

@@ -165,13 +165,13 @@ private:
   void add_small_mass_terms(const Matrix &mus, const Vector &velocity);
 
   const dynamics::DistributedAlpha &da_;
-  const bool acf_;           ///< the design body is ACF (else rigid, in the small part)
+  const bool acf_;           ///< the design body is ACF (else rigid or FFRF, in the small part)
   const std::size_t design_; ///< its index among the ACF bodies
   bodies::AcfBody *body_ = nullptr;
-  std::vector<int> strain_body_;              ///< per response: the ACF body of its energy
-  std::vector<std::vector<double>> energy_;   ///< per strain response: U_n
-  std::vector<double> energy_steps_;          ///< the design body's U_e, per step
-  Matrix G_;                                  ///< rigid design body: dPsi/dtheta
+  std::vector<int> strain_body_;            ///< per response: the ACF body of its energy
+  std::vector<std::vector<double>> energy_; ///< per strain response: U_n
+  std::vector<double> energy_steps_;        ///< the design body's U_e, per step
+  Matrix G_; ///< a rigid or FFRF design body: dPsi/dtheta (its mass parameters or packed model)
   std::vector<std::size_t> active_;           ///< the responses that depend on the state
   std::vector<dynamics::DistState> partials_; ///< work: one per active response
   std::vector<std::vector<double>> d_modulus_, d_mass_, mu_d_;

@@ -239,6 +239,10 @@ private:
   void add_initial_field_cotangent(std::size_t i, int n, const StartAdjoint &start,
                                    reduce::ReductionCotangent &c, std::vector<Vec> &owned,
                                    std::vector<double> &projection_w) const;
+  /// If response i's sensor reads the FFRF design body: its frame (the body's rotation, or the
+  /// identity for an elastic displacement) and elastic coordinates at the mechanism's (or small
+  /// part's) coordinates q, for the sensor's basis cotangent (section 10).
+  void record_design_frame(std::size_t i, const Vector &q);
   /// Rows of the design partials: 10 mass parameters (rigid) or the packed FfrfModel.
   int design_parameters() const;
   /// (d r/d theta)^T W for the design body's block of W (ResidualPartials).
