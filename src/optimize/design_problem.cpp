@@ -38,9 +38,11 @@ std::vector<std::string> stuck_responses(const DesignProblem &p, const Evaluatio
   // A stress peak outside the design region: the design changes it only through the loads (a
   // support, a joint's rigid interface or a concentrated load makes it a singularity of the
   // model). Collective.
+  const auto stress = p.design_stress();
+  if (stress.empty()) return out;
   const DesignField &f = p.field();
   const mesh::DistributedMesh &m = f.mesh();
-  for (const auto &[i, a] : p.design_stress()) {
+  for (const auto &[i, a] : stress) {
     int inside = 0;
     for (PetscInt e : f.design_elements())
       if (static_cast<long long>(m.element_tags[static_cast<std::size_t>(e)]) == a->peak_tag())
