@@ -10,20 +10,7 @@ DensePass::DensePass(DynamicProblem &p, bool gradients) : PassRun(p, gradients) 
 void DensePass::sample(const dynamics::State &s) {
   const dynamics::Mechanism &mech = p_.scene_.mechanism;
   const std::size_t nr = p_.specs_.size();
-  // FFRF strain energies U_n = 1/2 zeta^T K_r zeta, summed with the trapezoid weights as the
-  // steps come (their number is known), and sum_n w_n 1/2 zeta_n zeta_n^T for the design body.
-  const double w = trapezoid_weight(static_cast<std::size_t>(sampled_steps_++),
-                                    static_cast<std::size_t>(p_.steps_));
-  for (std::size_t i = 0; i < nr; ++i) {
-    if (p_.strain_body_[i] < 0) continue;
-    const auto &body = dynamic_cast<const bodies::FfrfBody &>(mech.body(p_.strain_body_[i]));
-    const Vector z = s.q.segment(mech.offset(p_.strain_body_[i]) + 7, body.coordinates() - 7);
-    strain_value_[i] += w * 0.5 * z.dot(body.data().stiffness * z);
-    if (p_.strain_body_[i] == p_.mechanism_body_ && p_.ffrf_design_) {
-      if (p_.ev_.strain_kbar[i].size() == 0) p_.ev_.strain_kbar[i].setZero(z.size(), z.size());
-      p_.ev_.strain_kbar[i] += w * 0.5 * z * z.transpose();
-    }
-  }
+  sample_ffrf_strain(s.q);
   for (std::size_t i = 0; i < nr; ++i)
     if (p_.stress_[i]) {
       const int o = mech.offset(p_.stress_body_[i]);
@@ -46,7 +33,7 @@ void DensePass::forward() {
   p_.ev_.samples.assign(nr, {});
   p_.ev_.sensor_frames.assign(nr, {});
   p_.ev_.strain_kbar.assign(nr, Matrix());
-  strain_value_.assign(nr, 0.0);
+  start_ffrf_strain();
   for (const auto &st : p_.stress_)
     if (st) st->clear();
   run_forward(
@@ -123,14 +110,8 @@ Matrix DensePass::state_partials(long long j, const dynamics::State &state) cons
       continue;
     }
     if (p_.strain_body_[i] >= 0) {
-      // d/dzeta of w_j 1/2 zeta^T K_r zeta.
-      const dynamics::Mechanism &mech = scene.mechanism;
-      const auto &body = dynamic_cast<const bodies::FfrfBody &>(mech.body(p_.strain_body_[i]));
-      const int o = mech.offset(p_.strain_body_[i]) + 7, ne = body.coordinates() - 7;
       if (P.size() == 0) P.setZero(4 * n + m, static_cast<Eigen::Index>(p_.specs_.size()));
-      P.col(static_cast<Eigen::Index>(i)).segment(o, ne) =
-          trapezoid_weight(static_cast<std::size_t>(j), static_cast<std::size_t>(p_.steps_)) *
-          (body.data().stiffness * state.q.segment(o, ne));
+      add_ffrf_strain_partial(i, j, state.q, P.col(static_cast<Eigen::Index>(i)).head(n));
       continue;
     }
     if (p_.ev_.sampled[i].dy.empty()) continue;

@@ -37,6 +37,7 @@ std::vector<double> DistPass::displacement(const dynamics::DistState &s, std::si
 void DistPass::sample(const dynamics::DistState &s) {
   const dynamics::State small = da_.small_state(s);
   sample_stress(s, small);
+  sample_ffrf_strain(small.q);
   for (std::size_t i = 0; i < p_.specs_.size(); ++i) {
     if (p_.sensor_of_[i] >= 0) {
       const dynamics::BoundSensor &bs =
@@ -105,6 +106,7 @@ void DistPass::forward() {
   p_.ev_.samples.assign(nr, {});
   p_.ev_.sensor_frames.assign(nr, {});
   p_.ev_.strain_kbar.assign(nr, Matrix());
+  start_ffrf_strain();
   energy_.assign(nr, {});
   for (const auto &st : p_.stress_)
     if (st) st->clear();
@@ -123,6 +125,7 @@ void DistPass::forward() {
     if (strain_body_[i] >= 0)
       for (std::size_t n = 0; n <= N; ++n)
         p_.ev_.sampled[i].value += trapezoid_weight(n, N) * energy_[i][n];
+    if (p_.strain_body_[i] >= 0) p_.ev_.sampled[i].value = strain_value_[i]; // FFRF
   }
   finish_stress();
 }
@@ -180,6 +183,12 @@ std::vector<const dynamics::DistState *> DistPass::state_partials(std::size_t j,
     }
     if (p_.stress_[i]) {
       add_stress_partial(i, j, s, P.q);
+      any = true;
+    }
+    if (p_.strain_body_[i] >= 0) { // an FFRF body's, on the small part
+      Vector d = Vector::Zero(small.q.size());
+      add_ffrf_strain_partial(i, static_cast<long long>(j), small.q, d);
+      da_.add_small(P.q, d);
       any = true;
     }
     if (strain_body_[i] >= 0) {
@@ -410,7 +419,8 @@ void DistPass::backward() {
   // the responses that depend on the state (the volume fraction and the mass do not: their
   // multipliers are zero).
   for (std::size_t i = 0; i < p_.specs_.size(); ++i)
-    if (p_.sensor_of_[i] >= 0 || strain_body_[i] >= 0 || p_.stress_[i]) active_.push_back(i);
+    if (p_.sensor_of_[i] >= 0 || strain_body_[i] >= 0 || p_.strain_body_[i] >= 0 || p_.stress_[i])
+      active_.push_back(i);
   if (active_.empty()) { // no backward sweep: every gradient is the direct partial
     p_.recomputed_ = 0;
     p_.adjoint_factorizations_ = 0;

@@ -180,11 +180,6 @@ void DynamicProblem::bind_responses(dynamics::BodyModel model) {
         throw Error(r->where.str() + ": strain_energy_integral of body '" + r->body +
                         "': a rigid body has no strain energy (ACF and FFRF bodies have)",
                     true);
-      if (bm == BodyModel::Ffrf && !scene_.acf.empty())
-        throw Error(r->where.str() + ": strain_energy_integral of FFRF body '" + r->body +
-                        "' in a scene with ACF bodies is not built yet (ACF bodies' strain "
-                        "energy is, and FFRF bodies' in scenes without ACF bodies)",
-                    true);
       if (bm == BodyModel::Ffrf)
         for (std::size_t b = 0; b < settings_.scene.bodies.size(); ++b)
           if (settings_.scene.bodies[b].name == r->body)

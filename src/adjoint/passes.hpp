@@ -86,8 +86,45 @@ protected:
     }
   }
 
+  /// A new forward run's FFRF strain energies (section 9.3): nothing summed yet.
+  void start_ffrf_strain() {
+    strain_value_.assign(p_.specs_.size(), 0.0);
+    sampled_steps_ = 0;
+  }
+  /// The next main step's FFRF strain energies U_n = 1/2 zeta^T K_r zeta at the mechanism's (or
+  /// small part's) coordinates q, summed with the trapezoidal weights as the steps come, and
+  /// sum_n w_n 1/2 zeta_n zeta_n^T for the FFRF design body (its reduction's cotangent).
+  void sample_ffrf_strain(const Vector &q) {
+    const dynamics::Mechanism &mech = p_.scene_.mechanism;
+    const double w = trapezoid_weight(static_cast<std::size_t>(sampled_steps_++),
+                                      static_cast<std::size_t>(p_.steps_));
+    for (std::size_t i = 0; i < p_.specs_.size(); ++i) {
+      if (p_.strain_body_[i] < 0) continue;
+      const auto &body = dynamic_cast<const bodies::FfrfBody &>(mech.body(p_.strain_body_[i]));
+      const Vector z = q.segment(mech.offset(p_.strain_body_[i]) + 7, body.coordinates() - 7);
+      strain_value_[i] += w * 0.5 * z.dot(body.data().stiffness * z);
+      if (p_.strain_body_[i] == p_.mechanism_body_ && p_.ffrf_design_) {
+        if (p_.ev_.strain_kbar[i].size() == 0) p_.ev_.strain_kbar[i].setZero(z.size(), z.size());
+        p_.ev_.strain_kbar[i] += w * 0.5 * z * z.transpose();
+      }
+    }
+  }
+  /// d/dzeta of response i's w_j 1/2 zeta^T K_r zeta at main step j into `dq` (the mechanism's
+  /// or small part's coordinates), on its body's elastic rows.
+  template <class Out>
+  void add_ffrf_strain_partial(std::size_t i, long long j, const Vector &q, Out &&dq) const {
+    const dynamics::Mechanism &mech = p_.scene_.mechanism;
+    const auto &body = dynamic_cast<const bodies::FfrfBody &>(mech.body(p_.strain_body_[i]));
+    const int o = mech.offset(p_.strain_body_[i]) + 7, ne = body.coordinates() - 7;
+    dq.segment(o, ne) +=
+        trapezoid_weight(static_cast<std::size_t>(j), static_cast<std::size_t>(p_.steps_)) *
+        (body.data().stiffness * q.segment(o, ne));
+  }
+
   DynamicProblem &p_;
   const bool gradients_;
+  std::vector<double> strain_value_; ///< per response: its FFRF strain energy integral
+  long long sampled_steps_ = 0;
   const dynamics::Integrator integrator_;
   Trace trace_; ///< what the start did to the velocities (section 9.2)
   RecordT record_;
@@ -120,9 +157,6 @@ private:
   Matrix state_partials(long long j, const dynamics::State &state) const;
   /// Main step j recomputed from the record of step j - 1 along the forward run's substeps.
   StepRecord recompute(const StepRecord &previous, long long j) const;
-
-  std::vector<double> strain_value_; ///< per response: its strain energy integral
-  long long sampled_steps_ = 0;
 };
 
 class DistPass : public PassRun<dynamics::DistState, dynamics::DistStartTrace> {
