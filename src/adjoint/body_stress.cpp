@@ -19,21 +19,7 @@ void BodyStress::end_iteration() {
 }
 
 io::Json BodyStress::describe(const std::string &name) const {
-  io::Json j = io::Json::object();
-  j["response"] = name;
-  j["body"] = r_.body;
-  j["aggregate"] = r_.aggregate.type == optimize::StressAggregateType::Ks ? "ks" : "pnorm";
-  j["value"] = scale_ * aggregate_.value();
-  j["unscaled_value"] = aggregate_.value();
-  j["scale"] = scale_;
-  j["peak"] = aggregate_.peak();
-  j["peak_element"] = aggregate_.peak_tag();
-  j["peak_time"] = aggregate_.peak_time();
-  if (r_.has_max) {
-    j["max"] = r_.max;
-    j["peak_over_max"] = aggregate_.peak() / r_.max;
-  }
-  return j;
+  return optimize::describe_stress_response(name, r_, aggregate_, scale_);
 }
 
 AcfStress::AcfStress(const optimize::ResponseSettings &r, const bodies::AcfBody &body)

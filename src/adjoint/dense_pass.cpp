@@ -8,14 +8,9 @@ namespace flexopt::adjoint::detail {
 DensePass::DensePass(DynamicProblem &p, bool gradients) : PassRun(p, gradients) {}
 
 void DensePass::sample(const dynamics::State &s) {
-  const dynamics::Mechanism &mech = p_.scene_.mechanism;
   const std::size_t nr = p_.specs_.size();
   sample_ffrf_strain(s.q);
-  for (std::size_t i = 0; i < nr; ++i)
-    if (p_.stress_[i]) {
-      const int o = mech.offset(p_.stress_body_[i]);
-      p_.ffrf_stress(i)->record(s.q.segment(o + 7, mech.size(p_.stress_body_[i]) - 7));
-    }
+  record_ffrf_stress(s.q);
   for (std::size_t i = 0; i < nr; ++i) {
     if (p_.sensor_of_[i] < 0) continue;
     const dynamics::BoundSensor &bs = p_.scene_.sensors[static_cast<std::size_t>(p_.sensor_of_[i])];
@@ -103,10 +98,8 @@ Matrix DensePass::state_partials(long long j, const dynamics::State &state) cons
   Matrix P;
   for (std::size_t i = 0; i < p_.specs_.size(); ++i) {
     if (p_.stress_[i]) { // dR/dzeta_j of the stress aggregate (section 10.3)
-      const int o = scene.mechanism.offset(p_.stress_body_[i]) + 7;
       if (P.size() == 0) P.setZero(4 * n + m, static_cast<Eigen::Index>(p_.specs_.size()));
-      const Eigen::VectorXd dz = p_.ffrf_stress(i)->dzeta(static_cast<std::size_t>(j));
-      P.col(static_cast<Eigen::Index>(i)).segment(o, dz.size()) = dz;
+      add_ffrf_stress_partial(i, j, P.col(static_cast<Eigen::Index>(i)).head(n));
       continue;
     }
     if (p_.strain_body_[i] >= 0) {

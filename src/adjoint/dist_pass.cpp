@@ -67,15 +67,10 @@ void DistPass::sample(const dynamics::DistState &s) {
 void DistPass::sample_stress(const dynamics::DistState &s, const dynamics::State &small) {
   // ACF bodies' co-rotated stress from their displacements (section 8.3); FFRF bodies' elastic
   // coordinates from the small part (section 10.3).
-  for (std::size_t i = 0; i < p_.specs_.size(); ++i) {
-    const auto b = static_cast<std::size_t>(p_.stress_body_[i]);
-    if (AcfStress *acf = p_.acf_stress(i)) acf->record(displacement(s, b).data());
-    if (FfrfStress *ffrf = p_.ffrf_stress(i)) {
-      const dynamics::Mechanism &mech = p_.scene_.mechanism;
-      ffrf->record(
-          small.q.segment(mech.offset(p_.stress_body_[i]) + 7, mech.size(p_.stress_body_[i]) - 7));
-    }
-  }
+  for (std::size_t i = 0; i < p_.specs_.size(); ++i)
+    if (AcfStress *acf = p_.acf_stress(i))
+      acf->record(displacement(s, static_cast<std::size_t>(p_.stress_body_[i])).data());
+  record_ffrf_stress(small.q);
 }
 
 void DistPass::start_stress() {
@@ -211,11 +206,9 @@ std::vector<const dynamics::DistState *> DistPass::state_partials(std::size_t j,
 void DistPass::add_stress_partial(std::size_t i, std::size_t j, const dynamics::DistState &s,
                                   Vec q) {
   const auto b = static_cast<std::size_t>(p_.stress_body_[i]);
-  if (const FfrfStress *ffrf = p_.ffrf_stress(i)) { // dR/dzeta_j on the small part (10.3)
-    const dynamics::Mechanism &mech = p_.scene_.mechanism;
-    Vector d = Vector::Zero(mech.coordinates());
-    const Eigen::VectorXd dz = ffrf->dzeta(j);
-    d.segment(mech.offset(p_.stress_body_[i]) + 7, dz.size()) = dz;
+  if (p_.ffrf_stress(i)) { // dR/dzeta_j on the small part (10.3)
+    Vector d = Vector::Zero(p_.scene_.mechanism.coordinates());
+    add_ffrf_stress_partial(i, static_cast<long long>(j), d);
     da_.add_small(q, d);
     return;
   }

@@ -121,6 +121,22 @@ protected:
         (body.data().stiffness * q.segment(o, ne));
   }
 
+  /// The FFRF bodies' stress responses record their elastic coordinates at the mechanism's (or
+  /// small part's) coordinates q (section 10.3).
+  void record_ffrf_stress(const Vector &q) {
+    const dynamics::Mechanism &mech = p_.scene_.mechanism;
+    for (std::size_t i = 0; i < p_.specs_.size(); ++i)
+      if (FfrfStress *ffrf = p_.ffrf_stress(i))
+        ffrf->record(
+            q.segment(mech.offset(p_.stress_body_[i]) + 7, mech.size(p_.stress_body_[i]) - 7));
+  }
+  /// dR/dzeta_j of response i's FFRF stress into `dq` (the mechanism's or small part's
+  /// coordinates), on its body's elastic rows.
+  template <class Out> void add_ffrf_stress_partial(std::size_t i, long long j, Out &&dq) const {
+    const Eigen::VectorXd dz = p_.ffrf_stress(i)->dzeta(static_cast<std::size_t>(j));
+    dq.segment(p_.scene_.mechanism.offset(p_.stress_body_[i]) + 7, dz.size()) += dz;
+  }
+
   DynamicProblem &p_;
   const bool gradients_;
   std::vector<double> strain_value_; ///< per response: its FFRF strain energy integral

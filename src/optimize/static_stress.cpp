@@ -30,7 +30,7 @@ StaticStress::StaticStress(const mesh::DistributedMesh &mesh,
 
 double StaticStress::evaluate(Vec u, const std::vector<double> &eta) {
   aggregate_.clear();
-  sigma_.resize(elements_.size());
+  dv_.resize(elements_.size());
   solid_.resize(elements_.size());
   Vec ul;
   const PetscScalar *ua;
@@ -41,8 +41,10 @@ double StaticStress::evaluate(Vec u, const std::vector<double> &eta) {
     const PetscInt e = elements_[i];
     const fem::StressMatrix S =
         fem::element_stress_matrix(mesh_.type, mesh_.element_coordinates(e), material_, xi);
-    sigma_[i] = S * fem::gather_element(mesh_, e, ua);
-    solid_[i] = fem::von_mises(sigma_[i]);
+    const fem::Voigt sigma = S * fem::gather_element(mesh_, e, ua);
+    solid_[i] = fem::von_mises(sigma);
+    dv_[i] = S.transpose() * fem::von_mises_gradient(sigma); // for the adjoint load
+
     aggregate_.add(eta[static_cast<std::size_t>(e)] * solid_[i], 1.0,
                    static_cast<long long>(mesh_.element_tags[static_cast<std::size_t>(e)]), -1.0);
   }
@@ -53,16 +55,13 @@ double StaticStress::evaluate(Vec u, const std::vector<double> &eta) {
 }
 
 void StaticStress::adjoint_load(const std::vector<double> &eta, Vec rhs) const {
-  const Eigen::Vector3d xi = fem::reference_centroid(mesh_.type);
   fem::assemble_ghosted(rhs, [&](PetscScalar *ra) {
     for (std::size_t i = 0; i < elements_.size(); ++i) {
       const PetscInt e = elements_[i];
       const double eta_e = eta[static_cast<std::size_t>(e)];
       const double g = scale_ * aggregate_.derivative(eta_e * solid_[i], 1.0) * eta_e;
       if (g == 0.0) continue;
-      const fem::StressMatrix S =
-          fem::element_stress_matrix(mesh_.type, mesh_.element_coordinates(e), material_, xi);
-      const fem::ElementVector f = S.transpose() * (g * fem::von_mises_gradient(sigma_[i]));
+      const fem::ElementVector f = g * dv_[i];
       fem::add_element(mesh_, e, f.data(), ra);
     }
   });
@@ -89,17 +88,24 @@ void StaticStress::end_iteration() {
 }
 
 io::Json StaticStress::describe(const std::string &name) const {
+  return describe_stress_response(name, r_, aggregate_, scale_);
+}
+
+io::Json describe_stress_response(const std::string &name, const ResponseSettings &r,
+                                  const StressAggregate &a, double scale) {
   io::Json j = io::Json::object();
   j["response"] = name;
-  j["aggregate"] = r_.aggregate.type == StressAggregateType::Ks ? "ks" : "pnorm";
-  j["value"] = scale_ * aggregate_.value();
-  j["unscaled_value"] = aggregate_.value();
-  j["scale"] = scale_;
-  j["peak"] = aggregate_.peak();
-  j["peak_element"] = aggregate_.peak_tag();
-  if (r_.has_max) {
-    j["max"] = r_.max;
-    j["peak_over_max"] = aggregate_.peak() / r_.max;
+  j["body"] = r.body;
+  j["aggregate"] = r.aggregate.type == StressAggregateType::Ks ? "ks" : "pnorm";
+  j["value"] = scale * a.value();
+  j["unscaled_value"] = a.value();
+  j["scale"] = scale;
+  j["peak"] = a.peak();
+  j["peak_element"] = a.peak_tag();
+  if (a.peak_time() >= 0) j["peak_time"] = a.peak_time();
+  if (r.has_max) {
+    j["max"] = r.max;
+    j["peak_over_max"] = a.peak() / r.max;
   }
   return j;
 }

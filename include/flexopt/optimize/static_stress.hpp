@@ -32,6 +32,12 @@ io::Json describe_stress(const Ptrs &stress, const std::vector<std::string> &nam
   return any ? out : io::Json();
 }
 
+/// summary.json's entry of a stress response `name` (r) from its last aggregate `a` and scale c:
+/// "response", "body", "aggregate", "value" (c R), "unscaled_value", "scale", "peak",
+/// "peak_element", "peak_time" (dynamic), "max" and "peak_over_max" (a constraint).
+io::Json describe_stress_response(const std::string &name, const ResponseSettings &r,
+                                  const StressAggregate &a, double scale);
+
 class StaticStress {
 public:
   /// The elements of r.region (all elements of `mesh` when empty). Collective (a missing
@@ -65,9 +71,10 @@ private:
   ResponseSettings r_;
   std::vector<PetscInt> elements_; ///< local elements of the aggregate
   StressAggregate aggregate_;
-  std::vector<fem::Voigt> sigma_; ///< solid stress per aggregate element (elements_ order)
-  std::vector<double> solid_;     ///< its von Mises v_e
-  double scale_ = 1.0;            ///< adaptive normalization c
+  std::vector<double> solid_; ///< von Mises v_e of the solid stress per aggregate element
+  /// S_e^T dv/dsigma per aggregate element (elements_ order): the adjoint load of a unit dR/dv_e.
+  std::vector<fem::ElementVector> dv_;
+  double scale_ = 1.0; ///< adaptive normalization c
 };
 
 } // namespace flexopt::optimize
