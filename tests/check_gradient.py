@@ -91,7 +91,9 @@ if raw:
     failures += 0 if ok else 1
 # The part of each disagreement beyond the extrapolated difference's own uncertainty (its gap to
 # the next extrapolation: the responses' noise over the step) counts against the adjoint.
-ok = s["max_rel_err_beyond_uncertainty"] <= FD_TOL and len(s["fd"]) == 5 * len(s["taylor"])
+# 5 design elements, or with several design bodies 3 of each (check-gradient's sample): at least
+# 5 rows per response.
+ok = s["max_rel_err_beyond_uncertainty"] <= FD_TOL and len(s["fd"]) >= 5 * len(s["taylor"])
 print(("ok    " if ok else "FAIL  ") + f"finite differences: max relative error {s['max_rel_err']:.2e}, "
       f"beyond the differences' uncertainty {s['max_rel_err_beyond_uncertainty']:.2e} <= {FD_TOL:g}")
 failures += 0 if ok else 1

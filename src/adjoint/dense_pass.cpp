@@ -27,7 +27,6 @@ void DensePass::forward() {
   const std::size_t nr = p_.specs_.size();
   p_.ev_.samples.assign(nr, {});
   p_.ev_.sensor_frames.assign(nr, {});
-  p_.ev_.strain_kbar.assign(nr, Matrix());
   start_ffrf_strain();
   for (const auto &st : p_.stress_)
     if (st) st->clear();
@@ -40,7 +39,7 @@ void DensePass::forward() {
   for (std::size_t i = 0; i < nr; ++i) {
     if (p_.sensor_of_[i] >= 0)
       p_.ev_.sampled[i] = sampled_response(*p_.specs_[i], p_.ev_.samples[i], h);
-    if (p_.strain_body_[i] >= 0) p_.ev_.sampled[i].value = strain_value_[i];
+    if (!p_.strain_bodies_[i].empty()) p_.ev_.sampled[i].value = strain_value_[i];
   }
   finish_stress();
 }
@@ -74,10 +73,10 @@ void DensePass::backward() {
   p_.checkpoint_bytes_ = store_->peak_bytes();
   p_.adjoint_factorizations_ = sweep.factorizations();
   const Matrix mu0 = sweep.finish(state_partials(0, s0_));
-  // The placed state depends on the design when the FFRF design body has initial elastic fields
+  // The placed state depends on the design when an FFRF design body has initial elastic fields
   // (section 10.2): then the start returns its sensitivities to it too.
-  const dynamics::SceneBody &dsb = p_.scene_.bodies[static_cast<std::size_t>(p_.design_body_)];
-  const bool given = p_.ffrf_design_ && (dsb.elastic0.size() > 0 || dsb.elastic_rate0.size() > 0);
+  bool given = false;
+  for (const DesignBody &db : p_.designs_) given = given || p_.given_fields(db);
   const StartAdjoint start = initial_state_adjoint(
       ga, s0_, trace_, -mu0,
       [&](const Vector &q, const Vector &v, const Vector &a, bool gravity, const Matrix &W) {
@@ -86,10 +85,7 @@ void DensePass::backward() {
       given);
   G += start.design;
   p_.adjoint_s_ = wall_time() - t_adjoint;
-  if (p_.ffrf_design_)
-    p_.add_ffrf_element_gradients(G, start);
-  else
-    p_.add_rigid_element_gradients(G);
+  p_.add_element_gradients(G, start);
 }
 
 Matrix DensePass::state_partials(long long j, const dynamics::State &state) const {
@@ -102,7 +98,7 @@ Matrix DensePass::state_partials(long long j, const dynamics::State &state) cons
       add_ffrf_stress_partial(i, j, P.col(static_cast<Eigen::Index>(i)).head(n));
       continue;
     }
-    if (p_.strain_body_[i] >= 0) {
+    if (!p_.strain_bodies_[i].empty()) {
       if (P.size() == 0) P.setZero(4 * n + m, static_cast<Eigen::Index>(p_.specs_.size()));
       add_ffrf_strain_partial(i, j, state.q, P.col(static_cast<Eigen::Index>(i)).head(n));
       continue;

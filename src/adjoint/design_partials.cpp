@@ -77,9 +77,10 @@ void zero_basis_cotangent(const reduce::FlexibleReduction &r, int n, reduce::Red
 } // namespace
 
 void DynamicProblem::record_design_frame(std::size_t i, const Vector &q) {
-  if (!sensor_on_design_[i]) return;
+  if (sensor_design_[i] < 0) return;
+  const DesignBody &db = designs_[static_cast<std::size_t>(sensor_design_[i])];
   const dynamics::Mechanism &mech = scene_.mechanism;
-  const int od = mech.offset(mechanism_body_), nd = mech.size(mechanism_body_);
+  const int od = mech.offset(db.mechanism), nd = mech.size(db.mechanism);
   const dynamics::BoundSensor &bs = scene_.sensors[static_cast<std::size_t>(sensor_of_[i])];
   ev_.sensor_frames[i].emplace_back(bs.quantity == dynamics::SensorQuantity::ElasticDisplacement
                                         ? bodies::Mat3::Identity()
@@ -87,52 +88,76 @@ void DynamicProblem::record_design_frame(std::size_t i, const Vector &q) {
                                     q.segment(od + 7, nd - 7));
 }
 
-int DynamicProblem::design_parameters() const {
-  if (!ffrf_design_) return 10;
-  const auto &body = dynamic_cast<const bodies::FfrfBody &>(scene_.mechanism.body(mechanism_body_));
+int DynamicProblem::design_parameters_of(const DesignBody &db) const {
+  if (db.rigid()) return 10;
+  const auto &body = dynamic_cast<const bodies::FfrfBody &>(scene_.mechanism.body(db.mechanism));
   return packed_size(body.coordinates() - 7, body.stiffening());
+}
+
+int DynamicProblem::design_parameters() const {
+  int rows = 0;
+  for (const DesignBody &db : designs_) rows += db.rows;
+  return rows;
 }
 
 Matrix DynamicProblem::design_partials(const Vector &q, const Vector &v, const Vector &a,
                                        bool gravity, const Matrix &W) const {
+  // Block by block: each rigid or FFRF design body's parameters enter its own rows of r only
+  // (docs/theory.md 9.9).
   const dynamics::Mechanism &mech = scene_.mechanism;
-  const int o = mech.offset(mechanism_body_);
-  if (ffrf_design_) {
-    const auto &body = dynamic_cast<const bodies::FfrfBody &>(mech.body(mechanism_body_));
-    const int nb = body.coordinates(), n = nb - 7;
-    Matrix G(packed_size(n, body.stiffening()), W.cols());
-    for (Eigen::Index c = 0; c < W.cols(); ++c) {
-      bodies::FfrfModel bar;
-      const Vector mu = W.col(c).segment(o, nb);
-      body.model_cotangent(q.segment(o, nb), v.segment(o, nb), a.segment(o, nb),
-                           gravity ? mech.gravity : Vec3::Zero(), mu, bar);
-      G.col(c) = pack(bar, n, body.stiffening());
+  const Vec3 g = gravity ? mech.gravity : Vec3::Zero();
+  Matrix G(design_parameters(), W.cols());
+  for (const DesignBody &db : designs_) {
+    if (db.acf_model()) continue;
+    const int o = mech.offset(db.mechanism);
+    if (db.ffrf()) {
+      const auto &body = dynamic_cast<const bodies::FfrfBody &>(mech.body(db.mechanism));
+      const int nb = body.coordinates(), n = nb - 7;
+      for (Eigen::Index c = 0; c < W.cols(); ++c) {
+        bodies::FfrfModel bar;
+        const Vector mu = W.col(c).segment(o, nb);
+        body.model_cotangent(q.segment(o, nb), v.segment(o, nb), a.segment(o, nb), g, mu, bar);
+        G.col(c).segment(db.row, db.rows) = pack(bar, n, body.stiffening());
+      }
+      continue;
     }
-    return G;
+    const auto &body = dynamic_cast<const bodies::RigidBody &>(mech.body(db.mechanism));
+    const bodies::RigidBody::Vec7 qb = q.segment<7>(o), vb = v.segment<7>(o), ab = a.segment<7>(o);
+    const Eigen::Matrix<double, 7, 10> P = body.parameter_jacobian(qb, vb, ab, g);
+    G.middleRows(db.row, 10) = P.transpose() * W.middleRows(o, 7);
   }
-  const auto &body = dynamic_cast<const bodies::RigidBody &>(mech.body(mechanism_body_));
-  const bodies::RigidBody::Vec7 qb = q.segment<7>(o), vb = v.segment<7>(o), ab = a.segment<7>(o);
-  const Eigen::Matrix<double, 7, 10> P =
-      body.parameter_jacobian(qb, vb, ab, gravity ? mech.gravity : Vec3::Zero());
-  return P.transpose() * W.middleRows(o, 7);
+  return G;
 }
 
-void DynamicProblem::add_rigid_element_gradients(const Matrix &G) {
+bool DynamicProblem::given_fields(const DesignBody &db) const {
+  const dynamics::SceneBody &sb = scene_.bodies[static_cast<std::size_t>(db.body)];
+  return db.ffrf() && (sb.elastic0.size() > 0 || sb.elastic_rate0.size() > 0);
+}
+
+void DynamicProblem::add_element_gradients(const Matrix &G, const StartAdjoint &start) {
+  for (DesignBody &db : designs_) {
+    if (db.rigid()) add_rigid_element_gradients(db, G.middleRows(db.row, db.rows));
+    if (db.ffrf()) add_ffrf_element_gradients(db, G.middleRows(db.row, db.rows), start);
+  }
+}
+
+void DynamicProblem::add_rigid_element_gradients(DesignBody &db, const Matrix &G) {
   // dPsi/dw_e = G . theta_e (+ m_e for the design body's mass), then dw/d(physical).
-  const PetscInt ne = mesh().local_elements();
+  const PetscInt ne = db.field->mesh().local_elements();
   for (std::size_t i = 0; i < specs_.size(); ++i) {
-    const optimize::ResponseSettings &r = *specs_[i];
     Vector g = G.col(static_cast<Eigen::Index>(i));
-    if (r.type == optimize::ResponseType::Mass && r.body == settings_.design.body) g(0) += 1;
+    if (counts_mass(i, db)) g(0) += 1;
     for (PetscInt e = 0; e < ne; ++e)
-      ev_.element_gradient[i][static_cast<std::size_t>(e)] +=
-          ev_.dw[static_cast<std::size_t>(e)] * g.dot(element_theta_[static_cast<std::size_t>(e)]);
+      db.ev.element_gradient[i][static_cast<std::size_t>(e)] +=
+          db.ev.dw[static_cast<std::size_t>(e)] *
+          g.dot(db.element_theta[static_cast<std::size_t>(e)]);
   }
 }
 
-bool DynamicProblem::add_sensor_cotangent(std::size_t i, int n, reduce::ReductionCotangent &c,
+bool DynamicProblem::add_sensor_cotangent(const DesignBody &db, std::size_t i, int n,
+                                          reduce::ReductionCotangent &c,
                                           std::vector<Vec> &owned) const {
-  const mesh::DistributedMesh &m = mesh();
+  const mesh::DistributedMesh &m = db.field->mesh();
   // The sensor's basis S = Psi(X_s): dPsi/dS = sum_n A_n^T dPsi/dy_n zeta_n^T (minus the
   // value at q0 for a displacement), then Psi-bar_k = N(X_s) S-bar(:, k).
   Matrix Sbar = Matrix::Zero(3, n);
@@ -144,14 +169,14 @@ bool DynamicProblem::add_sensor_cotangent(std::size_t i, int n, reduce::Reductio
   }
   const dynamics::BoundSensor &bs = scene_.sensors[static_cast<std::size_t>(sensor_of_[i])];
   if (bs.quantity == dynamics::SensorQuantity::Displacement) {
-    const int o = scene_.mechanism.offset(mechanism_body_);
+    const int o = scene_.mechanism.offset(db.mechanism);
     Sbar -= bodies::rotation(scene_.q0.segment<4>(o + 3)).transpose() * sum *
             scene_.q0.segment(o + 7, n).transpose();
   }
   if (!Sbar.isZero(0)) {
     for (int k = 0; k < n; ++k) {
       Vec v;
-      FX_PETSC(VecDuplicate(reduction_->basis.front(), &v));
+      FX_PETSC(VecDuplicate(db.reduction->basis.front(), &v));
       FX_PETSC(VecZeroEntries(v));
       fem::add_point_functional(m, scene_.sensors[static_cast<std::size_t>(sensor_of_[i])].location,
                                 {Sbar(0, k), Sbar(1, k), Sbar(2, k)}, v);
@@ -162,20 +187,20 @@ bool DynamicProblem::add_sensor_cotangent(std::size_t i, int n, reduce::Reductio
   return !Sbar.isZero(0);
 }
 
-void DynamicProblem::add_initial_field_cotangent(std::size_t i, int n, const StartAdjoint &start,
+void DynamicProblem::add_initial_field_cotangent(const DesignBody &db, std::size_t i, int n,
+                                                 const StartAdjoint &start,
                                                  reduce::ReductionCotangent &c,
                                                  std::vector<Vec> &owned,
                                                  std::vector<double> &projection_w) const {
-  const mesh::DistributedMesh &m = mesh();
-  const dynamics::BodyDescription &spec =
-      settings_.scene.bodies[static_cast<std::size_t>(design_body_)];
+  const mesh::DistributedMesh &m = db.field->mesh();
+  const dynamics::BodyDescription &spec = settings_.scene.bodies[static_cast<std::size_t>(db.body)];
   // Initial elastic fields (section 10.2): the start's sensitivities to the placed elastic
   // coordinates and rates (a displacement sensor also measures from the placed position),
   // and the cotangent of the positions' metric on the body's coordinates.
   const auto col = static_cast<Eigen::Index>(i);
-  const int o = scene_.mechanism.offset(mechanism_body_);
+  const int o = scene_.mechanism.offset(db.mechanism);
   Vector qbar = start.q.col(col);
-  if (sensor_of_[i] >= 0 && sensor_on_design_[i]) {
+  if (sensor_of_[i] >= 0 && sensor_design_[i] == static_cast<int>(db.index)) {
     const dynamics::BoundSensor &bs = scene_.sensors[static_cast<std::size_t>(sensor_of_[i])];
     if (bs.quantity == dynamics::SensorQuantity::Displacement) {
       Vec3 sum = Vec3::Zero();
@@ -186,59 +211,60 @@ void DynamicProblem::add_initial_field_cotangent(std::size_t i, int n, const Sta
   const Matrix &W = start.metric[static_cast<std::size_t>(i)];
   const Matrix Wz = W.block(o + 7, o + 7, n, n);
   c.M += 0.5 * (Wz + Wz.transpose());
-  const dynamics::SceneBody &dsb = scene_.bodies[static_cast<std::size_t>(design_body_)];
+  const dynamics::SceneBody &dsb = scene_.bodies[static_cast<std::size_t>(db.body)];
   const double density = spec.material.density;
   for (const bool rate : {false, true}) {
     const Vector &zeta = rate ? dsb.elastic_rate0 : dsb.elastic0;
     if (zeta.size() == 0) continue;
     const Vector zbar = (rate ? start.v.col(col) : qbar).segment(o + 7, n);
-    zero_basis_cotangent(*reduction_, n, c, owned);
-    reduce::project_field_adjoint(m, density, *reduction_,
+    zero_basis_cotangent(*db.reduction, n, c, owned);
+    reduce::project_field_adjoint(m, density, *db.reduction,
                                   dynamics::initial_elastic_field(spec, rate), zeta, zbar, c.basis,
                                   projection_w);
   }
 }
 
-void DynamicProblem::add_ffrf_element_gradients(const Matrix &G, const StartAdjoint &start) {
-  const dynamics::BodyDescription &spec =
-      settings_.scene.bodies[static_cast<std::size_t>(design_body_)];
-  const auto &body = dynamic_cast<const bodies::FfrfBody &>(scene_.mechanism.body(mechanism_body_));
+void DynamicProblem::add_ffrf_element_gradients(DesignBody &db, const Matrix &G,
+                                                const StartAdjoint &start) {
+  const dynamics::BodyDescription &spec = settings_.scene.bodies[static_cast<std::size_t>(db.body)];
+  const auto &body = dynamic_cast<const bodies::FfrfBody &>(scene_.mechanism.body(db.mechanism));
   const int n = body.coordinates() - 7;
-  const mesh::DistributedMesh &m = mesh();
+  const mesh::DistributedMesh &m = db.field->mesh();
   std::vector<reduce::ReductionCotangent> bars;
   std::vector<std::size_t> columns; // the responses that depend on the design body
   std::vector<Vec> owned;
   // The element terms of the initial fields' projections (section 10.2), per response.
   std::vector<std::vector<double>> projection_w(specs_.size());
   for (std::size_t i = 0; i < specs_.size(); ++i) {
-    const optimize::ResponseSettings &r = *specs_[i];
     bodies::FfrfModel bar = unpack(G.col(static_cast<Eigen::Index>(i)), n, body.stiffening());
     bool used = !G.col(static_cast<Eigen::Index>(i)).isZero(0);
-    if (r.type == optimize::ResponseType::Mass && r.body == settings_.design.body) {
+    if (counts_mass(i, db)) {
       bar.invariants.mass += 1;
       used = true;
     }
     reduce::ReductionCotangent c;
     // C_r = a M_r + b K_r; a strain energy integral's own sum_n w_n 1/2 zeta_n zeta_n^T.
     c.K = bar.stiffness + spec.rayleigh[1] * bar.damping;
-    if (ev_.strain_kbar[i].size() > 0) {
-      c.K += ev_.strain_kbar[i];
+    if (db.ev.strain_kbar[i].size() > 0) {
+      c.K += db.ev.strain_kbar[i];
       used = true;
     }
     c.M = spec.rayleigh[0] * bar.damping;
     c.invariants = bar.invariants;
     c.geometric = bar.geometric;
-    if (sensor_on_design_[i] && n > 0 && add_sensor_cotangent(i, n, c, owned)) used = true;
-    if (stress_[i] && stress_case_body_[i] == design_body_ && n > 0 &&
+    if (sensor_design_[i] == static_cast<int>(db.index) && n > 0 &&
+        add_sensor_cotangent(db, i, n, c, owned))
+      used = true;
+    if (stress_[i] && stress_case_body_[i] == db.body && n > 0 &&
         basis_ == reduce::BasisDerivative::Exact) {
       // The stress shapes' cotangent into the basis vectors' (section 10.3), added to a
       // sensor's if the response has both.
-      zero_basis_cotangent(*reduction_, n, c, owned);
+      zero_basis_cotangent(*db.reduction, n, c, owned);
       ffrf_stress(i)->add_basis_cotangent(c.basis);
       used = true;
     }
-    if (start.q.size() > 0 && n > 0) {
-      add_initial_field_cotangent(i, n, start, c, owned, projection_w[i]);
+    if (start.q.size() > 0 && n > 0 && given_fields(db)) {
+      add_initial_field_cotangent(db, i, n, start, c, owned, projection_w[i]);
       used = true;
     }
     if (!used) continue;
@@ -249,24 +275,25 @@ void DynamicProblem::add_ffrf_element_gradients(const Matrix &G, const StartAdjo
   const double t0 = wall_time();
   try {
     const reduce::ReductionAdjointStats stats = reduce::reduction_adjoint(
-        m, *reduction_, bars, basis_, s_hat, w_hat, reduce::BasisGauge::FrozenCoordinates);
-    reduction_cg_iterations_ = stats.cg_iterations;
+        m, *db.reduction, bars, basis_, s_hat, w_hat, reduce::BasisGauge::FrozenCoordinates);
+    db.reduction_cg_iterations = stats.cg_iterations;
   } catch (const Error &) {
     for (Vec &v : owned) VecDestroy(&v);
     throw;
   }
-  reduction_adjoint_s_ = wall_time() - t0;
-  ev_.reduction_adjoint_s = reduction_adjoint_s_;
+  db.reduction_adjoint_s = wall_time() - t0;
+  db.ev.reduction_adjoint_s = db.reduction_adjoint_s;
   for (Vec &v : owned) FX_PETSC(VecDestroy(&v));
   const PetscInt ne = m.local_elements();
   for (std::size_t c = 0; c < columns.size(); ++c)
     for (PetscInt e = 0; e < ne; ++e) {
       const auto k = static_cast<std::size_t>(e);
-      ev_.element_gradient[columns[c]][k] += ev_.ds[k] * s_hat[c][k] + ev_.dw[k] * w_hat[c][k];
+      db.ev.element_gradient[columns[c]][k] +=
+          db.ev.ds[k] * s_hat[c][k] + db.ev.dw[k] * w_hat[c][k];
     }
   for (std::size_t i = 0; i < projection_w.size(); ++i)
     for (std::size_t k = 0; k < projection_w[i].size(); ++k)
-      ev_.element_gradient[i][k] += ev_.dw[k] * projection_w[i][k];
+      db.ev.element_gradient[i][k] += db.ev.dw[k] * projection_w[i][k];
 }
 
 } // namespace flexopt::adjoint

@@ -1,7 +1,7 @@
-// One evaluation on the distributed backend (docs/theory.md sections 9.6-9.8), for a scene
-// with ACF bodies whose design body is ACF (element partials), rigid (mass-parameter partials
+// One evaluation on the distributed backend (docs/theory.md sections 9.6-9.9), for a scene
+// with ACF bodies whose design bodies are ACF (element partials), rigid (mass-parameter partials
 // on the small part) or FFRF (its model's partials on the small part, through the reduction's
-// adjoint): the forward run with the states kept or checkpointed, the responses, the
+// adjoint), in any mix: the forward run with the states kept or checkpointed, the responses, the
 // backward sweep with the design partials, and the adjoint of the consistent start (9.2).
 #include "flexopt/core/context.hpp"
 #include "flexopt/core/error.hpp"
@@ -18,9 +18,13 @@ std::unique_ptr<Pass> make_pass(DynamicProblem &p, bool gradients) {
 }
 
 DistPass::DistPass(DynamicProblem &p, bool gradients)
-    : PassRun(p, gradients), da_(integrator_.dist()), acf_(p.acf_design_ >= 0),
-      design_(static_cast<std::size_t>(acf_ ? p.acf_design_ : 0)) {
-  body_ = acf_ ? p_.scene_.acf[design_].get() : nullptr;
+    : PassRun(p, gradients), da_(integrator_.dist()) {
+  for (const DesignBody &db : p_.designs_) {
+    if (db.acf_model())
+      acf_designs_.push_back(db.index);
+    else
+      small_ = true;
+  }
   G_ = Matrix::Zero(p_.design_parameters(), static_cast<Eigen::Index>(p_.specs_.size()));
 }
 
@@ -47,21 +51,30 @@ void DistPass::sample(const dynamics::DistState &s) {
                                       : dynamics::sensor_value(p_.scene_, bs, small.q));
       p_.record_design_frame(i, small.q);
     }
-    if (strain_body_[i] >= 0) {
-      const auto b = static_cast<std::size_t>(strain_body_[i]);
-      const std::vector<double> u = displacement(s, b);
-      const std::vector<double> Ue = p_.scene_.acf[b]->element_energies(u.data());
-      double local = 0;
-      for (double x : Ue) local += x;
-      double total = 0;
-      MPI_Allreduce(&local, &total, 1, MPI_DOUBLE, MPI_SUM, p_.mesh().comm);
-      energy_[i].push_back(total);
-      if (acf_ && b == design_) {
-        // Kept per step: the direct partial sum_n w_n U_e / s_e needs the weights (N known).
-        energy_steps_.insert(energy_steps_.end(), Ue.begin(), Ue.end());
-      }
-    }
+    if (!p_.acf_strain_bodies_[i].empty())
+      energy_[i].push_back(
+          sample_acf_strain(i, s,
+                            trapezoid_weight(static_cast<std::size_t>(acf_samples_),
+                                             static_cast<std::size_t>(p_.steps_))));
   }
+  ++acf_samples_;
+}
+
+double DistPass::sample_acf_strain(std::size_t i, const dynamics::DistState &s, double w) {
+  double local = 0;
+  for (const int acf : p_.acf_strain_bodies_[i]) {
+    const auto b = static_cast<std::size_t>(acf);
+    const std::vector<double> u = displacement(s, b);
+    const std::vector<double> Ue = p_.scene_.acf[b]->element_energies(u.data());
+    for (double x : Ue) local += x;
+    // The direct partial sum_n w_n U_e / s_e of an ACF design body (its weights w_n known).
+    for (std::size_t k = 0; k < acf_designs_.size(); ++k)
+      if (p_.designs_[acf_designs_[k]].acf == acf && !energy_sum_[k][i].empty())
+        for (std::size_t e = 0; e < Ue.size(); ++e) energy_sum_[k][i][e] += w * Ue[e];
+  }
+  double total = 0;
+  MPI_Allreduce(&local, &total, 1, MPI_DOUBLE, MPI_SUM, p_.comm());
+  return total;
 }
 
 void DistPass::sample_stress(const dynamics::DistState &s, const dynamics::State &small) {
@@ -76,14 +89,13 @@ void DistPass::sample_stress(const dynamics::DistState &s, const dynamics::State
 void DistPass::start_stress() {
   // The ACF bodies' stress aggregates as the steps come (section 8.3), on the design body with
   // the relaxation of its densities.
-  std::vector<double> eta, deta;
   for (std::size_t i = 0; i < p_.specs_.size(); ++i) {
     AcfStress *acf = p_.acf_stress(i);
     if (!acf) continue;
-    const bool design = p_.stress_case_body_[i] == p_.design_body_;
-    if (design && eta.empty()) p_.field_->stress_factors(eta, deta);
-    acf->start(static_cast<std::size_t>(p_.steps_), p_.settings_.time.step,
-               design ? eta : std::vector<double>{}, design ? deta : std::vector<double>{});
+    std::vector<double> eta, deta;
+    if (const DesignBody *db = p_.design_of(p_.stress_case_body_[i]))
+      db->field->stress_factors(eta, deta);
+    acf->start(static_cast<std::size_t>(p_.steps_), p_.settings_.time.step, eta, deta);
   }
 }
 
@@ -91,18 +103,21 @@ void DistPass::forward() {
   const std::size_t nr = p_.specs_.size();
   const double h = p_.settings_.time.step;
   record_.state = dynamics::acf_initial_state(p_.scene_, da_, nullptr, &trace_);
-  // Which ACF body each strain energy response measures.
-  strain_body_.assign(nr, -1);
-  for (std::size_t i = 0; i < nr; ++i)
-    if (p_.specs_[i]->type == optimize::ResponseType::StrainEnergyIntegral)
-      for (std::size_t b = 0; b < p_.settings_.scene.bodies.size(); ++b)
-        if (p_.settings_.scene.bodies[b].name == p_.specs_[i]->body)
-          strain_body_[i] = p_.scene_.bodies[b].acf;
   p_.ev_.samples.assign(nr, {});
   p_.ev_.sensor_frames.assign(nr, {});
-  p_.ev_.strain_kbar.assign(nr, Matrix());
   start_ffrf_strain();
   energy_.assign(nr, {});
+  acf_samples_ = 0;
+  // The ACF design bodies' sums sum_n w_n U_e for the strain energies that take them.
+  energy_sum_.assign(acf_designs_.size(), std::vector<std::vector<double>>(nr));
+  for (std::size_t k = 0; k < acf_designs_.size() && gradients_; ++k) {
+    const DesignBody &db = p_.designs_[acf_designs_[k]];
+    for (std::size_t i = 0; i < nr; ++i) {
+      const auto &list = p_.acf_strain_bodies_[i];
+      if (std::find(list.begin(), list.end(), db.acf) != list.end())
+        energy_sum_[k][i].assign(static_cast<std::size_t>(db.field->mesh().local_elements()), 0.0);
+    }
+  }
   for (const auto &st : p_.stress_)
     if (st) st->clear();
   start_stress();
@@ -117,37 +132,30 @@ void DistPass::forward() {
   for (std::size_t i = 0; i < nr; ++i) {
     if (p_.sensor_of_[i] >= 0)
       p_.ev_.sampled[i] = sampled_response(*p_.specs_[i], p_.ev_.samples[i], h);
-    if (strain_body_[i] >= 0)
+    if (!p_.acf_strain_bodies_[i].empty())
       for (std::size_t n = 0; n <= N; ++n)
         p_.ev_.sampled[i].value += trapezoid_weight(n, N) * energy_[i][n];
-    if (p_.strain_body_[i] >= 0) p_.ev_.sampled[i].value = strain_value_[i]; // FFRF
+    if (!p_.strain_bodies_[i].empty()) p_.ev_.sampled[i].value += strain_value_[i]; // FFRF
   }
   finish_stress();
 }
 
 void DistPass::direct_partials() {
-  // Direct partials of an ACF design body: the strain energy's sum_n w_n U_e / s_e, the mass's
+  // Direct partials of the ACF design bodies: a strain energy's sum_n w_n U_e / s_e, a mass's
   // rho V_e (a rigid design body's mass: add_rigid_element_gradients).
-  const mesh::DistributedMesh &m = p_.mesh();
-  const auto ne = static_cast<std::size_t>(m.local_elements());
-  const auto N = static_cast<std::size_t>(p_.steps_);
-  const std::vector<double> volume = fem::element_volumes(m);
-  for (std::size_t i = 0; i < p_.specs_.size() && acf_; ++i) {
-    if (strain_body_[i] == p_.acf_design_) {
-      std::size_t column = 0; // energy_steps_ holds ne values per step for each such response
-      for (std::size_t k = 0; k < i; ++k) column += strain_body_[k] == p_.acf_design_ ? 1 : 0;
-      const std::size_t per_step =
-          ne * static_cast<std::size_t>(
-                   std::count(strain_body_.begin(), strain_body_.end(), p_.acf_design_));
-      for (std::size_t n = 0; n <= N; ++n)
-        for (std::size_t e = 0; e < ne; ++e)
-          p_.ev_.element_gradient[i][e] += trapezoid_weight(n, N) * p_.ev_.ds[e] / p_.ev_.s[e] *
-                                           energy_steps_[n * per_step + column * ne + e];
+  for (std::size_t k = 0; k < acf_designs_.size(); ++k) {
+    DesignBody &db = p_.designs_[acf_designs_[k]];
+    const mesh::DistributedMesh &m = db.field->mesh();
+    const auto ne = static_cast<std::size_t>(m.local_elements());
+    const std::vector<double> volume = fem::element_volumes(m);
+    const double density = p_.scene_.acf[static_cast<std::size_t>(db.acf)]->material().density;
+    for (std::size_t i = 0; i < p_.specs_.size(); ++i) {
+      std::vector<double> &g = db.ev.element_gradient[i];
+      const std::vector<double> &sum = energy_sum_[k][i];
+      for (std::size_t e = 0; e < sum.size(); ++e) g[e] += db.ev.ds[e] / db.ev.s[e] * sum[e];
+      if (p_.counts_mass(i, db))
+        for (std::size_t e = 0; e < ne; ++e) g[e] += db.ev.dw[e] * density * volume[e];
     }
-    if (p_.specs_[i]->type == optimize::ResponseType::Mass &&
-        p_.specs_[i]->body == p_.settings_.design.body)
-      for (std::size_t e = 0; e < ne; ++e)
-        p_.ev_.element_gradient[i][e] += p_.ev_.dw[e] * body_->material().density * volume[e];
   }
 }
 
@@ -180,14 +188,14 @@ std::vector<const dynamics::DistState *> DistPass::state_partials(std::size_t j,
       add_stress_partial(i, j, s, P.q);
       any = true;
     }
-    if (p_.strain_body_[i] >= 0) { // an FFRF body's, on the small part
+    if (!p_.strain_bodies_[i].empty()) { // FFRF bodies', on the small part
       Vector d = Vector::Zero(small.q.size());
       add_ffrf_strain_partial(i, static_cast<long long>(j), small.q, d);
       da_.add_small(P.q, d);
       any = true;
     }
-    if (strain_body_[i] >= 0) {
-      const auto b = static_cast<std::size_t>(strain_body_[i]);
+    for (const int acf : p_.acf_strain_bodies_[i]) {
+      const auto b = static_cast<std::size_t>(acf);
       const std::vector<double> u = displacement(s, b);
       force.assign(u.size(), 0.0);
       p_.scene_.acf[b]->element_energies(u.data(), force.data());
@@ -216,19 +224,19 @@ void DistPass::add_stress_partial(std::size_t i, std::size_t j, const dynamics::
   // added on their owners.
   const std::vector<double> u = displacement(s, b);
   std::vector<double> force(u.size(), 0.0);
-  const bool design = p_.stress_case_body_[i] == p_.design_body_;
+  DesignBody *db = p_.design_of(p_.stress_case_body_[i]);
   p_.acf_stress(i)->add_state_partial(j, u.data(), force.data(),
-                                      design ? p_.ev_.element_gradient[i].data() : nullptr);
+                                      db ? db->ev.element_gradient[i].data() : nullptr);
   da_.add_local_values(q, b, force);
 }
 
 void DistPass::add_partials(const dynamics::DistState &s,
                             const std::vector<dynamics::DistState> &mu, double sign) {
-  // An ACF design body's G_e += ds mu . dR/ds_e + dw mu . dR/dw_e in one element loop; a rigid
-  // one's dPsi/dtheta += (dr/dtheta)^T mu_d on the small part.
+  // The rigid and FFRF design bodies' dPsi/dtheta += (dr/dtheta)^T mu_d on the small part (one
+  // stacked call); each ACF design body's element partials.
   const std::size_t na = active_.size();
   if (na == 0) return;
-  if (!acf_) {
+  if (small_) {
     const dynamics::State sm = da_.small_state(s);
     Matrix W(sm.q.size(), static_cast<Eigen::Index>(na));
     for (std::size_t a = 0; a < na; ++a)
@@ -236,23 +244,29 @@ void DistPass::add_partials(const dynamics::DistState &s,
     const Matrix P = p_.design_partials(sm.q, sm.v, sm.acc, true, W);
     for (std::size_t a = 0; a < na; ++a)
       G_.col(static_cast<Eigen::Index>(active_[a])) += sign * P.col(static_cast<Eigen::Index>(a));
-    return;
   }
-  const auto ne = static_cast<std::size_t>(p_.mesh().local_elements());
+  for (const std::size_t k : acf_designs_) add_acf_partials(p_.designs_[k], s, mu, sign);
+}
+
+void DistPass::add_acf_partials(DesignBody &db, const dynamics::DistState &s,
+                                const std::vector<dynamics::DistState> &mu, double sign) {
+  const std::size_t na = active_.size();
+  const auto b = static_cast<std::size_t>(db.acf);
+  const auto ne = static_cast<std::size_t>(db.field->mesh().local_elements());
   std::vector<const double *> mu_ptr(na);
-  u_ = displacement(s, design_);
-  da_.local_values(s.v, design_, v_);
-  da_.local_values(s.acc, design_, acc_);
+  u_ = displacement(s, b);
+  da_.local_values(s.v, b, v_);
+  da_.local_values(s.acc, b, acc_);
   for (std::size_t a = 0; a < na; ++a) {
-    da_.local_values(mu[a].acc, design_, mu_d_[a]);
+    da_.local_values(mu[a].acc, b, mu_d_[a]);
     mu_ptr[a] = mu_d_[a].data();
   }
-  body_->design_partials(u_.data(), v_.data(), acc_.data(), mu_ptr, p_.scene_.mechanism.gravity,
-                         d_modulus_, d_mass_);
+  p_.scene_.acf[b]->design_partials(u_.data(), v_.data(), acc_.data(), mu_ptr,
+                                    p_.scene_.mechanism.gravity, d_modulus_, d_mass_);
   for (std::size_t a = 0; a < na; ++a)
     for (std::size_t e = 0; e < ne; ++e)
-      p_.ev_.element_gradient[active_[a]][e] +=
-          sign * (p_.ev_.ds[e] * d_modulus_[a][e] + p_.ev_.dw[e] * d_mass_[a][e]);
+      db.ev.element_gradient[active_[a]][e] +=
+          sign * (db.ev.ds[e] * d_modulus_[a][e] + db.ev.dw[e] * d_mass_[a][e]);
 }
 
 std::vector<dynamics::DistState> DistPass::sweep() {
@@ -290,19 +304,20 @@ std::vector<dynamics::DistState> DistPass::sweep() {
   return sweep.finish(state_partials(0, s0_));
 }
 
-void DistPass::add_mass_terms(const std::vector<std::vector<double>> &mus,
+void DistPass::add_mass_terms(DesignBody &db, const std::vector<std::vector<double>> &mus,
                               const std::vector<double> &velocity) {
   // Per element -dw_e mu_e^T M0_e u_e of an ACF design body.
   const std::size_t na = active_.size();
-  const auto ne = static_cast<std::size_t>(p_.mesh().local_elements());
+  const auto b = static_cast<std::size_t>(db.acf);
+  const auto ne = static_cast<std::size_t>(db.field->mesh().local_elements());
   std::vector<const double *> ptr(na);
   for (std::size_t a = 0; a < na; ++a) ptr[a] = mus[a].data();
-  const std::vector<double> u0 = displacement(s0_, design_);
-  body_->design_partials(u0.data(), nullptr, velocity.data(), ptr, Vec3::Zero(), d_modulus_,
-                         d_mass_);
+  const std::vector<double> u0 = displacement(s0_, b);
+  p_.scene_.acf[b]->design_partials(u0.data(), nullptr, velocity.data(), ptr, Vec3::Zero(),
+                                    d_modulus_, d_mass_);
   for (std::size_t a = 0; a < na; ++a)
     for (std::size_t e = 0; e < ne; ++e)
-      p_.ev_.element_gradient[active_[a]][e] -= p_.ev_.dw[e] * d_mass_[a][e];
+      db.ev.element_gradient[active_[a]][e] -= db.ev.dw[e] * d_mass_[a][e];
 }
 
 void DistPass::add_small_mass_terms(const Matrix &mus, const Vector &velocity) {
@@ -322,10 +337,11 @@ void DistPass::start_adjoint(std::vector<dynamics::DistState> &gbar) {
   // Stages 3 and 4 (the velocities) only if the start changed them: gv = dPsi/dv_0 through the
   // accelerations, then the elastic fallback v_0 = v_r + dv (nu_f = A^-T [gv; 0], -nu_f^T dM dv,
   // gv -= Phi_q^T nu_f,lambda) and the rigid-body correction v_r = v_given + T y (z = Pi T^T gv,
-  // -(T z)^T dM (T y) on the design body's rigid velocity field).
+  // -(T z)^T dM (T y) on each design body's rigid velocity field): on the ACF design bodies'
+  // local nodes and on the small part's rigid and FFRF design bodies (docs/theory.md 9.9).
   const dynamics::DistributedAlpha &da = da_;
   const dynamics::DistStartTrace &trace = trace_;
-  const std::size_t na = active_.size();
+  const std::size_t na = active_.size(), nacf = acf_designs_.size();
   const int coordinates = p_.scene_.mechanism.coordinates();
   const bool fallback = trace.fallback != nullptr;
   const bool corrected = trace.rigid.T.size() > 0 && trace.rigid.y.size() > 0 &&
@@ -336,19 +352,20 @@ void DistPass::start_adjoint(std::vector<dynamics::DistState> &gbar) {
   FX_PETSC(VecSet(lmask, 1.0));
   FX_PETSC(VecAXPY(lmask, -1.0, cmask));
   std::vector<dynamics::DistState> minus_nu;
-  // Per active response: the fallback's multiplier nu_f and the rigid correction's z, at the
-  // design body's local nodes (ACF) or on the small part (rigid).
-  std::vector<std::vector<double>> fallback_mu(na), field_mu(na);
+  // Per ACF design body and active response: the fallback's multiplier nu_f and the rigid
+  // correction's z at its local nodes; per active response the same on the small part.
+  std::vector<std::vector<std::vector<double>>> fallback_mu(nacf,
+                                                            std::vector<std::vector<double>>(na)),
+      field_mu(nacf, std::vector<std::vector<double>>(na));
   Matrix fallback_small(coordinates, static_cast<Eigen::Index>(na)),
       field_small(coordinates, static_cast<Eigen::Index>(na));
   const Eigen::Index field0 =
       corrected ? trace.rigid.T.cols() - 6 * static_cast<Eigen::Index>(trace.fields.size()) : 0;
-  const Vec3 centre = corrected && acf_ ? trace.fields[design_].centre : Vec3::Zero();
-  // A rigid velocity field (du, dw) at the ACF design body's local nodes.
-  auto field_values = [&](const dynamics::Vector6 &p, std::vector<double> &out) {
+  // A rigid velocity field (du, dw) at ACF body b's local nodes, about its centre.
+  auto field_values = [&](std::size_t b, const dynamics::Vector6 &p, std::vector<double> &out) {
     FX_PETSC(VecZeroEntries(w));
-    da.add_rigid_field(s0_, design_, p, centre, w);
-    da.local_values(w, design_, out);
+    da.add_rigid_field(s0_, b, p, trace.fields[b].centre, w);
+    da.local_values(w, b, out);
   };
   Mat A = da.acceleration_matrix(s0_);
   for (std::size_t a = 0; a < na; ++a) {
@@ -367,41 +384,39 @@ void DistPass::start_adjoint(std::vector<dynamics::DistState> &gbar) {
     if (fallback) {
       da.solve_transpose(gv, nu); // gv is zero on the multiplier entries
       FX_PETSC(VecPointwiseMult(w, nu, cmask));
-      if (acf_)
-        da.local_values(w, design_, fallback_mu[a]);
-      else
-        fallback_small.col(col) = da.small_values(w);
+      for (std::size_t k = 0; k < nacf; ++k)
+        da.local_values(w, static_cast<std::size_t>(p_.designs_[acf_designs_[k]].acf),
+                        fallback_mu[k][a]);
+      if (small_) fallback_small.col(col) = da.small_values(w);
       FX_PETSC(VecPointwiseMult(w, nu, lmask));
       FX_PETSC(MatMultTranspose(A, w, rhs)); // [Phi_q^T nu_lambda; 0]
       FX_PETSC(VecAXPY(gv, -1.0, rhs));
     }
     if (corrected) {
       const Vector z = trace.rigid.Pi * da.rigid_parameters_transpose(s0_, trace, gv);
-      if (acf_)
-        field_values(z.segment<6>(field0 + 6 * static_cast<Eigen::Index>(design_)), field_mu[a]);
-      else
-        field_small.col(col) = trace.rigid.T * z;
+      for (std::size_t k = 0; k < nacf; ++k) {
+        const auto b = static_cast<std::size_t>(p_.designs_[acf_designs_[k]].acf);
+        field_values(b, z.segment<6>(field0 + 6 * static_cast<Eigen::Index>(b)), field_mu[k][a]);
+      }
+      if (small_) field_small.col(col) = trace.rigid.T * z;
     }
   }
   add_partials(s0_, minus_nu, -1.0);
-  if (fallback) {
-    if (acf_) {
-      std::vector<double> dv;
-      da.local_values(trace.fallback, design_, dv);
-      add_mass_terms(fallback_mu, dv);
-    } else {
-      add_small_mass_terms(fallback_small, da.small_values(trace.fallback));
+  for (std::size_t k = 0; k < nacf; ++k) {
+    DesignBody &db = p_.designs_[acf_designs_[k]];
+    const auto b = static_cast<std::size_t>(db.acf);
+    std::vector<double> u;
+    if (fallback) {
+      da.local_values(trace.fallback, b, u);
+      add_mass_terms(db, fallback_mu[k], u);
+    }
+    if (corrected) {
+      field_values(b, trace.rigid.field[b], u);
+      add_mass_terms(db, field_mu[k], u);
     }
   }
-  if (corrected) {
-    if (acf_) {
-      std::vector<double> uy;
-      field_values(trace.rigid.field[design_], uy);
-      add_mass_terms(field_mu, uy);
-    } else {
-      add_small_mass_terms(field_small, trace.rigid.T * trace.rigid.y);
-    }
-  }
+  if (small_ && fallback) add_small_mass_terms(fallback_small, da.small_values(trace.fallback));
+  if (small_ && corrected) add_small_mass_terms(field_small, trace.rigid.T * trace.rigid.y);
   for (Vec *x : {&cmask, &lmask, &rhs, &nu, &gv, &w}) VecDestroy(x);
 }
 
@@ -412,7 +427,8 @@ void DistPass::backward() {
   // the responses that depend on the state (the volume fraction and the mass do not: their
   // multipliers are zero).
   for (std::size_t i = 0; i < p_.specs_.size(); ++i)
-    if (p_.sensor_of_[i] >= 0 || strain_body_[i] >= 0 || p_.strain_body_[i] >= 0 || p_.stress_[i])
+    if (p_.sensor_of_[i] >= 0 || !p_.acf_strain_bodies_[i].empty() ||
+        !p_.strain_bodies_[i].empty() || p_.stress_[i])
       active_.push_back(i);
   if (active_.empty()) { // no backward sweep: every gradient is the direct partial
     p_.recomputed_ = 0;
@@ -423,13 +439,11 @@ void DistPass::backward() {
   }
   p_.adjoint_s_ = wall_time() - t_adjoint;
   long long bytes = store_->peak_bytes();
-  MPI_Allreduce(MPI_IN_PLACE, &bytes, 1, MPI_LONG_LONG, MPI_SUM, p_.mesh().comm);
+  MPI_Allreduce(MPI_IN_PLACE, &bytes, 1, MPI_LONG_LONG, MPI_SUM, p_.comm());
   p_.checkpoint_bytes_ = bytes;
-  if (acf_) return;
-  if (p_.ffrf_design_) // through the reduction's adjoint (sections 9.8, 10)
-    p_.add_ffrf_element_gradients(G_, StartAdjoint{});
-  else
-    p_.add_rigid_element_gradients(G_);
+  // The small part's design bodies: rigid ones through their mass parameters, FFRF ones through
+  // the reduction's adjoint (sections 9.8, 10).
+  if (small_) p_.add_element_gradients(G_, StartAdjoint{});
 }
 
 } // namespace flexopt::adjoint::detail

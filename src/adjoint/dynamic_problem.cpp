@@ -11,6 +11,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <map>
 #include <sstream>
 
 namespace flexopt::adjoint {
@@ -40,25 +41,51 @@ void check_interfaces(const optimize::DesignField &f, const dynamics::BodyDescri
          what.c_str());
 }
 
-/// A mass bound on the design body that even an empty design region exceeds cannot hold: it is
-/// refused before any computation, with the mass of the material outside the region.
-void check_mass_bounds(const optimize::DesignField &f, const DynamicSettings &c) {
-  const optimize::DesignSettings &d = c.design;
-  const double density = c.scene.body(d.body).material.density;
-  const std::vector<double> &volume = f.element_volumes();
-  double mass[2] = {0, 0}; // outside the region, inside it
-  for (PetscInt e = 0; e < f.mesh().local_elements(); ++e)
-    mass[f.is_design(e) ? 1 : 0] += density * volume[static_cast<std::size_t>(e)];
-  MPI_Allreduce(MPI_IN_PLACE, mass, 2, MPI_DOUBLE, MPI_SUM, f.mesh().comm);
-  for (const optimize::ResponseSettings &r : c.constraints)
-    if (r.type == optimize::ResponseType::Mass && r.body == d.body && r.max <= mass[0]) {
-      std::ostringstream msg;
-      msg << r.where.str() << ": constraint mass of body '" << d.body << "' <= " << r.max
-          << " kg cannot hold: the material outside design.region '" << d.region
-          << "' alone weighs " << mass[0] << " kg (the solid body " << mass[0] + mass[1]
-          << " kg). Raise the bound or enlarge the design region";
-      throw Error(msg.str(), true);
-    }
+/// What the FFRF design bodies' adjoint does not differentiate yet on the distributed backend
+/// (docs/theory.md 9.8): an FFRF design body with initial elastic fields in a scene with ACF
+/// bodies is refused before computing.
+void check_ffrf_designs(const DynamicSettings &c) {
+  using dynamics::BodyModel;
+  const dynamics::BodyDescription *acf = nullptr;
+  for (const dynamics::BodyDescription &b : c.scene.bodies)
+    if (dynamics::simulated_model(b.model) == BodyModel::Acf) acf = &b;
+  if (!acf) return;
+  for (const optimize::DesignSettings &d : c.design) {
+    const dynamics::BodyDescription &body = c.scene.body(d.body);
+    if (dynamics::simulated_model(body.model) != BodyModel::Ffrf) continue;
+    bool given = false;
+    for (const auto *f : {&body.initial.elastic_displacement, &body.initial.elastic_velocity})
+      for (const std::string &e : *f) given = given || !e.empty();
+    if (given)
+      throw Error(d.where.str() + ": design.body '" + d.body +
+                      "' is an FFRF body with initial elastic fields in a scene with ACF "
+                      "bodies (body '" +
+                      acf->name +
+                      "'), whose design sensitivities are not built yet (drop its "
+                      "initial.elastic_displacement and elastic_velocity, or make the ACF "
+                      "bodies FFRF)",
+                  true);
+  }
+}
+
+/// The case body index of `name`.
+int case_body(const DynamicSettings &c, const std::string &name) {
+  for (std::size_t b = 0; b < c.scene.bodies.size(); ++b)
+    if (c.scene.bodies[b].name == name) return static_cast<int>(b);
+  throw Error("DynamicProblem: no body '" + name + "'", true);
+}
+
+/// A design field's mass and stiffness factors at its initial design (its first update).
+reduce::ElementFactors initial_factors(optimize::DesignField &f) {
+  reduce::ElementFactors first;
+  Vec x = f.create_design_vector();
+  f.initial_design(x);
+  f.update(x);
+  std::vector<double> dw, ds;
+  f.mass_factors(first.mass, dw);
+  f.stiffness_factors(first.stiffness, ds);
+  VecDestroy(&x);
+  return first;
 }
 
 } // namespace
@@ -66,91 +93,152 @@ void check_mass_bounds(const optimize::DesignField &f, const DynamicSettings &c)
 std::unique_ptr<DynamicProblem> DynamicProblem::create(MPI_Comm comm, const DynamicSettings &c,
                                                        const std::string &scratch,
                                                        bool refuse_interfaces) {
-  const optimize::DesignSettings &d = c.design;
-  const dynamics::BodyDescription &body = c.scene.body(d.body);
   using dynamics::BodyModel;
-  const BodyModel model = dynamics::simulated_model(body.model);
-  if (model == BodyModel::Ffrf) {
-    // What the FFRF design body's adjoint does not differentiate yet on the distributed
-    // backend (docs/theory.md 9.8): say so before computing.
-    bool given = false;
-    for (const auto *f : {&body.initial.elastic_displacement, &body.initial.elastic_velocity})
-      for (const std::string &e : *f) given = given || !e.empty();
-    for (const dynamics::BodyDescription &b : c.scene.bodies)
-      if (dynamics::simulated_model(b.model) == BodyModel::Acf && given)
-        throw Error(d.where.str() + ": design.body '" + d.body +
-                        "' is an FFRF body with initial elastic fields in a scene with ACF "
-                        "bodies (body '" +
-                        b.name +
-                        "'), whose design sensitivities are not built yet (drop its "
-                        "initial.elastic_displacement and elastic_velocity, or make the ACF "
-                        "bodies FFRF)",
-                    true);
-  }
+  check_ffrf_designs(c);
   std::unique_ptr<DynamicProblem> p(new DynamicProblem());
   p->settings_ = c;
   p->scratch_ = scratch;
-  // An FFRF design body is reduced once, with its first design (the reduction is reused by
-  // the first evaluation at that design).
-  reduce::ElementFactors first;
-  // The design field is made on the design body's mesh as soon as it is meshed (the scene keeps
-  // its meshes at fixed addresses) and kept: its filter is built once.
-  std::unique_ptr<optimize::DesignField> field;
-  const dynamics::InitialDesign initial{d.body, [&](const mesh::DistributedMesh &m) {
-                                          field = std::make_unique<optimize::DesignField>(m, d);
-                                          optimize::DesignField &f = *field;
-                                          check_interfaces(f, body, d, refuse_interfaces);
-                                          check_mass_bounds(f, c);
-                                          Vec x = f.create_design_vector();
-                                          f.initial_design(x);
-                                          f.update(x);
-                                          std::vector<double> dw, ds;
-                                          f.mass_factors(first.mass, dw);
-                                          f.stiffness_factors(first.stiffness, ds);
-                                          VecDestroy(&x);
-                                          return first;
-                                        }};
-  p->scene_ = dynamics::build_scene(comm, c.scene, model == BodyModel::Ffrf ? &initial : nullptr);
-  for (std::size_t b = 0; b < c.scene.bodies.size(); ++b)
-    if (c.scene.bodies[b].name == d.body) p->design_body_ = static_cast<int>(b);
-  const dynamics::SceneBody &dsb = p->scene_.bodies[static_cast<std::size_t>(p->design_body_)];
-  p->mechanism_body_ = dsb.mechanism;
-  p->acf_design_ = dsb.acf;
-  p->ffrf_design_ = model == BodyModel::Ffrf;
-  if (p->ffrf_design_) {
-    p->reduction_ = dsb.reduction;
-    p->reduced_factors_ = first;
-    p->reduction_s_ = p->scene_.reduction_seconds[static_cast<std::size_t>(p->design_body_)];
+  // An FFRF design body is reduced once, with its first design (the reduction is reused by the
+  // first evaluation at that design): its design field is made on its mesh as soon as it is
+  // meshed (the scene keeps its meshes at fixed addresses) and kept, its filter built once.
+  std::map<std::string, std::unique_ptr<optimize::DesignField>> made;
+  std::map<std::string, reduce::ElementFactors> first;
+  dynamics::InitialDesign initial;
+  for (const optimize::DesignSettings &d : c.design)
+    if (dynamics::simulated_model(c.scene.body(d.body).model) == BodyModel::Ffrf)
+      initial.bodies.push_back(d.body);
+  initial.factors = [&](const std::string &name, const mesh::DistributedMesh &m) {
+    const optimize::DesignSettings &d =
+        *std::find_if(c.design.begin(), c.design.end(),
+                      [&](const optimize::DesignSettings &e) { return e.body == name; });
+    auto f = std::make_unique<optimize::DesignField>(m, d);
+    check_interfaces(*f, c.scene.body(name), d, refuse_interfaces);
+    first[name] = initial_factors(*f);
+    made[name] = std::move(f);
+    return first[name];
+  };
+  p->scene_ = dynamics::build_scene(comm, c.scene, initial.bodies.empty() ? nullptr : &initial);
+  std::vector<std::unique_ptr<optimize::DesignField>> fields;
+  for (const optimize::DesignSettings &d : c.design) {
+    const mesh::DistributedMesh &m =
+        p->scene_.meshes[static_cast<std::size_t>(case_body(c, d.body))];
+    auto it = made.find(d.body);
+    if (it != made.end()) {
+      if (&it->second->mesh() != &m)
+        throw Error("DynamicProblem: the design field's mesh is not the scene's", true);
+      fields.push_back(std::move(it->second));
+      continue;
+    }
+    fields.push_back(std::make_unique<optimize::DesignField>(m, d));
+    // A flexible body's interfaces are tied rigidly (FFRF: checked before the reduction).
+    if (dynamics::simulated_model(c.scene.body(d.body).model) == BodyModel::Acf)
+      check_interfaces(*fields.back(), c.scene.body(d.body), d, refuse_interfaces);
   }
+  p->design_ = std::make_unique<optimize::Design>(std::move(fields));
+  p->design_of_body_.assign(c.scene.bodies.size(), -1);
+  p->designs_.resize(c.design.size());
+  for (std::size_t k = 0; k < c.design.size(); ++k) p->bind_design_body(k, first[c.design[k].body]);
+  p->check_mass_bounds();
   p->basis_ = c.adjoint.basis;
-  const mesh::DistributedMesh &m = p->scene_.meshes[static_cast<std::size_t>(p->design_body_)];
-  if (field && &field->mesh() != &m)
-    throw Error("DynamicProblem: the design field's mesh is not the scene's", true);
-  p->field_ = field ? std::move(field) : std::make_unique<optimize::DesignField>(m, d);
-  // A flexible body's interfaces are tied rigidly (FFRF: checked before the reduction, above).
-  if (model == BodyModel::Acf) check_interfaces(*p->field_, body, d, refuse_interfaces);
-  if (model != BodyModel::Ffrf) check_mass_bounds(*p->field_, c);
-  p->grad_physical_ = p->field_->filter().create_element_vector();
-
-  if (model == BodyModel::Rigid) {
-    // The design body keeps its solid centre of mass as its reference point (section 9.1).
-    const auto &solid =
-        dynamic_cast<const bodies::RigidBody &>(p->scene_.mechanism.body(p->mechanism_body_));
-    p->reference_ = solid.center();
-    const double density = body.material.density;
-    p->element_theta_.resize(static_cast<std::size_t>(m.local_elements()));
-    for (PetscInt e = 0; e < m.local_elements(); ++e)
-      p->element_theta_[static_cast<std::size_t>(e)] =
-          bodies::element_mass_parameters(m.type, m.element_coordinates(e), density, p->reference_);
-  }
-
-  p->bind_responses(model);
+  p->bind_responses();
   p->integration_ = dynamics::IntegratorSettings::from(c.time);
   p->steps_ = p->integration_.steps;
   return p;
 }
 
-void DynamicProblem::bind_responses(dynamics::BodyModel model) {
+void DynamicProblem::bind_design_body(std::size_t k, const reduce::ElementFactors &first) {
+  const optimize::DesignSettings &d = settings_.design[k];
+  DesignBody &db = designs_[k];
+  db.field = &design_->field(k);
+  db.index = k;
+  db.body = case_body(settings_, d.body);
+  design_of_body_[static_cast<std::size_t>(db.body)] = static_cast<int>(k);
+  const dynamics::SceneBody &sb = scene_.bodies[static_cast<std::size_t>(db.body)];
+  const dynamics::BodyDescription &spec = settings_.scene.bodies[static_cast<std::size_t>(db.body)];
+  db.mechanism = sb.mechanism;
+  db.acf = sb.acf;
+  db.model = dynamics::simulated_model(spec.model);
+  db.grad_physical = db.field->filter().create_element_vector();
+  int row = 0; // the rows of the bodies before this one in the stacked partials
+  for (std::size_t j = 0; j < k; ++j) row += designs_[j].rows;
+  db.row = row;
+  if (db.ffrf()) {
+    ffrf_design_ = true;
+    db.reduction = sb.reduction;
+    db.reduced_factors = first;
+    db.reduction_s = scene_.reduction_seconds[static_cast<std::size_t>(db.body)];
+    db.rows = design_parameters_of(db);
+  } else if (db.rigid()) {
+    // The design body keeps its solid centre of mass as its reference point (section 9.1).
+    const auto &solid =
+        dynamic_cast<const bodies::RigidBody &>(scene_.mechanism.body(db.mechanism));
+    db.reference = solid.center();
+    const mesh::DistributedMesh &m = db.field->mesh();
+    db.element_theta.resize(static_cast<std::size_t>(m.local_elements()));
+    for (PetscInt e = 0; e < m.local_elements(); ++e)
+      db.element_theta[static_cast<std::size_t>(e)] = bodies::element_mass_parameters(
+          m.type, m.element_coordinates(e), spec.material.density, db.reference);
+    db.rows = 10;
+  } else {
+    acf_design_ = true;
+  }
+}
+
+void DynamicProblem::check_mass_bounds() const {
+  // A mass bound that even empty design regions exceed cannot hold: refused before any
+  // computation, with the mass of the material outside the regions.
+  for (const optimize::ResponseSettings &r : settings_.constraints) {
+    if (r.type != optimize::ResponseType::Mass) continue;
+    double least = 0, solid = 0; // the bodies' mass with empty design regions, and solid
+    for (const std::string &name : r.bodies) {
+      const DesignBody *db = design_of(case_body(settings_, name));
+      if (!db) {
+        least += body_mass(name);
+        solid += body_mass(name);
+        continue;
+      }
+      const optimize::DesignField &f = *db->field;
+      const double density = settings_.scene.body(name).material.density;
+      double mass[2] = {0, 0}; // outside the region, inside it
+      for (PetscInt e = 0; e < f.mesh().local_elements(); ++e)
+        mass[f.is_design(e) ? 1 : 0] += density * f.element_volumes()[static_cast<std::size_t>(e)];
+      MPI_Allreduce(MPI_IN_PLACE, mass, 2, MPI_DOUBLE, MPI_SUM, f.mesh().comm);
+      least += mass[0];
+      solid += mass[0] + mass[1];
+    }
+    if (r.max > least) continue;
+    std::string names;
+    for (const std::string &name : r.bodies) names += (names.empty() ? "'" : ", '") + name + "'";
+    const DesignBody *one =
+        r.bodies.size() == 1 ? design_of(case_body(settings_, r.bodies[0])) : nullptr;
+    std::ostringstream msg;
+    msg << r.where.str() << ": constraint mass of bod" << (r.bodies.size() > 1 ? "ies " : "y ")
+        << names << " <= " << r.max << " kg cannot hold: the material outside "
+        << (one ? "design.region '" + one->field->settings().region + "'"
+                : std::string("the design regions"))
+        << " alone weighs " << least << " kg (solid " << solid
+        << " kg). Raise the bound or enlarge the design region";
+    throw Error(msg.str(), true);
+  }
+}
+
+bool DynamicProblem::counts_mass(std::size_t i, const DesignBody &db) const {
+  const optimize::ResponseSettings &r = *specs_[i];
+  if (r.type != optimize::ResponseType::Mass) return false;
+  const std::string &name = settings_.scene.bodies[static_cast<std::size_t>(db.body)].name;
+  return std::find(r.bodies.begin(), r.bodies.end(), name) != r.bodies.end();
+}
+
+double DynamicProblem::body_mass(const std::string &name) const {
+  const int b = case_body(settings_, name);
+  const DesignBody *db = design_of(b);
+  if (db && db->rigid()) return db->ev.theta(0);
+  const dynamics::SceneBody &sb = scene_.bodies[static_cast<std::size_t>(b)];
+  if (sb.acf >= 0) return scene_.acf[static_cast<std::size_t>(sb.acf)]->total_mass();
+  return scene_.mechanism.body(sb.mechanism).mass();
+}
+
+void DynamicProblem::bind_responses() {
   using dynamics::BodyModel;
   specs_.push_back(&settings_.objective);
   for (const auto &r : settings_.constraints) specs_.push_back(&r);
@@ -166,27 +254,30 @@ void DynamicProblem::bind_responses(dynamics::BodyModel model) {
         if (scene_.sensors[k].name == r->sensor) sensor = static_cast<int>(k);
     sensor_of_.push_back(sensor);
     ev_.sensor_frames.emplace_back();
-    bool on_design = false;
-    if (sensor >= 0 && ffrf_design_) {
+    sensor_design_.push_back(-1);
+    if (sensor >= 0) {
       const dynamics::BoundSensor &s = scene_.sensors[static_cast<std::size_t>(sensor)];
-      on_design = s.acf_body < 0 && s.body == mechanism_body_ &&
-                  s.quantity != dynamics::SensorQuantity::RotationAngle;
+      for (const DesignBody &db : designs_)
+        if (db.ffrf() && s.acf_body < 0 && s.body == db.mechanism &&
+            s.quantity != dynamics::SensorQuantity::RotationAngle)
+          sensor_design_.back() = static_cast<int>(db.index);
     }
-    sensor_on_design_.push_back(on_design);
-    strain_body_.push_back(-1);
-    if (r->type == optimize::ResponseType::StrainEnergyIntegral) {
-      const BodyModel bm = dynamics::simulated_model(settings_.scene.body(r->body).model);
-      if (bm == BodyModel::Rigid)
-        throw Error(r->where.str() + ": strain_energy_integral of body '" + r->body +
-                        "': a rigid body has no strain energy (ACF and FFRF bodies have)",
-                    true);
-      if (bm == BodyModel::Ffrf)
-        for (std::size_t b = 0; b < settings_.scene.bodies.size(); ++b)
-          if (settings_.scene.bodies[b].name == r->body)
-            strain_body_.back() = scene_.bodies[b].mechanism;
-    }
+    strain_bodies_.emplace_back();
+    acf_strain_bodies_.emplace_back();
+    if (r->type == optimize::ResponseType::StrainEnergyIntegral)
+      for (const std::string &name : r->bodies) {
+        const BodyModel bm = dynamics::simulated_model(settings_.scene.body(name).model);
+        if (bm == BodyModel::Rigid)
+          throw Error(r->where.str() + ": strain_energy_integral of body '" + name +
+                          "': a rigid body has no strain energy (ACF and FFRF bodies have)",
+                      true);
+        const dynamics::SceneBody &sb =
+            scene_.bodies[static_cast<std::size_t>(case_body(settings_, name))];
+        if (bm == BodyModel::Ffrf) strain_bodies_.back().push_back(sb.mechanism);
+        if (bm == BodyModel::Acf) acf_strain_bodies_.back().push_back(sb.acf);
+      }
     bind_stress(*r);
-    if (sensor >= 0 && model == BodyModel::Acf) {
+    if (sensor >= 0 && acf_design_) {
       const dynamics::BoundSensor &s = scene_.sensors[static_cast<std::size_t>(sensor)];
       if (s.acf_body >= 0 && s.quantity == dynamics::SensorQuantity::ElasticDisplacement)
         throw Error(r->where.str() + ": sensor '" + s.name +
@@ -220,8 +311,7 @@ void DynamicProblem::bind_stress(const optimize::ResponseSettings &r) {
     stress_body_.back() = a;
     return;
   }
-  if (static_cast<int>(b) == design_body_ &&
-      settings_.adjoint.basis == reduce::BasisDerivative::Fixed)
+  if (design_of(static_cast<int>(b)) && settings_.adjoint.basis == reduce::BasisDerivative::Fixed)
     print0(scene_.meshes[b].comm,
            "%s: warning: adjoint.basis: fixed holds the stress shapes of body '%s' fixed, and "
            "their change with the design dominates a stress gradient (measured 110-150 %% off, "
@@ -242,12 +332,11 @@ std::vector<double> DynamicProblem::response_scales() const {
   return optimize::scales_of(stress_);
 }
 
-std::vector<std::pair<std::size_t, const optimize::StressAggregate *>>
-DynamicProblem::design_stress() const {
-  std::vector<std::pair<std::size_t, const optimize::StressAggregate *>> out;
+std::vector<optimize::DesignProblem::DesignStress> DynamicProblem::design_stress() const {
+  std::vector<DesignStress> out;
   for (std::size_t i = 0; i < stress_.size(); ++i)
-    if (stress_[i] && stress_case_body_[i] == design_body_)
-      out.emplace_back(i, &stress_[i]->aggregate());
+    if (const DesignBody *db = stress_[i] ? design_of(stress_case_body_[i]) : nullptr)
+      out.push_back({i, db->index, &stress_[i]->aggregate()});
   return out;
 }
 
@@ -255,67 +344,96 @@ void DynamicProblem::restore_response_scales(const std::vector<double> &scales) 
   optimize::restore_scales(stress_, scales);
 }
 
-DynamicProblem::~DynamicProblem() {
-  VecDestroy(&grad_physical_);
+io::GridLayout DynamicProblem::design_layout() const {
+  // One design body keeps its mesh coordinates (its own frame, as a static design's).
+  if (designs_.size() == 1) return design_->grid_layout();
+  std::vector<std::vector<double>> placed;
+  for (const DesignBody &db : designs_) {
+    const dynamics::SceneBody &sb = scene_.bodies[static_cast<std::size_t>(db.body)];
+    const mesh::DistributedMesh &m = db.field->mesh();
+    std::vector<double> x(static_cast<std::size_t>(3 * m.owned_nodes));
+    for (std::size_t i = 0; i < x.size() / 3; ++i) {
+      const bodies::Vec3 p = sb.position + sb.R * bodies::Vec3(&m.coordinates[3 * i]);
+      for (int k = 0; k < 3; ++k) x[3 * i + static_cast<std::size_t>(k)] = p(k);
+    }
+    placed.push_back(std::move(x));
+  }
+  return design_->grid_layout(placed);
 }
 
-const mesh::DistributedMesh &DynamicProblem::mesh() const {
-  return scene_.meshes[static_cast<std::size_t>(design_body_)];
+DynamicProblem::~DynamicProblem() {
+  for (DesignBody &db : designs_) VecDestroy(&db.grad_physical);
 }
 
 double DynamicProblem::response_value(std::size_t i) const {
   const optimize::ResponseSettings &r = *specs_[i];
-  if (r.type == optimize::ResponseType::VolumeFraction) return field_->volume_fraction();
+  if (r.type == optimize::ResponseType::VolumeFraction) {
+    if (r.bodies.empty()) return design_->volume_fraction();
+    double solid = 0, volume = 0; // the listed design regions together (section 9.9)
+    for (const std::string &name : r.bodies) {
+      const optimize::DesignField &f = *design_of(case_body(settings_, name))->field;
+      solid += f.volume_fraction() * f.design_volume();
+      volume += f.design_volume();
+    }
+    return solid / volume;
+  }
   if (r.type == optimize::ResponseType::Mass) {
-    if (r.body == settings_.design.body && acf_design_ < 0 && !ffrf_design_) return ev_.theta(0);
-    for (std::size_t b = 0; b < settings_.scene.bodies.size(); ++b)
-      if (settings_.scene.bodies[b].name == r.body) {
-        const dynamics::SceneBody &sb = scene_.bodies[b];
-        if (sb.acf >= 0) return scene_.acf[static_cast<std::size_t>(sb.acf)]->total_mass();
-        return scene_.mechanism.body(sb.mechanism).mass();
-      }
+    double m = 0;
+    for (const std::string &name : r.bodies) m += body_mass(name);
+    return m;
   }
   return ev_.sampled[i].value;
 }
 
 void DynamicProblem::apply_design(Vec x) {
-  field_->update(x);
-  // Mass factors w (section 9.1) and, for an ACF body, SIMP modulus factors s (section 9.6).
-  field_->mass_factors(ev_.w, ev_.dw);
-  field_->stiffness_factors(ev_.s, ev_.ds);
-  if (acf_design_ >= 0) {
-    scene_.acf[static_cast<std::size_t>(acf_design_)]->set_factors(ev_.s, ev_.w);
-  } else if (ffrf_design_) {
-    // Collective: every rank compares its own elements (a change of one element's density
-    // moves the factors on its rank only).
-    int changed = ev_.s != reduced_factors_.stiffness || ev_.w != reduced_factors_.mass, any = 0;
-    MPI_Allreduce(&changed, &any, 1, MPI_INT, MPI_LOR, mesh().comm);
-    if (any) {
-      const double t0 = wall_time();
-      reduced_factors_ = reduce::ElementFactors{ev_.s, ev_.w};
-      reduction_ =
-          dynamics::set_ffrf_design(mesh().comm, settings_.scene, scene_,
-                                    static_cast<std::size_t>(design_body_), reduced_factors_);
-      reduction_s_ = wall_time() - t0;
-      ev_.reduction_s = reduction_s_;
-      for (std::size_t i = 0; i < stress_.size(); ++i)
-        if (stress_[i] && stress_case_body_[i] == design_body_)
-          ffrf_stress(i)->set_basis(reduction_->basis);
-    }
-  } else {
-    set_rigid_design();
+  design_->update(x);
+  for (DesignBody &db : designs_) {
+    // Mass factors w (section 9.1) and SIMP modulus factors s (sections 9.6, 10).
+    db.field->mass_factors(db.ev.w, db.ev.dw);
+    db.field->stiffness_factors(db.ev.s, db.ev.ds);
+    if (db.acf_model())
+      scene_.acf[static_cast<std::size_t>(db.acf)]->set_factors(db.ev.s, db.ev.w);
+    else if (db.ffrf())
+      set_ffrf_design(db);
+    else
+      set_rigid_design(db);
   }
+}
+
+void DynamicProblem::set_ffrf_design(DesignBody &db) {
+  // Collective: every rank compares its own elements (a change of one element's density moves
+  // the factors on its rank only).
+  int changed = db.ev.s != db.reduced_factors.stiffness || db.ev.w != db.reduced_factors.mass;
+  int any = 0;
+  const MPI_Comm comm = db.field->mesh().comm;
+  MPI_Allreduce(&changed, &any, 1, MPI_INT, MPI_LOR, comm);
+  if (!any) return;
+  const double t0 = wall_time();
+  db.reduced_factors = reduce::ElementFactors{db.ev.s, db.ev.w};
+  db.reduction = dynamics::set_ffrf_design(comm, settings_.scene, scene_,
+                                           static_cast<std::size_t>(db.body), db.reduced_factors);
+  db.reduction_s = wall_time() - t0;
+  db.ev.reduction_s = db.reduction_s;
+  for (std::size_t i = 0; i < stress_.size(); ++i)
+    if (stress_[i] && stress_case_body_[i] == db.body)
+      ffrf_stress(i)->set_basis(db.reduction->basis);
 }
 
 void DynamicProblem::evaluate(Vec x, bool gradients, optimize::Evaluation &out) {
   LogScope log("FxDynamicEvaluate");
   ++evaluations_;
   ev_ = {};
+  ev_.sensor_frames.assign(specs_.size(), {});
+  for (DesignBody &db : designs_) db.ev = {};
   // The design into the scene (sections 9.1, 9.6, 10): mass and modulus factors, the rigid
-  // design body's mass parameters or the FFRF design body's reduction.
+  // design bodies' mass parameters, the FFRF ones' reductions.
   apply_design(x);
-  ev_.element_gradient.assign(
-      specs_.size(), std::vector<double>(static_cast<std::size_t>(mesh().local_elements()), 0.0));
+  for (DesignBody &db : designs_) {
+    db.ev.element_gradient.assign(
+        specs_.size(),
+        std::vector<double>(static_cast<std::size_t>(db.field->mesh().local_elements()), 0.0));
+    db.ev.strain_kbar.assign(specs_.size(), Matrix());
+  }
   // The forward run from the consistent start, its samples and checkpoints, and the responses
   // on the time grid (sections 9.2-9.4).
   const double t_forward = wall_time();
@@ -331,8 +449,6 @@ void DynamicProblem::evaluate(Vec x, bool gradients, optimize::Evaluation &out) 
 }
 
 void DynamicProblem::pull_back(optimize::Evaluation &out) {
-  const mesh::DistributedMesh &m = mesh();
-  const PetscInt ne = m.local_elements();
   const std::size_t nr = specs_.size();
   if (!out.d_objective) {
     out.d_objective = create_design_vector();
@@ -340,28 +456,42 @@ void DynamicProblem::pull_back(optimize::Evaluation &out) {
       out.d_constraints.push_back(create_design_vector());
   }
   for (std::size_t i = 0; i < nr; ++i) {
-    if (specs_[i]->type == optimize::ResponseType::VolumeFraction) {
-      field_->volume_fraction_gradient(grad_physical_);
-    } else {
-      PetscScalar *g;
-      FX_PETSC(VecGetArray(grad_physical_, &g));
-      for (PetscInt e = 0; e < ne; ++e) g[e] = ev_.element_gradient[i][static_cast<std::size_t>(e)];
-      FX_PETSC(VecRestoreArray(grad_physical_, &g));
+    const optimize::ResponseSettings &r = *specs_[i];
+    // A volume fraction of the listed design regions (all of them without a list): each
+    // region's own derivative weighted by its share of their volume (section 9.9).
+    double listed = 0;
+    if (r.type == optimize::ResponseType::VolumeFraction)
+      for (const DesignBody &db : designs_)
+        if (r.bodies.empty() || std::find(r.bodies.begin(), r.bodies.end(),
+                                          db.field->settings().body) != r.bodies.end())
+          listed += db.field->design_volume();
+    for (DesignBody &db : designs_) {
+      if (r.type == optimize::ResponseType::VolumeFraction) {
+        const bool in = r.bodies.empty() || std::find(r.bodies.begin(), r.bodies.end(),
+                                                      db.field->settings().body) != r.bodies.end();
+        db.field->volume_fraction_gradient(db.grad_physical);
+        FX_PETSC(VecScale(db.grad_physical, in ? db.field->design_volume() / listed : 0.0));
+      } else {
+        PetscScalar *g;
+        FX_PETSC(VecGetArray(db.grad_physical, &g));
+        std::copy(db.ev.element_gradient[i].begin(), db.ev.element_gradient[i].end(), g);
+        FX_PETSC(VecRestoreArray(db.grad_physical, &g));
+      }
+      design_->pull_back(db.index, db.grad_physical, out.gradient(i));
     }
-    field_->pull_back(grad_physical_, out.gradient(i));
   }
 }
 
-void DynamicProblem::set_rigid_design() {
-  const mesh::DistributedMesh &m = mesh();
+void DynamicProblem::set_rigid_design(DesignBody &db) {
+  const mesh::DistributedMesh &m = db.field->mesh();
   bodies::MassParameters local = bodies::MassParameters::Zero();
   for (PetscInt e = 0; e < m.local_elements(); ++e)
-    local += ev_.w[static_cast<std::size_t>(e)] * element_theta_[static_cast<std::size_t>(e)];
-  MPI_Allreduce(local.data(), ev_.theta.data(), 10, MPI_DOUBLE, MPI_SUM, m.comm);
-  dynamics::set_body_model(m.comm, settings_.scene, scene_, static_cast<std::size_t>(design_body_),
+    local += db.ev.w[static_cast<std::size_t>(e)] * db.element_theta[static_cast<std::size_t>(e)];
+  MPI_Allreduce(local.data(), db.ev.theta.data(), 10, MPI_DOUBLE, MPI_SUM, m.comm);
+  dynamics::set_body_model(m.comm, settings_.scene, scene_, static_cast<std::size_t>(db.body),
                            std::make_shared<bodies::RigidBody>(
-                               settings_.scene.bodies[static_cast<std::size_t>(design_body_)].name,
-                               bodies::from_parameters(ev_.theta, reference_)));
+                               settings_.scene.bodies[static_cast<std::size_t>(db.body)].name,
+                               bodies::from_parameters(db.ev.theta, db.reference)));
 }
 
 std::vector<char>
@@ -380,9 +510,9 @@ DynamicProblem::plan_checkpoints(std::unique_ptr<BinomialSchedule> &schedule) co
 void DynamicProblem::check_checkpoint_memory(long long bytes, long long states) {
   if (checkpoint_memory_checked_) return;
   checkpoint_memory_checked_ = true;
-  const NodeMemory per_state = node_memory(mesh().comm, bytes);
+  const NodeMemory per_state = node_memory(comm(), bytes);
   const NodeMemory all{per_state.bytes * states, per_state.available};
-  print0(mesh().comm,
+  print0(comm(),
          "adjoint: %lld states kept in memory for the backward sweep, %s each on a node: %s "
          "(%s available)\n",
          states, io::human_bytes(static_cast<double>(per_state.bytes)).c_str(),
@@ -406,7 +536,7 @@ void DynamicProblem::check_checkpoint_memory(long long bytes, long long states) 
 
 std::string DynamicProblem::checkpoint_file() const {
   int rank = 0;
-  MPI_Comm_rank(mesh().comm, &rank);
+  MPI_Comm_rank(comm(), &rank);
   return scratch_ + "/adjoint_checkpoints." + std::to_string(rank) + ".h5";
 }
 
@@ -429,9 +559,13 @@ std::vector<std::string> DynamicProblem::solve_to_round_off() {
   // Newton's method proper: responses smooth in the design to round-off (docs/theory.md 9.5).
   set_newton_reuse(0);
   std::vector<std::string> limits;
-  const std::string filter = field_->filter().solve_to_round_off();
-  filter_limited_ = !filter.empty();
-  if (filter_limited_) limits.push_back(filter);
+  filter_limited_ = false;
+  for (std::size_t k = 0; k < design_->size(); ++k) {
+    const std::string filter = design_->field(k).filter().solve_to_round_off();
+    if (filter.empty() || filter_limited_) continue; // one phrase for the filters' option
+    filter_limited_ = true;
+    limits.push_back(filter);
+  }
   if (ffrf_design_) {
     // The reduction's fixed-interface modes are solved to 1e-13 (reduce_flexible_body) unless
     // -eps_tol says otherwise.
@@ -448,7 +582,10 @@ bool DynamicProblem::set_random_start(unsigned long seed) {
   // Every other solve of a dynamic evaluation is direct, or Newton's to 1e-12, whatever its
   // start; the filter's own tolerance (1e-12) keeps its noise below noise_floor(). Only a
   // filter loosened by the user's options is worth two more runs to measure.
-  return field_->filter().set_random_start(filter_limited_ ? seed : 0) && filter_limited_;
+  bool any = false;
+  for (std::size_t k = 0; k < design_->size(); ++k)
+    any = design_->field(k).filter().set_random_start(filter_limited_ ? seed : 0) || any;
+  return any && filter_limited_;
 }
 
 double DynamicProblem::noise_floor(std::size_t i) const {
@@ -464,10 +601,15 @@ double DynamicProblem::noise_floor(std::size_t i) const {
 
 std::vector<optimize::Timing> DynamicProblem::timings() const {
   std::vector<optimize::Timing> t;
-  if (ffrf_design_) t.push_back({"reduction", "reduce", ev_.reduction_s});
+  double reduction = 0, reduction_adjoint = 0; // every FFRF design body's
+  for (const DesignBody &db : designs_) {
+    reduction += db.ev.reduction_s;
+    reduction_adjoint += db.ev.reduction_adjoint_s;
+  }
+  if (ffrf_design_) t.push_back({"reduction", "reduce", reduction});
   t.push_back({"forward", "forward", ev_.forward_s});
   t.push_back({"adjoint", "adjoint", ev_.adjoint_s});
-  if (ffrf_design_) t.push_back({"reduction_adjoint", "red.adj", ev_.reduction_adjoint_s});
+  if (ffrf_design_) t.push_back({"reduction_adjoint", "red.adj", reduction_adjoint});
   return t;
 }
 
@@ -481,7 +623,7 @@ double DynamicProblem::round_off_level(std::size_t i) const {
 
 void DynamicProblem::describe(io::Json &s) const {
   s["dofs"] = dofs();
-  s["elements"] = static_cast<long long>(mesh().global_elements);
+  s["elements"] = design_->global_elements(); // of the design bodies
   s["design_variables"] = static_cast<long long>(design_size());
   s["coordinates"] = scene_.mechanism.coordinates();
   s["constraint_rows"] = scene_.mechanism.constraints();
@@ -498,10 +640,24 @@ void DynamicProblem::describe(io::Json &s) const {
   s["recomputed_steps"] = recomputed_;
   s["adjoint_factorizations"] = adjoint_factorizations_;
   s["newton_reuse"] = integration_.newton.reuse_contraction;
+  io::Json bodies = io::Json::array();
+  double reduction = 0, reduction_adjoint = 0;
+  int cg = 0;
+  for (const DesignBody &db : designs_) {
+    io::Json b = io::Json::object();
+    b["body"] = db.field->settings().body;
+    b["model"] = dynamics::model_name(db.model);
+    b["design_variables"] = static_cast<long long>(db.field->design_size());
+    bodies.push_back(b);
+    reduction += db.reduction_s;
+    reduction_adjoint += db.reduction_adjoint_s;
+    cg += db.reduction_cg_iterations;
+  }
+  s["design_bodies"] = bodies;
   if (ffrf_design_) {
-    s["reduction_s"] = reduction_s_; // of the last design
-    s["reduction_adjoint_s"] = reduction_adjoint_s_;
-    s["reduction_adjoint_cg_iterations"] = reduction_cg_iterations_;
+    s["reduction_s"] = reduction; // of the last design, every FFRF design body's
+    s["reduction_adjoint_s"] = reduction_adjoint;
+    s["reduction_adjoint_cg_iterations"] = cg;
     s["basis_derivative"] =
         settings_.adjoint.basis == reduce::BasisDerivative::Fixed ? "fixed" : "exact";
   }

@@ -72,17 +72,16 @@ protected:
   /// design body with the relaxation of its densities, whose explicit gradient is complete
   /// here (with gradients).
   void finish_stress() {
-    std::vector<double> eta, deta;
     for (std::size_t i = 0; i < p_.specs_.size(); ++i) {
       if (!p_.stress_[i]) continue;
-      const bool design = p_.stress_case_body_[i] == p_.design_body_;
-      if (design && eta.empty()) p_.field_->stress_factors(eta, deta);
+      DesignBody *db = p_.design_of(p_.stress_case_body_[i]);
+      std::vector<double> eta, deta;
+      if (db) db->field->stress_factors(eta, deta);
       p_.ev_.sampled[i].value =
-          p_.stress_[i]->finish(p_.settings_.time.step, design ? eta : std::vector<double>{},
-                                design ? deta : std::vector<double>{}, gradients_);
-      if (design && gradients_)
+          p_.stress_[i]->finish(p_.settings_.time.step, eta, deta, gradients_);
+      if (db && gradients_)
         for (std::size_t e = 0; e < p_.stress_[i]->explicit_gradient().size(); ++e)
-          p_.ev_.element_gradient[i][e] += p_.stress_[i]->explicit_gradient()[e];
+          db->ev.element_gradient[i][e] += p_.stress_[i]->explicit_gradient()[e];
     }
   }
 
@@ -92,33 +91,38 @@ protected:
     sampled_steps_ = 0;
   }
   /// The next main step's FFRF strain energies U_n = 1/2 zeta^T K_r zeta at the mechanism's (or
-  /// small part's) coordinates q, summed with the trapezoidal weights as the steps come, and
-  /// sum_n w_n 1/2 zeta_n zeta_n^T for the FFRF design body (its reduction's cotangent).
+  /// small part's) coordinates q, summed over each response's bodies and with the trapezoidal
+  /// weights as the steps come, and sum_n w_n 1/2 zeta_n zeta_n^T for an FFRF design body (its
+  /// reduction's cotangent).
   void sample_ffrf_strain(const Vector &q) {
     const dynamics::Mechanism &mech = p_.scene_.mechanism;
     const double w = trapezoid_weight(static_cast<std::size_t>(sampled_steps_++),
                                       static_cast<std::size_t>(p_.steps_));
-    for (std::size_t i = 0; i < p_.specs_.size(); ++i) {
-      if (p_.strain_body_[i] < 0) continue;
-      const auto &body = dynamic_cast<const bodies::FfrfBody &>(mech.body(p_.strain_body_[i]));
-      const Vector z = q.segment(mech.offset(p_.strain_body_[i]) + 7, body.coordinates() - 7);
-      strain_value_[i] += w * 0.5 * z.dot(body.data().stiffness * z);
-      if (p_.strain_body_[i] == p_.mechanism_body_ && p_.ffrf_design_) {
-        if (p_.ev_.strain_kbar[i].size() == 0) p_.ev_.strain_kbar[i].setZero(z.size(), z.size());
-        p_.ev_.strain_kbar[i] += w * 0.5 * z * z.transpose();
+    for (std::size_t i = 0; i < p_.specs_.size(); ++i)
+      for (const int mb : p_.strain_bodies_[i]) {
+        const auto &body = dynamic_cast<const bodies::FfrfBody &>(mech.body(mb));
+        const Vector z = q.segment(mech.offset(mb) + 7, body.coordinates() - 7);
+        strain_value_[i] += w * 0.5 * z.dot(body.data().stiffness * z);
+        for (DesignBody &db : p_.designs_) {
+          if (!db.ffrf() || db.mechanism != mb) continue;
+          Matrix &kbar = db.ev.strain_kbar[i];
+          if (kbar.size() == 0) kbar.setZero(z.size(), z.size());
+          kbar += w * 0.5 * z * z.transpose();
+        }
       }
-    }
   }
   /// d/dzeta of response i's w_j 1/2 zeta^T K_r zeta at main step j into `dq` (the mechanism's
-  /// or small part's coordinates), on its body's elastic rows.
+  /// or small part's coordinates), on its FFRF bodies' elastic rows.
   template <class Out>
   void add_ffrf_strain_partial(std::size_t i, long long j, const Vector &q, Out &&dq) const {
     const dynamics::Mechanism &mech = p_.scene_.mechanism;
-    const auto &body = dynamic_cast<const bodies::FfrfBody &>(mech.body(p_.strain_body_[i]));
-    const int o = mech.offset(p_.strain_body_[i]) + 7, ne = body.coordinates() - 7;
-    dq.segment(o, ne) +=
-        trapezoid_weight(static_cast<std::size_t>(j), static_cast<std::size_t>(p_.steps_)) *
-        (body.data().stiffness * q.segment(o, ne));
+    const double w =
+        trapezoid_weight(static_cast<std::size_t>(j), static_cast<std::size_t>(p_.steps_));
+    for (const int mb : p_.strain_bodies_[i]) {
+      const auto &body = dynamic_cast<const bodies::FfrfBody &>(mech.body(mb));
+      const int o = mech.offset(mb) + 7, ne = body.coordinates() - 7;
+      dq.segment(o, ne) += w * (body.data().stiffness * q.segment(o, ne));
+    }
   }
 
   /// The FFRF bodies' stress responses record their elastic coordinates at the mechanism's (or
@@ -187,13 +191,16 @@ private:
   std::vector<double> displacement(const dynamics::DistState &s, std::size_t b) const;
   /// The responses' samples at state s (sensor values, ACF strain energies, stresses).
   void sample(const dynamics::DistState &s);
+  /// Response i's ACF strain energy at state s (summed over its ACF bodies, all ranks), and
+  /// w_n U_e summed into the ACF design bodies' direct partials.
+  double sample_acf_strain(std::size_t i, const dynamics::DistState &s, double w);
   /// The ACF bodies' stress responses told the run's steps and relaxation.
   void start_stress();
   /// The stress responses' samples at state s (its small part `small`).
   void sample_stress(const dynamics::DistState &s, const dynamics::State &small);
   /// Adds stress response i's partial at main step j, state s, into the coordinates q.
   void add_stress_partial(std::size_t i, std::size_t j, const dynamics::DistState &s, Vec q);
-  /// The direct partials of an ACF design body: the strain energy's sum_n w_n U_e / s_e, the
+  /// The direct partials of the ACF design bodies: a strain energy's sum_n w_n U_e / s_e, a
   /// mass's rho V_e.
   void direct_partials();
   /// (dPsi/ds)^T at main step j, state s: the sensors' and strain energies' q blocks, per
@@ -201,27 +208,33 @@ private:
   std::vector<const dynamics::DistState *> state_partials(std::size_t j,
                                                           const dynamics::DistState &s);
   /// The design partials mu . dR/dx at state s for the multipliers mu (one per active
-  /// response), times `sign`.
+  /// response), times `sign`: the small part's stacked ones (rigid and FFRF design bodies) and
+  /// each ACF design body's element partials (docs/theory.md 9.9).
   void add_partials(const dynamics::DistState &s, const std::vector<dynamics::DistState> &mu,
                     double sign);
+  /// ACF design body db's G_e += sign (ds mu . dR/ds_e + dw mu . dR/dw_e), one element loop.
+  void add_acf_partials(DesignBody &db, const dynamics::DistState &s,
+                        const std::vector<dynamics::DistState> &mu, double sign);
   /// The backward sweep (section 9.7); returns dPsi/ds_0 = -mu_0 per active response.
   std::vector<dynamics::DistState> sweep();
   /// The adjoint of the consistent start (section 9.2) from gbar = dPsi/ds_0.
   void start_adjoint(std::vector<dynamics::DistState> &gbar);
   /// -mu^T (dM/dx) u at the start for multipliers mu (one per active response) and one
-  /// velocity change u, on the ACF design body's elements or the rigid one's parameters.
-  void add_mass_terms(const std::vector<std::vector<double>> &mus,
+  /// velocity change u, on ACF design body db's elements.
+  void add_mass_terms(DesignBody &db, const std::vector<std::vector<double>> &mus,
                       const std::vector<double> &velocity);
+  /// The same on the small part's rigid and FFRF design bodies' parameters.
   void add_small_mass_terms(const Matrix &mus, const Vector &velocity);
 
   const dynamics::DistributedAlpha &da_;
-  const bool acf_;           ///< the design body is ACF (else rigid or FFRF, in the small part)
-  const std::size_t design_; ///< its index among the ACF bodies
-  bodies::AcfBody *body_ = nullptr;
-  std::vector<int> strain_body_;            ///< per response: the ACF body of its energy
-  std::vector<std::vector<double>> energy_; ///< per strain response: U_n
-  std::vector<double> energy_steps_;        ///< the design body's U_e, per step
-  Matrix G_; ///< a rigid or FFRF design body: dPsi/dtheta (its mass parameters or packed model)
+  std::vector<std::size_t> acf_designs_; ///< the ACF design bodies (indices in the designs)
+  bool small_ = false;                   ///< some design body is rigid or FFRF (in the small part)
+  std::vector<std::vector<double>> energy_; ///< per strain response: its ACF bodies' U_n
+  /// Per ACF design body (as acf_designs_) and response: sum_n w_n U_e,n on its local elements
+  /// (empty: the response does not take the body's strain energy).
+  std::vector<std::vector<std::vector<double>>> energy_sum_;
+  long long acf_samples_ = 0; ///< main steps sampled so far
+  Matrix G_; ///< the rigid and FFRF design bodies: dPsi/dtheta (stacked, design_partials)
   std::vector<std::size_t> active_;           ///< the responses that depend on the state
   std::vector<dynamics::DistState> partials_; ///< work: one per active response
   std::vector<std::vector<double>> d_modulus_, d_mass_, mu_d_;

@@ -78,8 +78,11 @@ int run_check_gradient(const Context &ctx, const Options &o, const io::Case &c, 
     problem->initial_design(x0);
   } else {
     detail::load_design(ctx.comm(), c, *problem, o.design, x0);
-    print0(ctx.comm(), "check-gradient: at the design of %s (projection beta %g)\n",
-           o.design.c_str(), problem->field().beta());
+    std::string betas;
+    for (double b : problem->design().betas())
+      betas += (betas.empty() ? "" : ", ") + std::to_string(b);
+    print0(ctx.comm(), "check-gradient: at the design of %s (projection beta %s)\n",
+           o.design.c_str(), betas.c_str());
   }
   optimize::Evaluation base;
   const optimize::GradientCheckResult check =

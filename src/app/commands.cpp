@@ -34,13 +34,12 @@ namespace detail {
 
 void load_design(MPI_Comm comm, const io::Case &c, optimize::DesignProblem &design,
                  const std::string &file, Vec x) {
-  const std::vector<std::uint64_t> tags(design.design_tags().begin(), design.design_tags().end());
-  optimize::check_design_file(design.field(), file);
-  const io::RestartData r = io::read_restart(comm, file, tags);
+  optimize::check_design_file(design.design(), file);
+  const io::RestartData r = io::read_restart(comm, file, design.design_keys());
   const auto it = r.fields.find("x");
   if (it == r.fields.end())
     throw Error(file + ": no design field 'x' (--design takes the restart.h5 of a run)", true);
-  optimize::check_design_values(design.field(), it->second, file, "x");
+  optimize::check_design_values(design.design(), it->second, file, "x");
   PetscScalar *a;
   FX_PETSC(VecGetArray(x, &a));
   std::copy(it->second.begin(), it->second.end(), a);
@@ -48,26 +47,30 @@ void load_design(MPI_Comm comm, const io::Case &c, optimize::DesignProblem &desi
   // The projection sharpness of the run's continuation stage (meta: iteration, objective
   // scale, constraints, stage, ...).
   const auto meta = r.arrays.find("meta");
-  if (meta != r.arrays.end() && meta->second.size() > 3 && !c.design->beta.empty()) {
-    const auto stage =
-        std::min(static_cast<std::size_t>(meta->second[3]), c.design->beta.size() - 1);
-    design.field().set_beta(c.design->beta[stage]);
-  }
+  if (meta != r.arrays.end() && meta->second.size() > 3 && design.design().stages() > 0)
+    design.design().set_stage(static_cast<int>(meta->second[3]));
 }
 
 std::string write_gradients(const optimize::DesignProblem &problem, const optimize::Evaluation &e,
                             const std::string &dir) {
-  io::XdmfWriter writer(mesh::grid_layout(problem.mesh()), dir, "gradient");
+  const optimize::Design &d = problem.design();
+  io::XdmfWriter writer(problem.design_layout(), dir, "gradient");
   writer.begin_step(0);
-  const auto &elements = problem.field().design_elements();
-  std::vector<double> cells(static_cast<std::size_t>(problem.mesh().local_elements()));
+  std::vector<double> cells;
   for (std::size_t i = 0; i < problem.response_names().size(); ++i) {
-    std::fill(cells.begin(), cells.end(), 0.0);
+    // Every design body's local elements in turn (Design::grid_layout), 0 outside the regions.
+    cells.clear();
     const PetscScalar *g;
     Vec gv = e.gradient(i);
     FX_PETSC(VecGetArrayRead(gv, &g));
-    for (std::size_t k = 0; k < elements.size(); ++k)
-      cells[static_cast<std::size_t>(elements[k])] = g[k];
+    for (std::size_t f = 0; f < d.size(); ++f) {
+      const auto &elements = d.field(f).design_elements();
+      const std::size_t base = cells.size();
+      cells.resize(base + static_cast<std::size_t>(d.field(f).mesh().local_elements()), 0.0);
+      for (std::size_t k = 0; k < elements.size(); ++k)
+        cells[base + static_cast<std::size_t>(elements[k])] =
+            g[static_cast<std::size_t>(d.local_offset(f)) + k];
+    }
     FX_PETSC(VecRestoreArrayRead(gv, &g));
     writer.cell_scalar(i == 0 ? "gradient_objective"
                               : "gradient_constraint" + std::to_string(i - 1),
@@ -522,7 +525,7 @@ int run_modes(const Context &ctx, const Options &o, const io::Case &c, double t0
 }
 
 int run_optimize(const Context &ctx, const Options &o, const io::Case &c, double t0) {
-  if (!c.design)
+  if (c.design.empty())
     throw Error(c.file + ": optimize needs design:, objective: (and constraints:) sections", true);
   const std::string dir = output_directory(ctx, o);
   io::Case run_case = c;
@@ -552,6 +555,12 @@ int run_optimize(const Context &ctx, const Options &o, const io::Case &c, double
   problem->describe(about);
   s["problem"] = about;
   s["volume_fraction"] = r.volume_fraction;
+  if (!r.body_volume_fractions.empty()) { // several design bodies: each one's
+    io::Json per = io::Json::object();
+    for (std::size_t b = 0; b < r.body_volume_fractions.size(); ++b)
+      per[r.design_bodies[b]] = r.body_volume_fractions[b];
+    s["body_volume_fractions"] = per;
+  }
   s["converged"] = r.converged;
   s["restarted"] = o.restart;
   s["stop_reason"] = r.stop_reason;
@@ -574,7 +583,13 @@ int run_optimize(const Context &ctx, const Options &o, const io::Case &c, double
   for (const auto &[first, beta] : r.beta_stages) {
     io::Json st = io::Json::object();
     st["first_iteration"] = first;
-    st["beta"] = beta;
+    if (beta.size() == 1) {
+      st["beta"] = beta.front();
+    } else { // several design bodies: each one's
+      io::Json per = io::Json::object();
+      for (std::size_t b = 0; b < beta.size(); ++b) per[r.design_bodies[b]] = beta[b];
+      st["beta"] = per;
+    }
     stages.push_back(st);
   }
   s["beta_stages"] = stages;
@@ -638,16 +653,19 @@ int run(const Context &ctx, const Options &given) {
     o.plan = plan::plan_json(p);
     plan::apply_plan(c.scene, p);
   }
-  const bool dynamic_simulate = o.command == "simulate" && c.dynamic() && c.design;
-  if (!o.design.empty() && !(dynamic_simulate || (o.command == "check-gradient" && c.design)))
+  const bool dynamic_simulate = o.command == "simulate" && c.dynamic() && !c.design.empty();
+  if (!o.design.empty() &&
+      !(dynamic_simulate || (o.command == "check-gradient" && !c.design.empty())))
     throw Error("--design applies to `flexopt simulate` of a dynamic case with a design: section "
                 "and to `flexopt check-gradient` of a case with one; " +
-                    c.file + " is " + c.analysis_name() + (c.design ? "" : " without design:"),
+                    c.file + " is " + c.analysis_name() +
+                    (!c.design.empty() ? "" : " without design:"),
                 true);
   if (o.gradient && !dynamic_simulate)
     throw Error("--gradient applies to `flexopt simulate` of a dynamic case with a design: "
                 "section; " +
-                    c.file + " is " + c.analysis_name() + (c.design ? "" : " without design:"),
+                    c.file + " is " + c.analysis_name() +
+                    (!c.design.empty() ? "" : " without design:"),
                 true);
   if (o.command == "info") return run_info(ctx, o, c, t0);
   if (o.command == "simulate")

@@ -117,8 +117,8 @@ private:
   std::vector<double> von_mises_max_;
   /// A design's body and its stress relaxation factors eta (run_design): its frames' von Mises
   /// stress is the relaxed one that its stress responses take.
-  std::size_t relaxed_body_ = static_cast<std::size_t>(-1);
-  std::vector<double> relaxation_;
+  /// Per case body: the stress relaxation of its densities (a design body's), or empty.
+  std::vector<std::vector<double>> relaxation_;
   std::vector<std::string> warnings_; ///< summary.json `warnings`
   double max_violation_ = 0;
   dynamics::Vector all_;
@@ -278,8 +278,8 @@ void MotionRun::frame(double t) {
     writer_->positions(b, x.data());
     if (flexible(b)) {
       std::vector<double> v = run_->von_mises(b, c_.scene.bodies[b].material);
-      if (b == relaxed_body_)
-        for (std::size_t e = 0; e < v.size(); ++e) v[e] *= relaxation_[e];
+      if (b < relaxation_.size() && !relaxation_[b].empty())
+        for (std::size_t e = 0; e < v.size(); ++e) v[e] *= relaxation_[b][e];
       writer_->cell_scalar(b, "von_mises", v.data());
       for (double ve : v) von_mises_max_[b] = std::max(von_mises_max_[b], ve);
     }
@@ -390,21 +390,27 @@ void MotionRun::run() {
 }
 
 void MotionRun::run_design(adjoint::DynamicProblem &design, Vec x, bool gradient) {
-  // The design's densities on its body (the caller applied x), in every frame; every other
-  // body is solid (1), so that thresholding physical_density at 0.5 keeps the whole mechanism.
-  const optimize::DesignField &f = design.field();
-  std::vector<double> deta;
-  f.stress_factors(relaxation_, deta);
-  relaxed_body_ = design.design_body();
-  for (const auto &[field, v] :
-       {std::pair{"density", f.density()}, {"physical_density", f.physical()}}) {
-    const PetscScalar *a;
-    FX_PETSC(VecGetArrayRead(v, &a));
-    writer_->constant_cell_scalar(design.design_body(), field, a);
-    FX_PETSC(VecRestoreArrayRead(v, &a));
-    for (std::size_t b = 0; b < writer_->bodies(); ++b)
-      if (b != design.design_body()) writer_->constant_cell_value(b, field, 1.0);
+  // Each design body's densities (the caller applied x), in every frame; every other body is
+  // solid (1), so that thresholding physical_density at 0.5 keeps the whole mechanism.
+  relaxation_.assign(writer_->bodies(), {});
+  std::vector<char> designed(writer_->bodies(), 0);
+  for (const adjoint::DesignBody &db : design.design_bodies()) {
+    const auto b = static_cast<std::size_t>(db.body);
+    const optimize::DesignField &f = *db.field;
+    std::vector<double> deta;
+    f.stress_factors(relaxation_[b], deta);
+    designed[b] = 1;
+    for (const auto &[field, v] :
+         {std::pair{"density", f.density()}, {"physical_density", f.physical()}}) {
+      const PetscScalar *a;
+      FX_PETSC(VecGetArrayRead(v, &a));
+      writer_->constant_cell_scalar(b, field, a);
+      FX_PETSC(VecRestoreArrayRead(v, &a));
+    }
   }
+  for (const char *field : {"density", "physical_density"})
+    for (std::size_t b = 0; b < writer_->bodies(); ++b)
+      if (!designed[b]) writer_->constant_cell_value(b, field, 1.0);
   FX_PETSC(PetscLogStagePush(time_steps_stage()));
   t_start_ = last_print_ = t_end_ = wall_time();
   const double h = settings_.step;
@@ -590,7 +596,7 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
   std::unique_ptr<adjoint::DynamicProblem> design;
   Vec x = nullptr; // the design's variables
   dynamics::Scene built;
-  if (c.design) {
+  if (!c.design.empty()) {
     design = adjoint::DynamicProblem::create(ctx.comm(), io::dynamic_settings(c), dir);
     x = design->create_design_vector();
     if (o.design.empty()) {
@@ -615,12 +621,12 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
 void write_design_motions(const Context &ctx, const io::Case &c, adjoint::DynamicProblem &problem,
                           const std::string &dir, io::Json &s) {
   Vec x = problem.create_design_vector();
-  const double beta = problem.field().beta();
+  const std::vector<double> betas = problem.design().betas();
   for (const char *which : {"initial", "final"}) {
     const std::string name = std::string("motion_") + which;
     if (std::string(which) == "initial") {
       problem.initial_design(x);
-      if (!c.design->beta.empty()) problem.field().set_beta(c.design->beta.front());
+      if (problem.design().stages() > 0) problem.design().set_stage(0);
     } else {
       detail::load_design(ctx.comm(), c, problem,
                           (std::filesystem::path(dir) / "restart.h5").string(), x);
@@ -636,7 +642,7 @@ void write_design_motions(const Context &ctx, const io::Case &c, adjoint::Dynami
       brief[key] = one[key];
     s[name] = brief;
   }
-  problem.field().set_beta(beta);
+  problem.design().set_betas(betas);
   FX_PETSC(VecDestroy(&x));
 }
 

@@ -301,20 +301,23 @@ fem::StaticSettings static_settings(const Case &c) {
 }
 
 optimize::TopologySettings topology_settings(const Case &c) {
-  if (!c.design || !c.objective)
+  if (c.design.empty() || !c.objective)
     throw Error(c.file + ": topology optimization needs design: and objective: sections", true);
-  return optimize::TopologySettings{static_settings(c), *c.design, *c.objective, c.constraints};
+  // A static case has one body, and the reader refuses two entries on one body.
+  return optimize::TopologySettings{static_settings(c), c.design.front(), *c.objective,
+                                    c.constraints};
 }
 
 adjoint::DynamicSettings dynamic_settings(const Case &c) {
-  if (!c.design || !c.objective)
+  if (c.design.empty() || !c.objective)
     throw Error(c.file + ": an optimization needs design: and objective: sections", true);
-  return adjoint::DynamicSettings{c.scene,      c.time,        *c.design,
+  return adjoint::DynamicSettings{c.scene,      c.time,        c.design,
                                   *c.objective, c.constraints, c.adjoint};
 }
 
 plan::PlanSettings plan_settings(const Case &c) {
-  plan::PlanSettings s{c.scene, c.time, c.accuracy, c.design ? c.design->body : "", {}};
+  plan::PlanSettings s{c.scene, c.time, c.accuracy, {}, {}};
+  for (const optimize::DesignSettings &d : c.design) s.design_bodies.push_back(d.body);
   std::vector<const optimize::ResponseSettings *> responses;
   if (c.objective) responses.push_back(&*c.objective);
   for (const optimize::ResponseSettings &r : c.constraints) responses.push_back(&r);

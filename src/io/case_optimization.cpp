@@ -15,15 +15,20 @@ namespace {
 using dynamics::BodyModel;
 using dynamics::SensorQuantity;
 
-/// `design:` (the design body, region, interpolation, filter and projection) into c.design.
-void read_design(const Reader &r, const YAML::Node &v, Case &c) {
-  const std::string path = "design";
+/// One entry of `design:` at `path` (the design body, region, interpolation, filter and
+/// projection) into c.design.
+void read_design_entry(const Reader &r, const YAML::Node &v, const std::string &path, Case &c) {
   r.require_map(v, path);
   r.check_keys(v, path, {"body", "region", "initial", "interpolation", "filter", "projection"});
   optimize::DesignSettings d;
   d.where = r.where(v);
   d.body = r.string(r.require(v, "body", path), path + ".body");
   if (!has_body(c, d.body)) r.fail(v["body"], path + ".body: no body named '" + d.body + "'");
+  for (std::size_t k = 0; k < c.design.size(); ++k)
+    if (c.design[k].body == d.body)
+      r.fail(v["body"], path + ".body: body '" + d.body + "' has a design already (design[" +
+                            std::to_string(k) + "], " + c.design[k].where.str() +
+                            "): one entry per design body");
   d.region_where = d.where;
   if (v["region"]) {
     d.region = r.string(v["region"], path + ".region");
@@ -105,8 +110,59 @@ void read_design(const Reader &r, const YAML::Node &v, Case &c) {
       d.eta = r.number(p["eta"], pp + ".eta");
       if (!(d.eta > 0 && d.eta < 1)) r.fail(p["eta"], pp + ".eta: must lie in (0, 1)");
     }
+    // One continuation for every design body (docs/theory.md 9.9): one `every`.
+    for (const optimize::DesignSettings &o : c.design)
+      if (!o.beta.empty() && o.beta_every != d.beta_every)
+        r.fail(p["every"] ? p["every"] : p, pp + ".every: " + std::to_string(d.beta_every) +
+                                                ", but design of body '" + o.body + "' has " +
+                                                std::to_string(o.beta_every) +
+                                                ": the projection's stages run together, "
+                                                "give every design entry the same every");
   }
-  c.design = d;
+  c.design.push_back(d);
+}
+
+/// `design:`: one map (one design body) or a list of them (several, docs/theory.md 9.9).
+void read_design(const Reader &r, const YAML::Node &v, Case &c) {
+  if (!v.IsSequence()) {
+    read_design_entry(r, v, "design", c);
+    return;
+  }
+  if (v.size() == 0) r.fail(v, "design: an empty list (give one entry per design body)");
+  for (std::size_t k = 0; k < v.size(); ++k)
+    read_design_entry(r, v[k], "design[" + std::to_string(k) + "]", c);
+}
+
+/// `body:` of a mass, strain_energy_integral or volume_fraction response: one body or a list,
+/// each a body of the scene (volume_fraction: a design body), into s.bodies (s.body when one).
+void read_response_bodies(const Reader &r, const YAML::Node &v, const std::string &path,
+                          const Case &c, optimize::ResponseSettings &s) {
+  const YAML::Node &b = v["body"];
+  const bool design_only = s.type == optimize::ResponseType::VolumeFraction;
+  auto one = [&](const YAML::Node &n, const std::string &at) {
+    const std::string name = r.string(n, at);
+    if (!has_body(c, name)) r.fail(n, at + ": no body named '" + name + "'");
+    bool designed = false;
+    for (const optimize::DesignSettings &d : c.design) designed = designed || d.body == name;
+    if (design_only && !designed) {
+      std::string list;
+      for (const optimize::DesignSettings &d : c.design)
+        list += (list.empty() ? "" : ", ") + d.body;
+      r.fail(n, at + ": body '" + name + "' has no design (design: names " +
+                    (list.empty() ? std::string("none") : list) +
+                    "); a volume fraction is one of design regions");
+    }
+    if (std::find(s.bodies.begin(), s.bodies.end(), name) != s.bodies.end())
+      r.fail(n, at + ": body '" + name + "' is named twice");
+    s.bodies.push_back(name);
+  };
+  if (b.IsSequence()) {
+    if (b.size() == 0) r.fail(b, path + ".body: an empty list");
+    for (std::size_t k = 0; k < b.size(); ++k) one(b[k], path + ".body[" + std::to_string(k) + "]");
+  } else {
+    one(b, path + ".body");
+    s.body = s.bodies.front();
+  }
 }
 
 /// A stress response's keys (docs/case-format.md "Stress responses") into s: the body (optional
@@ -215,7 +271,8 @@ optimize::ResponseSettings read_response(const Reader &r, const YAML::Node &v,
   if (s.type == ResponseType::Displacement) takes = {"sensor", "direction"};
   if (s.type == ResponseType::TrackingError) takes = {"sensor", "target"};
   if (s.type == ResponseType::Sensor) takes = {"sensor", "component", "measure", "ks"};
-  if (s.type == ResponseType::StrainEnergyIntegral || s.type == ResponseType::Mass)
+  if (s.type == ResponseType::StrainEnergyIntegral || s.type == ResponseType::Mass ||
+      s.type == ResponseType::VolumeFraction)
     takes = {"body"};
   if (s.type == ResponseType::Stress)
     takes = {"body", "aggregate", "p", "ks", "normalization", "reference", "region"};
@@ -287,9 +344,10 @@ optimize::ResponseSettings read_response(const Reader &r, const YAML::Node &v,
     }
   }
   if (s.type == ResponseType::StrainEnergyIntegral || s.type == ResponseType::Mass) {
-    s.body = r.string(r.require(v, "body", path), path + ".body");
-    if (!has_body(c, s.body)) r.fail(v["body"], path + ".body: no body named '" + s.body + "'");
+    r.require(v, "body", path);
+    read_response_bodies(r, v, path, c, s);
   }
+  if (s.type == ResponseType::VolumeFraction && v["body"]) read_response_bodies(r, v, path, c, s);
   if (s.type == ResponseType::Stress) read_stress(r, v, path, constraint, c, s);
   read_bound(r, v, path, constraint, s);
   return s;
@@ -361,9 +419,9 @@ void read_optimization(const Reader &r, YAML::Node root, Case &c) {
              "adjoint: needs analysis: dynamic (a static optimization stores no states)");
     read_adjoint(r, root["adjoint"], c);
   }
-  if ((c.objective || !c.constraints.empty() || root["optimizer"]) && !c.design)
+  if ((c.objective || !c.constraints.empty() || root["optimizer"]) && c.design.empty())
     r.fail(root, "objective/constraints/optimizer need a design: section (the design field)");
-  if (c.design && !c.objective)
+  if (!c.design.empty() && !c.objective)
     r.fail(root["design"], "design: an optimization needs an objective:");
 
   // The optimizer's share of other keys: the constraints' bounds, and design.xdmf's stride

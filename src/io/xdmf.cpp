@@ -172,6 +172,12 @@ struct XdmfWriter::Impl {
     H5Gclose(g);
   }
 
+  /// The topology dataset's dimensions: cells x nodes per cell, or a Mixed list's length.
+  std::string topology_dimensions() const {
+    if (layout.nodes_per_cell == 0) return std::to_string(layout.global_topology);
+    return std::to_string(layout.global_cells) + " " + std::to_string(layout.nodes_per_cell);
+  }
+
   std::string xdmf_text() const {
     const std::string h5name = basename + ".h5";
     std::ostringstream x;
@@ -186,7 +192,7 @@ struct XdmfWriter::Impl {
         << "        <Time Value=\"" << tbuf << "\"/>\n"
         << "        <Topology TopologyType=\"" << layout.topology_type << "\" NumberOfElements=\""
         << nc << "\">\n"
-        << "          <DataItem Dimensions=\"" << nc << " " << layout.nodes_per_cell
+        << "          <DataItem Dimensions=\"" << topology_dimensions()
         << "\" NumberType=\"Int\" Precision=\"8\" Format=\"HDF\">" << h5name
         << ":/mesh/topology</DataItem>\n"
         << "        </Topology>\n"
@@ -229,8 +235,10 @@ double estimate_xdmf_bytes(const GridLayout &g, const std::string &basename,
   const auto cells = static_cast<double>(g.global_cells),
              nodes = static_cast<double>(g.global_nodes);
   const double h5 = static_cast<double>(basename.size()) + 3, k = digits(frames);
-  const double once = kH5FileBytes + kH5GroupBytes + 24 * nodes + 8 * cells * g.nodes_per_cell +
-                      2 * kH5DatasetBytes;
+  const double topology =
+      g.nodes_per_cell > 0 ? cells * g.nodes_per_cell : static_cast<double>(g.global_topology);
+  const double once =
+      kH5FileBytes + kH5GroupBytes + 24 * nodes + 8 * topology + 2 * kH5DatasetBytes;
   // A step: its group and datasets, and its grid in the XDMF text (Grid, Time, Topology and
   // Geometry with the mesh's sizes, one Attribute per field).
   double per_frame = kH5GroupBytes + kXdmfStepChars + kXdmfBodyChars + k + 2 * h5 +
@@ -261,8 +269,13 @@ XdmfWriter::XdmfWriter(const GridLayout &layout, const std::string &directory,
                 true);
   m.write_rows("/mesh/geometry", H5T_NATIVE_DOUBLE, H5T_IEEE_F64LE, layout.owned_coordinates.data(),
                layout.global_nodes, layout.node_start, layout.owned_nodes, 3);
-  m.write_rows("/mesh/topology", H5T_NATIVE_LLONG, H5T_STD_I64LE, layout.cell_nodes.data(),
-               layout.global_cells, layout.cell_start, layout.local_cells, layout.nodes_per_cell);
+  if (layout.nodes_per_cell == 0) // Mixed: one flat list of type codes and nodes
+    m.write_rows("/mesh/topology", H5T_NATIVE_LLONG, H5T_STD_I64LE, layout.cell_nodes.data(),
+                 layout.global_topology, layout.topology_start,
+                 static_cast<long long>(layout.cell_nodes.size()), 1);
+  else
+    m.write_rows("/mesh/topology", H5T_NATIVE_LLONG, H5T_STD_I64LE, layout.cell_nodes.data(),
+                 layout.global_cells, layout.cell_start, layout.local_cells, layout.nodes_per_cell);
 }
 
 XdmfWriter::~XdmfWriter() = default;

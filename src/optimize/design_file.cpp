@@ -53,18 +53,29 @@ std::string hex(std::uint64_t v) {
 
 } // namespace
 
-std::map<std::string, std::string> design_fingerprint(const DesignField &field) {
-  return {{"design_body", field.settings().body},
-          {"design_region", field.settings().region},
-          {"design_elements", std::to_string(static_cast<long long>(field.design_size()))},
-          {"design_positions", hex(positions_hash(field))}};
+std::map<std::string, std::string> design_fingerprint(const Design &design) {
+  // Several design bodies: their names and regions joined, the positions' hashes mixed with the
+  // field's index (field 0 alone: the one-body fingerprint).
+  std::string bodies, regions;
+  std::uint64_t positions = 0;
+  for (std::size_t k = 0; k < design.size(); ++k) {
+    const DesignField &field = design.field(k);
+    bodies += (k ? "," : "") + field.settings().body;
+    regions += (k ? "," : "") + field.settings().region;
+    const std::uint64_t h = positions_hash(field);
+    positions ^= k == 0 ? h : mix(h ^ k);
+  }
+  return {{"design_body", bodies},
+          {"design_region", regions},
+          {"design_elements", std::to_string(static_cast<long long>(design.design_size()))},
+          {"design_positions", hex(positions)}};
 }
 
-void check_design_file(const DesignField &field, const std::string &path) {
-  const auto labels = io::read_restart_labels(field.mesh().comm, path);
-  const auto expected = design_fingerprint(field);
+void check_design_file(const Design &design, const std::string &path) {
+  const auto labels = io::read_restart_labels(design.comm(), path);
+  const auto expected = design_fingerprint(design);
   if (labels.count("design_elements") == 0) {
-    print0(field.mesh().comm,
+    print0(design.comm(),
            "warning: %s carries no design fingerprint (written by an earlier flexopt): whether it "
            "belongs to this case's design is not checked\n",
            path.c_str());
@@ -85,15 +96,16 @@ void check_design_file(const DesignField &field, const std::string &path) {
   }
 }
 
-void check_design_values(const DesignField &field, const std::vector<double> &values,
+void check_design_values(const Design &design, const std::vector<double> &values,
                          const std::string &path, const std::string &what) {
-  const MPI_Comm comm = field.mesh().comm;
-  long long bad_tag = LLONG_MAX;
+  const MPI_Comm comm = design.comm();
+  long long bad_tag = LLONG_MAX; // the lowest key: (field, Gmsh tag)
   double bad_value = 0;
-  for (std::size_t k = 0; k < values.size() && k < field.design_tags().size(); ++k) {
+  const std::vector<std::uint64_t> &keys = design.design_keys();
+  for (std::size_t k = 0; k < values.size() && k < keys.size(); ++k) {
     const double v = values[k];
-    const auto tag = static_cast<long long>(field.design_tags()[k]);
-    if ((!std::isfinite(v) || v < 0 || v > 1) && tag < bad_tag) bad_tag = tag, bad_value = v;
+    const auto key = static_cast<long long>(keys[k]);
+    if ((!std::isfinite(v) || v < 0 || v > 1) && key < bad_tag) bad_tag = key, bad_value = v;
   }
   long long first = LLONG_MAX;
   MPI_Allreduce(&bad_tag, &first, 1, MPI_LONG_LONG, MPI_MIN, comm);
@@ -104,8 +116,13 @@ void check_design_values(const DesignField &field, const std::vector<double> &va
   MPI_Bcast(&bad_value, 1, MPI_DOUBLE, root, comm);
   char value[64];
   std::snprintf(value, sizeof value, "%.17g", bad_value);
-  throw Error(path + ": field '" + what + "': element " + std::to_string(first) + " has " + value +
-                  ", not a density in [0, 1]",
+  // The key's field and Gmsh tag (Design::design_keys: tag + field 2^48).
+  const auto field = static_cast<std::size_t>(static_cast<unsigned long long>(first) >> 48);
+  const long long tag = first & ((1LL << 48) - 1);
+  const std::string body =
+      design.size() > 1 ? " of body '" + design.field(field).settings().body + "'" : "";
+  throw Error(path + ": field '" + what + "': element " + std::to_string(tag) + body + " has " +
+                  value + ", not a density in [0, 1]",
               true);
 }
 

@@ -40,9 +40,11 @@ std::vector<std::string> stuck_responses(const DesignProblem &p, const Evaluatio
   // model). Collective.
   const auto stress = p.design_stress();
   if (stress.empty()) return out;
-  const DesignField &f = p.field();
-  const mesh::DistributedMesh &m = f.mesh();
-  for (const auto &[i, a] : stress) {
+  for (const DesignProblem::DesignStress &st : stress) {
+    const std::size_t i = st.response;
+    const StressAggregate *a = st.aggregate;
+    const DesignField &f = p.design().field(st.field);
+    const mesh::DistributedMesh &m = f.mesh();
     int inside = 0;
     for (PetscInt e : f.design_elements())
       if (static_cast<long long>(m.element_tags[static_cast<std::size_t>(e)]) == a->peak_tag())

@@ -66,7 +66,7 @@ void taylor_direction(const DesignProblem &problem, Vec x0, Vec direction) {
   const PetscScalar *a;
   FX_PETSC(VecGetArray(direction, &d));
   FX_PETSC(VecGetArrayRead(x0, &a));
-  const auto &tags = problem.design_tags();
+  const auto &tags = problem.design_keys();
   for (std::size_t k = 0; k < tags.size(); ++k) {
     d[k] = 2.0 * hash_uniform(tags[k]) - 1.0;
     if (a[k] <= 0) d[k] = std::abs(d[k]);
@@ -134,7 +134,7 @@ io::Json taylor_test(DesignProblem &problem, Vec x0, Vec direction, const std::v
                      const std::vector<double> &slope, const Noise &noise, Progress &progress,
                      bool &above_round_off, std::vector<double> &min_orders,
                      std::vector<bool> &linears) {
-  const MPI_Comm comm = problem.mesh().comm;
+  const MPI_Comm comm = problem.comm();
   const std::size_t nr = r0.size();
   const auto &steps = kTaylorSteps;
   std::vector<std::vector<double>> remainders(nr);
@@ -205,26 +205,36 @@ io::Json taylor_test(DesignProblem &problem, Vec x0, Vec direction, const std::v
   return taylor;
 }
 
-/// The tags of kSamples design elements, the same on every rank and every partition, chosen by
-/// their tags' hashes among those whose objective sensitivity is at least kSignificant of the
-/// largest: on the others a difference quotient measures the evaluation's round-off
-/// (eps cond(K) |R| / step), not the gradient.
-std::vector<unsigned long long> sample_elements(const DesignProblem &problem,
-                                                const Evaluation &base) {
-  const MPI_Comm comm = problem.mesh().comm;
+/// The keys of kSamples design elements of design field f (Design::design_keys), the same on
+/// every rank and every partition, chosen by their keys' hashes among those whose objective
+/// sensitivity is at least kSignificant of the field's largest: on the others a difference
+/// quotient measures the evaluation's round-off (eps cond(K) |R| / step), not the gradient.
+std::vector<unsigned long long> sample_field(const DesignProblem &problem, const Evaluation &base,
+                                             std::size_t f, std::size_t samples) {
+  const MPI_Comm comm = problem.comm();
   constexpr double kSignificant = 1e-2;
-  PetscReal gmax = 0;
-  FX_PETSC(VecNorm(base.d_objective, NORM_INFINITY, &gmax));
-  std::vector<std::pair<double, unsigned long long>> mine;
+  const Design &d = problem.design();
+  const auto begin = static_cast<std::size_t>(d.local_offset(f)),
+             end = begin + static_cast<std::size_t>(d.local_size(f));
+  // Significant against the field's largest entry, where that is itself above round-off of the
+  // whole gradient: a body that the objective does not reach (a driven body's mass, say) gives
+  // no samples.
+  PetscReal whole = 0;
+  FX_PETSC(VecNorm(base.d_objective, NORM_INFINITY, &whole));
   const PetscScalar *g;
   FX_PETSC(VecGetArrayRead(base.d_objective, &g));
-  const auto &tags = problem.design_tags();
-  for (std::size_t k = 0; k < tags.size(); ++k)
+  double gmax = 0;
+  for (std::size_t k = begin; k < end; ++k) gmax = std::max(gmax, std::abs(g[k]));
+  MPI_Allreduce(MPI_IN_PLACE, &gmax, 1, MPI_DOUBLE, MPI_MAX, comm);
+  if (gmax <= 1e-8 * whole) gmax = std::numeric_limits<double>::infinity();
+  std::vector<std::pair<double, unsigned long long>> mine;
+  const auto &tags = problem.design_keys();
+  for (std::size_t k = begin; k < end; ++k)
     if (std::abs(g[k]) >= kSignificant * gmax)
       mine.emplace_back(hash_uniform(tags[k] ^ 0x5bd1e995ULL), tags[k]);
   FX_PETSC(VecRestoreArrayRead(base.d_objective, &g));
   std::sort(mine.begin(), mine.end());
-  mine.resize(std::min<std::size_t>(mine.size(), kSamples));
+  mine.resize(std::min<std::size_t>(mine.size(), samples));
   std::vector<double> keys;
   for (auto &p : mine) keys.insert(keys.end(), {p.first, static_cast<double>(p.second)});
   int n_mine = static_cast<int>(keys.size());
@@ -241,10 +251,32 @@ std::vector<unsigned long long> sample_elements(const DesignProblem &problem,
   for (std::size_t k = 0; k < all.size(); k += 2)
     candidates.emplace_back(all[k], static_cast<unsigned long long>(all[k + 1]));
   std::sort(candidates.begin(), candidates.end());
-  candidates.resize(std::min<std::size_t>(candidates.size(), kSamples));
+  candidates.resize(std::min<std::size_t>(candidates.size(), samples));
   std::vector<unsigned long long> chosen;
   for (const auto &c : candidates) chosen.push_back(c.second);
   return chosen;
+}
+
+/// kSamples design elements (sample_field), or with several design bodies at least 3 of each
+/// body's, so that every body's gradient is checked.
+std::vector<unsigned long long> sample_elements(const DesignProblem &problem,
+                                                const Evaluation &base) {
+  const std::size_t fields = problem.design().size();
+  const std::size_t each = fields == 1 ? kSamples : std::max<std::size_t>(3, kSamples / fields);
+  std::vector<unsigned long long> chosen;
+  for (std::size_t f = 0; f < fields; ++f) {
+    const auto some = sample_field(problem, base, f, each);
+    chosen.insert(chosen.end(), some.begin(), some.end());
+  }
+  return chosen;
+}
+
+/// "48", or with several design bodies "rod:48": a design variable's element (its key's field
+/// and Gmsh tag, Design::design_keys).
+std::string element_label(const Design &d, unsigned long long key) {
+  const auto tag = static_cast<long long>(key & ((1ULL << 48) - 1));
+  if (d.size() == 1) return std::to_string(tag);
+  return d.field(static_cast<std::size_t>(key >> 48)).settings().body + ":" + std::to_string(tag);
 }
 
 /// Central differences c_k of every response in the design variable with Gmsh tag `tag`, at the
@@ -293,13 +325,13 @@ struct FdSummary {
 /// Only the part of a disagreement beyond it counts against the adjoint.
 FdSummary finite_differences(DesignProblem &problem, Vec x0, const Evaluation &base,
                              const Noise &noise, double step, int levels, Progress &progress) {
-  const MPI_Comm comm = problem.mesh().comm;
+  const MPI_Comm comm = problem.comm();
   const auto &names = problem.response_names();
   const std::size_t nr = names.size();
   FdSummary out;
   for (const unsigned long long tag : sample_elements(problem, base)) {
-    const auto &tags = problem.design_tags();
-    const auto it = std::find(tags.begin(), tags.end(), static_cast<std::size_t>(tag));
+    const auto &tags = problem.design_keys();
+    const auto it = std::find(tags.begin(), tags.end(), static_cast<std::uint64_t>(tag));
     const PetscInt local = it == tags.end() ? -1 : static_cast<PetscInt>(it - tags.begin());
     // The adjoint entries and their measured noise, from the rank that holds the variable.
     std::vector<double> adjoint(2 * nr, 0.0);
@@ -333,7 +365,9 @@ FdSummary finite_differences(DesignProblem &problem, Vec x0, const Evaluation &b
       out.max_rel = std::max(out.max_rel, rel);
       out.max_beyond = std::max(out.max_beyond, beyond);
       io::Json row = io::Json::object();
-      row["element"] = static_cast<long long>(tag);
+      row["element"] = static_cast<long long>(tag & ((1ULL << 48) - 1));
+      if (problem.design().size() > 1)
+        row["body"] = problem.design().field(static_cast<std::size_t>(tag >> 48)).settings().body;
       row["response"] = names[i];
       row["adjoint"] = adjoint[i];
       row["fd"] = f;
@@ -345,9 +379,10 @@ FdSummary finite_differences(DesignProblem &problem, Vec x0, const Evaluation &b
       row["step"] = h;
       out.rows.push_back(row);
       print0(comm,
-             "fd element %-8llu %-28s adjoint % .10e  fd % .10e ± %.1e  rel err %.2e (beyond "
+             "fd element %-8s %-28s adjoint % .10e  fd % .10e ± %.1e  rel err %.2e (beyond "
              "the fd's uncertainty %.2e)  (h %.3g)\n",
-             tag, names[i].c_str(), adjoint[i], f, uncertainty, rel, beyond, h);
+             element_label(problem.design(), tag).c_str(), names[i].c_str(), adjoint[i], f,
+             uncertainty, rel, beyond, h);
     }
   }
   return out;
@@ -357,7 +392,7 @@ FdSummary finite_differences(DesignProblem &problem, Vec x0, const Evaluation &b
 
 GradientCheckResult check_gradient(DesignProblem &problem, Vec x0,
                                    const GradientCheckOptions &options, Evaluation &base) {
-  const MPI_Comm comm = problem.mesh().comm;
+  const MPI_Comm comm = problem.comm();
   const std::size_t nr = problem.response_names().size();
   Vec direction;
   FX_PETSC(VecDuplicate(x0, &direction));

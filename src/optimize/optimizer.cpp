@@ -28,18 +28,11 @@ constexpr const char *kInterruptedDesign = "design.interrupted.h5";
 /// Writes the densities of the current evaluation, and the problem's other cell fields (a stress
 /// response's von Mises stress), as one step of the design collection.
 void write_densities(io::XdmfWriter &writer, const DesignProblem &problem, double step) {
-  const DesignField &p = problem.field();
+  const Design &d = problem.design();
   writer.begin_step(step);
-  const PetscScalar *a;
-  FX_PETSC(VecGetArrayRead(p.density(), &a));
-  writer.cell_scalar("density", a);
-  FX_PETSC(VecRestoreArrayRead(p.density(), &a));
-  FX_PETSC(VecGetArrayRead(p.filtered(), &a));
-  writer.cell_scalar("filtered_density", a);
-  FX_PETSC(VecRestoreArrayRead(p.filtered(), &a));
-  FX_PETSC(VecGetArrayRead(p.physical(), &a));
-  writer.cell_scalar("physical_density", a);
-  FX_PETSC(VecRestoreArrayRead(p.physical(), &a));
+  writer.cell_scalar("density", d.cells(&DesignField::density).data());
+  writer.cell_scalar("filtered_density", d.cells(&DesignField::filtered).data());
+  writer.cell_scalar("physical_density", d.cells(&DesignField::physical).data());
   for (const auto &[name, values] : problem.cell_fields()) writer.cell_scalar(name, values.data());
 }
 
@@ -65,7 +58,8 @@ void set_move_box(Vec x, double move, Vec xmin, Vec xmax) {
 /// the split of the seconds (docs/theory.md section 11: the columns of the iteration line).
 void append_history_row(std::ostringstream &history, int k, double objective,
                         const double *constraints, std::size_t m, double change, double seconds,
-                        const double *split, std::size_t nsplit) {
+                        const double *split, std::size_t nsplit,
+                        const std::vector<double> &volume_fractions) {
   char buf[64];
   std::snprintf(buf, sizeof buf, "%d,%.17g", k, objective);
   history << buf;
@@ -77,6 +71,10 @@ void append_history_row(std::ostringstream &history, int k, double objective,
   history << buf;
   for (std::size_t p = 0; p < nsplit; ++p) {
     std::snprintf(buf, sizeof buf, ",%.6g", split[p]);
+    history << buf;
+  }
+  for (double v : volume_fractions) {
+    std::snprintf(buf, sizeof buf, ",%.17g", v);
     history << buf;
   }
   history << '\n';
@@ -139,9 +137,13 @@ private:
   std::vector<std::uint64_t> tags_;
   std::vector<std::uint64_t> state_keys_; ///< of the solvers' state, once it is first written
   int first_ = 1;
-  // Projection continuation: stage index into design.projection.beta and its first iteration.
-  const std::vector<double> &betas_;
+  // Projection continuation (Design::stages): the stage and its first iteration.
+  const int stages_;
   int stage_ = 0, stage_start_ = 1;
+  /// With several design bodies: each body's volume fraction per iteration (k x bodies).
+  std::size_t bodies_ = 0;
+  std::vector<double> body_fractions_;
+  std::vector<double> body_fractions() const;
   std::vector<double> seconds_list_, split_list_; // per iteration; the split k x nsplit
   Evaluation e_;
   double t_start_ = wall_time(); ///< the run's start, for the elapsed time
@@ -172,10 +174,13 @@ std::string clock_text(double s) {
 OptimizationRun::OptimizationRun(MPI_Comm comm, DesignProblem &design, const OptimizerSettings &c,
                                  const std::string &out_dir, bool restart)
     : comm_(comm), problem_(&design), c_(c), out_dir_(out_dir), m_(c.bounds.size()),
-      betas_(design.field().settings().beta) {
+      stages_(design.design().stages()) {
   DesignProblem *problem = problem_;
   result_.dofs = problem->dofs();
-  result_.elements = problem->mesh().global_elements;
+  result_.elements = problem->design().global_elements();
+  bodies_ = problem->design().size() > 1 ? problem->design().size() : 0;
+  for (std::size_t b = 0; b < problem->design().size(); ++b)
+    result_.design_bodies.push_back(problem->design().field(b).settings().body);
   result_.design_variables = problem->design_size();
 
   x_ = problem->create_design_vector();
@@ -198,7 +203,7 @@ OptimizationRun::OptimizationRun(MPI_Comm comm, DesignProblem &design, const Opt
   for (auto &v : dg_) FX_PETSC(VecDuplicate(x_, &v));
   FX_PETSC(VecDuplicate(x_, &df0_));
 
-  const io::GridLayout layout = mesh::grid_layout(problem->mesh());
+  const io::GridLayout layout = problem->design_layout();
   plan_design_output(layout);
   if (restart)
     run_on_root(comm_, 0, [&] {
@@ -213,12 +218,12 @@ OptimizationRun::OptimizationRun(MPI_Comm comm, DesignProblem &design, const Opt
   writer_->keep_unfinished_file();
   // design.h5 carries the design's fingerprint, as restart.h5 does: --restart carries frames
   // over only from a file of this design.
-  fingerprint_ = design_fingerprint(problem->field());
+  fingerprint_ = design_fingerprint(problem->design());
   for (const auto &[name, value] : fingerprint_) writer_->label(name, value);
   write_history_header();
   print_header();
   restart_path_ = (std::filesystem::path(out_dir) / "restart.h5").string();
-  tags_.assign(problem->design_tags().begin(), problem->design_tags().end());
+  tags_ = problem->design_keys();
 }
 
 /// design.xdmf's frames and estimated size, printed before the run; a warning above
@@ -264,7 +269,10 @@ void OptimizationRun::write_history_header() {
   split_labels_.push_back("update");
   result_.split_names.emplace_back("update");
   nsplit_ = split_labels_.size();
-  history_ << ",seconds_update\n";
+  history_ << ",seconds_update";
+  for (std::size_t b = 0; b < bodies_; ++b)
+    history_ << ",volume_fraction_" << problem_->design().field(b).settings().body;
+  history_ << "\n";
 }
 
 /// The run's first line and the header of the iteration lines.
@@ -275,7 +283,7 @@ void OptimizationRun::print_header() const {
       "optimize: %lld design variables, %zu constraint(s), at most %d iterations, move limit %g, "
       "%s\n",
       static_cast<long long>(problem_->design_size()), m_, c_.max_iterations, c_.move_limit,
-      problem_->field().filter_description().c_str());
+      problem_->design().filter_description().c_str());
   print0(comm_, "%5s %16s", "it", "objective");
   for (std::size_t i = 0; i < m_; ++i)
     print0(comm_, " %16s",
@@ -284,7 +292,11 @@ void OptimizationRun::print_header() const {
                .c_str());
   print0(comm_, " %10s", "change");
   for (const std::string &l : split_labels_) print0(comm_, " %8s", l.substr(0, 8).c_str());
-  print0(comm_, " %8s %9s %9s\n", "s", "elapsed", "ETA");
+  print0(comm_, " %8s %9s %9s", "s", "elapsed", "ETA");
+  for (std::size_t b = 0; b < bodies_; ++b)
+    print0(comm_, " %9s",
+           ("vf:" + problem_->design().field(b).settings().body).substr(0, 9).c_str());
+  print0(comm_, "\n");
 }
 
 /// Every field and array a restart needs, with its size (the same on every rank: rank 0 read
@@ -313,12 +325,12 @@ void OptimizationRun::check_restart_contents(const io::RestartData &r) const {
 }
 
 void OptimizationRun::read_restart() {
-  check_design_file(problem_->field(), restart_path_);
+  check_design_file(problem_->design(), restart_path_);
   const std::vector<std::uint64_t> state_keys = problem_->solver_state_keys();
   const io::RestartData r = io::read_restart(comm_, restart_path_, tags_, state_keys);
   check_restart_contents(r);
   for (const char *name : {"x", "xold1", "xold2"}) // MMA's asymptotes low, upp leave [0, 1]
-    check_design_values(problem_->field(), r.fields.at(name), restart_path_, name);
+    check_design_values(problem_->design(), r.fields.at(name), restart_path_, name);
   const auto &meta =
       r.arrays.at("meta"); // iteration, objective scale, m, beta stage, its first iteration
   const int done = static_cast<int>(meta.at(0));
@@ -348,7 +360,7 @@ void OptimizationRun::read_restart() {
   // Solvers that keep what they built for the run's first design (GAMG's interpolation) build
   // it again from that design, at the first stage's projection, as the uninterrupted run did.
   {
-    if (!betas_.empty()) problem_->field().set_beta(betas_.front());
+    if (stages_ > 0) problem_->design().set_stage(0);
     Vec x0 = problem_->create_design_vector();
     problem_->initial_design(x0);
     problem_->prepare_resume(x0);
@@ -413,14 +425,23 @@ void OptimizationRun::restore_history(const io::RestartData &r, int done) {
     split_list_ = split->second;
   else
     split_list_.assign(static_cast<std::size_t>(done) * nsplit, std::nan(""));
+  const auto fr = r.arrays.find("body_volume_fractions");
+  if (fr != r.arrays.end() && fr->second.size() == static_cast<std::size_t>(done) * bodies_)
+    body_fractions_ = fr->second;
+  else
+    body_fractions_.assign(static_cast<std::size_t>(done) * bodies_, std::nan(""));
   for (int k = 0; k < done; ++k) {
     const auto kk = static_cast<std::size_t>(k);
     result_.objective.push_back(obj.at(kk));
     result_.max_change.push_back(chg.at(kk));
     result_.constraints.emplace_back(con.begin() + static_cast<std::ptrdiff_t>(k * m),
                                      con.begin() + static_cast<std::ptrdiff_t>((k + 1) * m));
-    append_history_row(history_, k + 1, obj[kk], con.data() + kk * m, m, chg[kk], sec[kk],
-                       split_list_.data() + kk * nsplit, nsplit);
+    append_history_row(
+        history_, k + 1, obj[kk], con.data() + kk * m, m, chg[kk], sec[kk],
+        split_list_.data() + kk * nsplit, nsplit,
+        std::vector<double>(body_fractions_.begin() + static_cast<std::ptrdiff_t>(kk * bodies_),
+                            body_fractions_.begin() +
+                                static_cast<std::ptrdiff_t>((kk + 1) * bodies_)));
   }
   seconds_list_ = sec;
 }
@@ -490,11 +511,10 @@ std::vector<double> OptimizationRun::iteration_split(double seconds) const {
 bool OptimizationRun::iteration(int k, Evaluation &e) {
   DesignProblem *problem = problem_;
   const double t0 = wall_time();
-  if (!betas_.empty()) {
-    const double beta = betas_[static_cast<std::size_t>(stage_)];
-    problem->field().set_beta(beta);
-    if (result_.beta_stages.empty() || result_.beta_stages.back().second != beta)
-      result_.beta_stages.emplace_back(k, beta);
+  if (stages_ > 0) {
+    problem->design().set_stage(stage_);
+    if (result_.beta_stages.empty() || result_.beta_stages.back().first < stage_start_)
+      result_.beta_stages.emplace_back(k, problem->design().betas());
   }
   problem->evaluate(x_, true, e);
   if (!std::isfinite(e.objective))
@@ -545,10 +565,14 @@ void OptimizationRun::record(int k, const Evaluation &e, double change, double s
   for (double v : e.constraints) print0(comm_, " %16.9e", v);
   print0(comm_, " %10.3e", change);
   for (double v : split) print0(comm_, " %8.2f", v);
-  print0(comm_, " %8.2f %9s %9s\n", seconds, clock_text(wall_time() - t_start_).c_str(),
+  print0(comm_, " %8.2f %9s %9s", seconds, clock_text(wall_time() - t_start_).c_str(),
          clock_text(eta(k, seconds)).c_str());
+  const std::vector<double> fractions = body_fractions();
+  for (double v : fractions) print0(comm_, " %9.6f", v);
+  print0(comm_, "\n");
+  body_fractions_.insert(body_fractions_.end(), fractions.begin(), fractions.end());
   append_history_row(history_, k, e.objective, e.constraints.data(), e.constraints.size(), change,
-                     seconds, split.data(), split.size());
+                     seconds, split.data(), split.size(), fractions);
   seconds_list_.push_back(seconds);
   split_list_.insert(split_list_.end(), split.begin(), split.end());
 }
@@ -557,13 +581,13 @@ void OptimizationRun::record(int k, const Evaluation &e, double change, double s
 /// beta, or when the design has settled at it. Returns whether the stage (before advancing) is
 /// the last.
 bool OptimizationRun::advance_continuation(int k, double change) {
-  const bool last_stage = betas_.empty() || stage_ + 1 == static_cast<int>(betas_.size());
+  const bool last_stage = stages_ == 0 || stage_ + 1 == stages_;
   const bool settled = change < c_.tolerance;
-  if (!last_stage && (settled || k - stage_start_ + 1 >= problem_->field().settings().beta_every)) {
+  if (!last_stage && (settled || k - stage_start_ + 1 >= problem_->design().stage_length())) {
     ++stage_;
     stage_start_ = k + 1;
-    print0(comm_, "optimize: projection beta -> %g from iteration %d\n",
-           betas_[static_cast<std::size_t>(stage_)], k + 1);
+    print0(comm_, "optimize: projection beta -> %s from iteration %d\n",
+           problem_->design().stage_text(stage_).c_str(), k + 1);
   }
   return last_stage;
 }
@@ -591,6 +615,7 @@ void OptimizationRun::write_restart_point(int k, double change, bool &last_stage
   rd.arrays["max_change"] = result_.max_change;
   rd.arrays["seconds"] = seconds_list_;
   rd.arrays["seconds_split"] = split_list_;
+  if (bodies_ > 0) rd.arrays["body_volume_fractions"] = body_fractions_;
   std::vector<double> flat;
   for (const auto &row : result_.constraints) flat.insert(flat.end(), row.begin(), row.end());
   rd.arrays["constraints"] = flat;
@@ -603,6 +628,13 @@ void OptimizationRun::write_restart_point(int k, double change, bool &last_stage
     rd.dof_keys = state_keys_;
   }
   io::write_restart(comm_, restart_path_, rd);
+}
+
+/// Each design body's volume fraction at the last evaluation (none with one body).
+std::vector<double> OptimizationRun::body_fractions() const {
+  std::vector<double> v;
+  for (std::size_t b = 0; b < bodies_; ++b) v.push_back(problem_->design().volume_fraction(b));
+  return v;
 }
 
 OptimizationResult OptimizationRun::finish() {
@@ -618,7 +650,8 @@ OptimizationResult OptimizationRun::finish() {
   problem->evaluate(x_, false, e);
   report_infeasible(e);
   write_densities(*writer_, *problem, result.iterations);
-  result.volume_fraction = problem->field().volume_fraction();
+  result.volume_fraction = problem->design().volume_fraction();
+  if (bodies_ > 0) result.body_volume_fractions = body_fractions();
   result.output = writer_->close();
   run_on_root(comm_, 0, [&] {
     io::write_file_atomic((std::filesystem::path(out_dir_) / "history.csv").string(),

@@ -50,7 +50,12 @@ std::unique_ptr<TopologyProblem> TopologyProblem::create(MPI_Comm comm, const To
   // (docs/solvers.md). -fx_warm_start 0 starts every solve from zero.
   p->static_->set_warm_start(warm_start_option().value_or(true));
   const mesh::DistributedMesh &m = p->static_->mesh();
-  p->field_ = std::make_unique<DesignField>(m, c.design);
+  {
+    std::vector<std::unique_ptr<DesignField>> fields;
+    fields.push_back(std::make_unique<DesignField>(m, c.design));
+    p->design_ = std::make_unique<Design>(std::move(fields));
+    p->field_ = &p->design_->field(0);
+  }
   p->needs_mass_ = p->static_->has_body_load();
   for (std::size_t i = 0; i < p->responses_.size(); ++i) {
     const ResponseSettings &r = p->responses_[i];
@@ -146,11 +151,10 @@ void TopologyProblem::end_iteration() {
   end_iterations(stress_);
 }
 
-std::vector<std::pair<std::size_t, const StressAggregate *>>
-TopologyProblem::design_stress() const {
-  std::vector<std::pair<std::size_t, const StressAggregate *>> out;
+std::vector<DesignProblem::DesignStress> TopologyProblem::design_stress() const {
+  std::vector<DesignStress> out;
   for (std::size_t i = 0; i < stress_.size(); ++i)
-    if (stress_[i]) out.emplace_back(i, &stress_[i]->aggregate());
+    if (stress_[i]) out.push_back({i, 0, &stress_[i]->aggregate()});
   return out;
 }
 

@@ -54,7 +54,8 @@ double highest_frequency(const mesh::DistributedMesh &mesh, const fem::Isotropic
 /// Whether the body is the optimization's design body (a flexible one stays flexible, section
 /// 12.3).
 bool is_design_body(const PlanSettings &c, const BodyPlan &bp) {
-  return !c.design_body.empty() && c.design_body == bp.body;
+  return std::find(c.design_bodies.begin(), c.design_bodies.end(), bp.body) !=
+         c.design_bodies.end();
 }
 
 /// Why ACF (section 12.3, rules 2 and 3): the first reason that holds.

@@ -28,9 +28,8 @@ std::unique_ptr<optimize::TopologyProblem> block_problem() {
 class WrongGradient : public optimize::DesignProblem {
 public:
   explicit WrongGradient(optimize::DesignProblem &p) : p_(p) {}
-  optimize::DesignField &field() override { return p_.field(); }
-  const optimize::DesignField &field() const override { return p_.field(); }
-  const mesh::DistributedMesh &mesh() const override { return p_.mesh(); }
+  optimize::Design &design() override { return p_.design(); }
+  const optimize::Design &design() const override { return p_.design(); }
   const std::vector<std::string> &response_names() const override { return p_.response_names(); }
   void evaluate(Vec x, bool gradients, optimize::Evaluation &out) override {
     p_.evaluate(x, gradients, out);

@@ -18,9 +18,8 @@ namespace {
 
 class StandIn : public optimize::DesignProblem {
 public:
-  optimize::DesignField &field() override { throw std::logic_error("no field"); }
-  const optimize::DesignField &field() const override { throw std::logic_error("no field"); }
-  const mesh::DistributedMesh &mesh() const override { throw std::logic_error("no mesh"); }
+  optimize::Design &design() override { throw std::logic_error("no design"); }
+  const optimize::Design &design() const override { throw std::logic_error("no design"); }
   const std::vector<std::string> &response_names() const override { return names_; }
   void evaluate(Vec, bool, optimize::Evaluation &) override {}
   void describe(io::Json &) const override {}

@@ -178,10 +178,10 @@ optimizer: {max_iterations: 50, move_limit: 0.2, tolerance: 0.001}
 TEST_F(CaseFiles, DesignSectionParses) {
   write(std::string(kValid) + kDesign);
   auto c = load_case(dir_.string());
-  ASSERT_TRUE(c.design.has_value());
-  EXPECT_EQ(c.design->region, "design");
-  EXPECT_DOUBLE_EQ(c.design->filter_radius, 0.02);
-  EXPECT_DOUBLE_EQ(c.design->penalty, 3.0);
+  ASSERT_EQ(c.design.size(), 1u);
+  EXPECT_EQ(c.design.front().region, "design");
+  EXPECT_DOUBLE_EQ(c.design.front().filter_radius, 0.02);
+  EXPECT_DOUBLE_EQ(c.design.front().penalty, 3.0);
   ASSERT_TRUE(c.objective.has_value());
   EXPECT_EQ(c.objective->type, optimize::ResponseType::Compliance);
   ASSERT_EQ(c.constraints.size(), 2u);
@@ -370,7 +370,7 @@ TEST_F(CaseFiles, DynamicCaseParsesFieldByField) {
   EXPECT_EQ(c.output.every, 10);
   EXPECT_EQ(c.output.interval, 0.0);
   EXPECT_TRUE(c.loads.supports.empty());
-  EXPECT_FALSE(c.design.has_value());
+  EXPECT_TRUE(c.design.empty());
 }
 
 TEST_F(CaseFiles, OutputIntervalParsesAndOutputIsOptional) {

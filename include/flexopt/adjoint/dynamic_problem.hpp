@@ -13,7 +13,7 @@
 #include "flexopt/dynamics/integrator.hpp"
 #include "flexopt/dynamics/scene.hpp"
 #include "flexopt/dynamics/scene_description.hpp"
-#include "flexopt/optimize/design_field.hpp"
+#include "flexopt/optimize/design.hpp"
 #include "flexopt/optimize/design_problem.hpp"
 #include "flexopt/optimize/response.hpp"
 #include "flexopt/reduce/reduction_adjoint.hpp"
@@ -95,15 +95,53 @@ struct CheckpointSettings {
   io::Location where;
 };
 
-/// What a dynamic design problem reads: the scene and its time grid, the design field, the
-/// responses and the checkpointing of the backward sweep.
+/// What a dynamic design problem reads: the scene and its time grid, the design field of each
+/// design body, the responses and the checkpointing of the backward sweep.
 struct DynamicSettings {
   dynamics::SceneDescription scene;
   dynamics::TimeSettings time;
-  optimize::DesignSettings design;
+  std::vector<optimize::DesignSettings> design;
   optimize::ResponseSettings objective;
   std::vector<optimize::ResponseSettings> constraints;
   CheckpointSettings adjoint;
+};
+
+/// One design body of a dynamic design problem (docs/theory.md 9.9): its design field, where it
+/// sits in the scene, its model's design data, and what the last evaluation computed for it.
+struct DesignBody {
+  optimize::DesignField *field = nullptr; ///< the Design's field `index`
+  std::size_t index = 0;
+  int body = -1;      ///< case (and scene) body index
+  int mechanism = -1; ///< index in the mechanism (rigid, FFRF: also the distributed small part)
+  int acf = -1;       ///< index among the scene's ACF bodies (ACF)
+  dynamics::BodyModel model = dynamics::BodyModel::Rigid;
+  int row = 0;  ///< first row of its block in the stacked design partials (rigid, FFRF)
+  int rows = 0; ///< that block's rows: 10 mass parameters (rigid) or the packed FfrfModel
+  Vec grad_physical = nullptr; ///< work: a gradient on its physical densities
+  /// Rigid: the reference point (section 9.1) and each local element's mass parameters.
+  bodies::Vec3 reference{0, 0, 0};
+  std::vector<bodies::MassParameters> element_theta;
+  /// FFRF: the reduction at the last design (with its adjoint data) and the element factors it
+  /// was made with (a new design with the same factors, the first one in particular, reuses it).
+  std::shared_ptr<const reduce::FlexibleReduction> reduction;
+  reduce::ElementFactors reduced_factors;
+  double reduction_s = 0, reduction_adjoint_s = 0; ///< of the last reduction and its adjoint
+  int reduction_cg_iterations = 0;
+  bool rigid() const { return model == dynamics::BodyModel::Rigid; }
+  bool ffrf() const { return model == dynamics::BodyModel::Ffrf; }
+  bool acf_model() const { return model == dynamics::BodyModel::Acf; }
+  /// What one evaluation computes for the body (evaluate starts it anew).
+  struct Evaluated {
+    /// Mass factors w and SIMP modulus factors s per local element and their derivatives; the
+    /// rigid body's mass parameters.
+    std::vector<double> w, dw, s, ds;
+    bodies::MassParameters theta = bodies::MassParameters::Zero();
+    /// Per response on an FFRF body's strain energy: sum_n w_n 1/2 zeta_n zeta_n^T.
+    std::vector<Matrix> strain_kbar;
+    /// Per response: dPsi/d(physical density) of every local element.
+    std::vector<std::vector<double>> element_gradient;
+    double reduction_s = 0, reduction_adjoint_s = 0;
+  } ev;
 };
 
 class DynamicProblem : public optimize::DesignProblem {
@@ -119,9 +157,11 @@ public:
                                                 bool refuse_interfaces = false);
   ~DynamicProblem() override;
 
-  optimize::DesignField &field() override { return *field_; }
-  const optimize::DesignField &field() const override { return *field_; }
-  const mesh::DistributedMesh &mesh() const override;
+  optimize::Design &design() override { return *design_; }
+  const optimize::Design &design() const override { return *design_; }
+  /// Several design bodies: each in its initial placement (x = position + R X, the scene's), so
+  /// that they appear where they sit in the mechanism; one keeps its mesh coordinates.
+  io::GridLayout design_layout() const override;
   const std::vector<std::string> &response_names() const override { return names_; }
   void evaluate(Vec x, bool gradients, optimize::Evaluation &out) override;
   /// A caller's view of the forward runs of evaluate (not of the recomputations from
@@ -133,8 +173,9 @@ public:
       std::function<void(long long j, const dynamics::StepInfo &info, const dynamics::State *dense,
                          const dynamics::DistState *dist)>;
   void set_observer(StepObserver observer) { observer_ = std::move(observer); }
-  /// Puts the design x into the scene as evaluate does (the ACF design body's element factors,
-  /// the rigid design body's mass parameters), without integrating. Collective.
+  /// Puts the design x into the scene as evaluate does (the ACF design bodies' element factors,
+  /// the rigid ones' mass parameters, the FFRF ones' reductions), without integrating.
+  /// Collective.
   void apply_design(Vec x);
   /// dofs, elements, design_variables, steps, forward_s, adjoint_s, checkpoints,
   /// recomputed_steps, checkpoint_bytes, evaluations.
@@ -148,6 +189,8 @@ public:
   /// determined only to about eps lambda_max / lambda_1 (docs/theory.md section 10,
   /// "Accuracy": 1.3e-9 relative on tests/gradient/ffrf_pendulum, as -eps_ncv changes them).
   double noise_floor() const override { return ffrf_design_ ? 1e-8 : 1e-12; }
+  /// The design bodies, in the order of `design:`.
+  const std::vector<DesignBody> &design_bodies() const { return designs_; }
   /// 1e-14 for the volume fraction and a mass (sums over the densities: no state, no
   /// reduction), else noise_floor().
   double noise_floor(std::size_t i) const override;
@@ -173,8 +216,7 @@ public:
   /// The stress responses' adaptive normalization (docs/theory.md 5.1).
   void end_iteration() override;
   std::vector<double> response_scales() const override;
-  std::vector<std::pair<std::size_t, const optimize::StressAggregate *>>
-  design_stress() const override;
+  std::vector<DesignStress> design_stress() const override;
   void restore_response_scales(const std::vector<double> &scales) override;
   /// forward, adjoint (the backward sweep and the initial state's adjoint) and, with an FFRF
   /// design body, reduction (0 when the design's factors did not change) and reduction_adjoint.
@@ -191,8 +233,6 @@ public:
   /// Random starts for the filter's solves only when the user's options loosened them: every
   /// other solve is direct or Newton's, whatever its start.
   bool set_random_start(unsigned long seed) override;
-  /// The design body's index among the case's bodies (and the scene's).
-  std::size_t design_body() const { return static_cast<std::size_t>(design_body_); }
   /// The scene, its design body with the mass of the last evaluation's design.
   dynamics::Scene &scene() { return scene_; }
   double forward_seconds() const { return forward_s_; }
@@ -205,14 +245,37 @@ private:
   friend class detail::DensePass;
   friend class detail::DistPass;
   DynamicProblem() = default;
-  /// The responses' names, sensors, strain-energy bodies and the sensors on the design body;
-  /// refuses responses the design body's `model` cannot serve (collective errors).
-  void bind_responses(dynamics::BodyModel model);
+  /// Design body k (the Design's field k) placed in the scene: its indices, model and design
+  /// data; `first`: the FFRF body's first design's factors.
+  void bind_design_body(std::size_t k, const reduce::ElementFactors &first);
+  /// A mass bound that even empty design regions exceed is refused (collective error).
+  void check_mass_bounds() const;
+  /// The responses' names, sensors, strain-energy bodies and the sensors on FFRF design bodies;
+  /// refuses responses the design bodies' models cannot serve (collective errors).
+  void bind_responses();
   /// Response r's stress on an FFRF or ACF body (none for other types): refused on a rigid
   /// body with its location.
   void bind_stress(const optimize::ResponseSettings &r);
-  /// The rigid design body's mass parameters theta from the mass factors, the body replaced.
-  void set_rigid_design();
+  /// The design body of case body b (null: none).
+  DesignBody *design_of(int b) {
+    return b >= 0 && design_of_body_[static_cast<std::size_t>(b)] >= 0
+               ? &designs_[static_cast<std::size_t>(design_of_body_[static_cast<std::size_t>(b)])]
+               : nullptr;
+  }
+  const DesignBody *design_of(int b) const {
+    return const_cast<DynamicProblem *>(this)->design_of(b);
+  }
+  /// Whether FFRF design body db has initial elastic fields (its placed state depends on its
+  /// design, section 10.2).
+  bool given_fields(const DesignBody &db) const;
+  /// Whether response i is a mass that counts design body db.
+  bool counts_mass(std::size_t i, const DesignBody &db) const;
+  /// The mass of the case's body `name` at the last design.
+  double body_mass(const std::string &name) const;
+  /// A rigid design body's mass parameters theta from its mass factors, the body replaced.
+  void set_rigid_design(DesignBody &db);
+  /// The FFRF design body's reduction made again if its factors changed.
+  void set_ffrf_design(DesignBody &db);
   /// After a forward run of `seconds`: the run's figures and the response values into `out`
   /// (section 9.3).
   void finish_forward(double seconds, bool gradients, optimize::Evaluation &out);
@@ -220,32 +283,40 @@ private:
   /// projection and the filter to the design variables (sections 4 and 5), into `out`; warns
   /// once of a response that the densities cannot move.
   void pull_back(optimize::Evaluation &out);
-  /// element_gradient += dPsi/dw_e = G . theta_e (and the design body's own mass) times dw_e,
+  /// Every rigid and FFRF design body's element gradients from the stacked G = dPsi/dtheta
+  /// (design_partials' rows; one column per response) and the start's sensitivities.
+  void add_element_gradients(const Matrix &G, const StartAdjoint &start);
+  /// db.ev.element_gradient += dPsi/dw_e = G . theta_e (and the body's own mass) times dw_e,
   /// from G = dPsi/dtheta (10 x responses).
-  void add_rigid_element_gradients(const Matrix &G);
+  void add_rigid_element_gradients(DesignBody &db, const Matrix &G);
   /// The FFRF design body (section 10): element_gradient += ds_e s_hat_e + dw_e w_hat_e from
   /// G = (d r/d model)^T mu summed over the steps (packed FfrfModel cotangents, one column per
   /// response), the damping's Rayleigh split, the mass response and the sensors' bases.
   /// `start`: the start's sensitivities to the placed state (section 9.2 item 6), used when the
   /// design body has initial elastic fields (section 10.2).
-  void add_ffrf_element_gradients(const Matrix &G, const StartAdjoint &start);
+  void add_ffrf_element_gradients(DesignBody &db, const Matrix &G, const StartAdjoint &start);
   /// dPsi/dS of response i's sensor on the FFRF design body (its basis at the point, S =
   /// Psi(X_s)) as basis cotangents added to c (n vectors, kept in `owned`); false if zero.
-  bool add_sensor_cotangent(std::size_t i, int n, reduce::ReductionCotangent &c,
-                            std::vector<Vec> &owned) const;
+  bool add_sensor_cotangent(const DesignBody &db, std::size_t i, int n,
+                            reduce::ReductionCotangent &c, std::vector<Vec> &owned) const;
   /// The initial elastic fields' part of response i's cotangent (section 10.2): the start's
   /// sensitivities to the placed elastic coordinates and rates, the positions' metric, and the
   /// projections' element terms into `projection_w`.
-  void add_initial_field_cotangent(std::size_t i, int n, const StartAdjoint &start,
-                                   reduce::ReductionCotangent &c, std::vector<Vec> &owned,
+  void add_initial_field_cotangent(const DesignBody &db, std::size_t i, int n,
+                                   const StartAdjoint &start, reduce::ReductionCotangent &c,
+                                   std::vector<Vec> &owned,
                                    std::vector<double> &projection_w) const;
-  /// If response i's sensor reads the FFRF design body: its frame (the body's rotation, or the
+  /// If response i's sensor reads an FFRF design body: its frame (the body's rotation, or the
   /// identity for an elastic displacement) and elastic coordinates at the mechanism's (or small
   /// part's) coordinates q, for the sensor's basis cotangent (section 10).
   void record_design_frame(std::size_t i, const Vector &q);
-  /// Rows of the design partials: 10 mass parameters (rigid) or the packed FfrfModel.
+  /// Rows of the stacked design partials: per rigid or FFRF design body 10 mass parameters or
+  /// its packed FfrfModel (0: only ACF design bodies).
   int design_parameters() const;
-  /// (d r/d theta)^T W for the design body's block of W (ResidualPartials).
+  /// The rows of design body db's block: 10 (rigid) or its packed FfrfModel's size (FFRF).
+  int design_parameters_of(const DesignBody &db) const;
+  /// (d r/d theta)^T W for the rigid and FFRF design bodies' blocks of W, stacked in the order
+  /// of designs_ (ResidualPartials; docs/theory.md 9.9).
   Matrix design_partials(const Vector &q, const Vector &v, const Vector &a, bool gravity,
                          const Matrix &W) const;
   /// Which main steps the forward run stores (all, or step 0, the binomial schedule's first
@@ -268,30 +339,23 @@ private:
   long long steps_ = 0;                      ///< main steps of a run
   std::string scratch_;                      ///< the directory of the checkpoint file
   dynamics::Scene scene_;
-  std::unique_ptr<optimize::DesignField> field_;
-  Vec grad_physical_ = nullptr; ///< work vector: a gradient on the physical densities
+  std::unique_ptr<optimize::Design> design_;
+  std::vector<DesignBody> designs_; ///< in the order of `design:` (the Design's fields)
+  std::vector<int> design_of_body_; ///< per case body: its index in designs_, or -1
+  bool ffrf_design_ = false;        ///< some design body is an FFRF body
+  bool acf_design_ = false;         ///< some design body is an ACF body
   StepObserver observer_;
-  int design_body_ = -1;            ///< case body index
-  int mechanism_body_ = -1;         ///< its index in the mechanism
-  int acf_design_ = -1;             ///< the design body's index in scene_.acf (-1: rigid)
-  bool ffrf_design_ = false;        ///< the design body is an FFRF body
-  bodies::Vec3 reference_{0, 0, 0}; ///< the rigid design body's reference point (section 9.1)
-  std::vector<bodies::MassParameters> element_theta_; ///< per local element of the design body
-  /// The FFRF design body's reduction at the last design (with its adjoint data), and the
-  /// element factors it was made with (a new design with the same factors, the first one in
-  /// particular, reuses it).
-  std::shared_ptr<const reduce::FlexibleReduction> reduction_;
-  reduce::ElementFactors reduced_factors_;
   reduce::BasisDerivative basis_ = reduce::BasisDerivative::Exact;
   // The responses: objective, then constraints.
   std::vector<const optimize::ResponseSettings *> specs_;
   std::vector<std::string> names_;
   std::vector<int> sensor_of_; ///< per response: index in scene_.sensors (-1: none)
-  /// Per response: whether its sensor reads the FFRF design body's basis (its BoundSensor holds
-  /// the point's location).
-  std::vector<char> sensor_on_design_;
-  /// Per response: the FFRF body (mechanism index) whose strain energy it integrates, or -1.
-  std::vector<int> strain_body_;
+  /// Per response: the FFRF design body (index in designs_) whose basis its sensor reads (its
+  /// BoundSensor holds the point's location), or -1.
+  std::vector<int> sensor_design_;
+  /// Per response: the FFRF bodies (mechanism indices) whose strain energies it integrates, and
+  /// the ACF bodies (indices among the scene's ACF bodies).
+  std::vector<std::vector<int>> strain_bodies_, acf_strain_bodies_;
   /// Per response: a stress response on an FFRF or ACF body (null: none) and that body's
   /// index in the mechanism (FFRF) or among the scene's ACF bodies (ACF), and in the case
   /// (docs/theory.md 8.3, 10.3).
@@ -308,31 +372,20 @@ private:
   /// Wall times of the last evaluation with gradients (forward, backward sweep), of all
   /// forward runs, and of the last reduction and its adjoint.
   double forward_s_ = 0, adjoint_s_ = 0, forward_total_s_ = 0;
-  double reduction_s_ = 0, reduction_adjoint_s_ = 0;
-  int reduction_cg_iterations_ = 0;
   /// The last backward sweep's recomputed main steps, checkpoint bytes (peak, all ranks) and
   /// factorizations.
   long long recomputed_ = 0, checkpoint_bytes_ = 0, adjoint_factorizations_ = 0;
 
   /// What one evaluation computes (the last one's; evaluate starts it anew).
   struct Evaluated {
-    /// Mass factors w and SIMP modulus factors s of the design, per local element, and their
-    /// derivatives; the rigid design body's mass parameters.
-    std::vector<double> w, dw, s, ds;
-    bodies::MassParameters theta = bodies::MassParameters::Zero();
     std::vector<std::vector<double>> substep_sizes; ///< per main step: the halved step's sizes
     std::vector<std::vector<Vec3>> samples;         ///< per response: y_n (trajectory responses)
     std::vector<SampledResponse> sampled;
-    /// Per response on the FFRF design body: per main step the sensor's frame rotation A_n and
+    /// Per response on an FFRF design body: per main step the sensor's frame rotation A_n and
     /// elastic coordinates zeta_n, for dPsi/dS = sum_n A_n^T dPsi/dy_n zeta_n^T.
     std::vector<std::vector<std::pair<bodies::Mat3, Vector>>> sensor_frames;
-    /// Per response on the FFRF design body's strain energy: sum_n w_n 1/2 zeta_n zeta_n^T.
-    std::vector<Matrix> strain_kbar;
-    /// Per response: dPsi/d(physical density) of every local element (the volume fraction's
-    /// from the design field).
-    std::vector<std::vector<double>> element_gradient;
-    /// The parts of the evaluation's wall time (timings()).
-    double reduction_s = 0, forward_s = 0, adjoint_s = 0, reduction_adjoint_s = 0;
+    /// The parts of the evaluation's wall time (timings(); the reductions' are the bodies').
+    double forward_s = 0, adjoint_s = 0;
   } ev_;
 };
 

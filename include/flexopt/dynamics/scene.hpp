@@ -134,8 +134,9 @@ joints::Equation driver_equation(JointType joint_type, const Attachment &a, cons
 /// An FFRF design body's element factors at its first design: load_bodies reduces that body
 /// once with them (not with the solid material first).
 struct InitialDesign {
-  std::string body;
-  std::function<reduce::ElementFactors(const mesh::DistributedMesh &)> factors;
+  std::vector<std::string> bodies; ///< the FFRF design bodies
+  /// A design body's element factors at its first design, from its name and mesh.
+  std::function<reduce::ElementFactors(const std::string &, const mesh::DistributedMesh &)> factors;
 };
 Scene load_bodies(MPI_Comm comm, const SceneDescription &d, const InitialDesign *design = nullptr);
 void connect(MPI_Comm comm, const SceneDescription &d, Scene &scene, bool report);

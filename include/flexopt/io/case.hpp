@@ -69,7 +69,9 @@ struct Case {
   dynamics::TimeSettings time; ///< dynamic
   std::string solver;          ///< PETSc options applied before the command line's
   OutputSettings output;       ///< `output:` (docs/case-format.md)
-  std::optional<optimize::DesignSettings> design;      ///< topology optimization: the design field
+  /// topology optimization: the design field of each design body (`design:`, one map or a
+  /// list; empty: no optimization)
+  std::vector<optimize::DesignSettings> design;
   std::optional<optimize::ResponseSettings> objective; ///< topology optimization: minimized
   std::vector<optimize::ResponseSettings> constraints; ///< topology optimization: each <= max
   optimize::OptimizerSettings optimizer;

@@ -23,6 +23,9 @@ struct GridLayout {
   int nodes_per_cell = 0;
   std::vector<long long> cell_nodes; ///< global node numbers, XDMF/VTK node order
   std::string topology_type;         ///< XDMF name: Tetrahedron, Tetrahedron_10, Hexahedron
+  /// topology_type "Mixed" (nodes_per_cell 0): cell_nodes holds each cell's XDMF type code, then
+  /// its nodes; this rank's entries start at topology_start of global_topology.
+  long long global_topology = 0, topology_start = 0;
 };
 
 /// "12.3 MB", "1.76 GB": a size in decimal units, as file managers show them.

@@ -4,7 +4,7 @@
 /// (docs/theory.md sections 5 and 9).
 #include "flexopt/io/json.hpp"
 #include "flexopt/mesh/distributed_mesh.hpp"
-#include "flexopt/optimize/design_field.hpp"
+#include "flexopt/optimize/design.hpp"
 #include "flexopt/optimize/stress_aggregate.hpp"
 
 #include <cstdint>
@@ -44,12 +44,14 @@ struct Timing {
 class DesignProblem {
 public:
   virtual ~DesignProblem() = default;
-  /// The design variables, their filter and projection. Mutable: the optimizer's
-  /// continuation sets the projection sharpness.
-  virtual DesignField &field() = 0;
-  virtual const DesignField &field() const = 0;
-  /// The mesh of the design body.
-  virtual const mesh::DistributedMesh &mesh() const = 0;
+  /// The design variables of every design body, their filters and projections. Mutable: the
+  /// optimizer's continuation sets the projection sharpness.
+  virtual Design &design() = 0;
+  virtual const Design &design() const = 0;
+  MPI_Comm comm() const { return design().comm(); }
+  /// The grid of design.xdmf and gradient.xdmf: the design bodies' meshes (Design::grid_layout);
+  /// a dynamic problem places each body as the scene does at the start.
+  virtual io::GridLayout design_layout() const { return design().grid_layout(); }
   /// "objective:TYPE", "constraint0:TYPE", ...
   virtual const std::vector<std::string> &response_names() const = 0;
   /// Evaluates the objective and every constraint at x; with `gradients`, also their
@@ -91,7 +93,10 @@ public:
   /// any solve's start was perturbed (false: the evaluations are the same whatever the start,
   /// and their noise is their round-off, noise_floor()). Collective.
   virtual bool set_random_start(unsigned long seed) {
-    return field().filter().set_random_start(seed);
+    bool any = false;
+    for (std::size_t k = 0; k < design().size(); ++k)
+      any = design().field(k).filter().set_random_start(seed) || any;
+    return any;
   }
   /// How many halvings of fd_step() check-gradient tries (1: the steps h and h/2, one
   /// Richardson extrapolation; L > 1: L + 1 steps, and per response the extrapolation that
@@ -135,16 +140,19 @@ public:
   }
   /// The names of cell_fields(), known before any evaluation (a restart carries them over).
   virtual std::vector<std::string> cell_field_names() const { return {}; }
-  /// The stress responses on the design body: their response index (0 the objective) and the
-  /// aggregate of the last evaluation (stuck_responses checks where its peak lies).
-  virtual std::vector<std::pair<std::size_t, const StressAggregate *>> design_stress() const {
-    return {};
-  }
+  /// A stress response on a design body: its response index (0 the objective), the body's
+  /// field in design(), and the aggregate of the last evaluation (stuck_responses checks where
+  /// its peak lies).
+  struct DesignStress {
+    std::size_t response = 0, field = 0;
+    const StressAggregate *aggregate = nullptr;
+  };
+  virtual std::vector<DesignStress> design_stress() const { return {}; }
 
-  Vec create_design_vector() const { return field().create_design_vector(); }
-  void initial_design(Vec x) const { field().initial_design(x); }
-  PetscInt design_size() const { return field().design_size(); }
-  const std::vector<std::size_t> &design_tags() const { return field().design_tags(); }
+  Vec create_design_vector() const { return design().create_design_vector(); }
+  void initial_design(Vec x) const { design().initial_design(x); }
+  PetscInt design_size() const { return design().design_size(); }
+  const std::vector<std::uint64_t> &design_keys() const { return design().design_keys(); }
 };
 
 /// The responses of evaluation e (with gradients) that cannot guide a design, one sentence each

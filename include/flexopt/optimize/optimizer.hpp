@@ -40,11 +40,13 @@ struct OptimizationResult {
   /// values per iteration (not a number for iterations of a restart file that lacks them).
   std::vector<std::string> split_names;
   std::vector<std::vector<double>> seconds_split;
-  double volume_fraction = 0; ///< final, of the design region
-  bool converged = false;     ///< stopped on optimizer.tolerance
+  double volume_fraction = 0; ///< final, of the design region (of every design body's together)
+  std::vector<double> body_volume_fractions; ///< final, per design body (several only)
+  bool converged = false;                    ///< stopped on optimizer.tolerance
   /// The projection's continuation: (first iteration, beta) of every stage run, the first one
-  /// included (none without projection)
-  std::vector<std::pair<int, double>> beta_stages;
+  /// included (none without projection); beta per design body (0: that body is not projected)
+  std::vector<std::pair<int, std::vector<double>>> beta_stages;
+  std::vector<std::string> design_bodies; ///< the design bodies, in the order of `design:`
   std::string stop_reason;
   /// What the first evaluation found of the responses (stuck_responses), also printed.
   std::vector<std::string> warnings;

@@ -9,6 +9,7 @@
 
 #include <array>
 #include <string>
+#include <vector>
 
 namespace flexopt::optimize {
 
@@ -35,7 +36,10 @@ struct ResponseSettings {
   /// displacement (static): the sensor's point in body coordinates [m], and where it is given
   std::array<double, 3> point{0, 0, 0};
   io::Location point_where;
-  std::string body; ///< strain_energy_integral, mass: a body name
+  std::string body; ///< stress: a body name; strain_energy_integral, mass: the one body named
+  /// strain_energy_integral, mass: the bodies summed (one or a list, `body`); volume_fraction:
+  /// the design bodies whose regions it takes together (empty: every design body)
+  std::vector<std::string> bodies;
   /// tracking_error: the target position, each component a number or an expression in t
   /// (compiled when read, so flexopt::Expression(target[k]) does not throw).
   std::array<std::string, 3> target;

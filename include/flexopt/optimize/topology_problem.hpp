@@ -3,7 +3,7 @@
 /// responses, with adjoint gradients (docs/theory.md, section 5).
 #include "flexopt/fem/probe.hpp"
 #include "flexopt/fem/static_problem.hpp"
-#include "flexopt/optimize/design_field.hpp"
+#include "flexopt/optimize/design.hpp"
 #include "flexopt/optimize/design_problem.hpp"
 #include "flexopt/optimize/response.hpp"
 #include "flexopt/optimize/static_stress.hpp"
@@ -55,7 +55,7 @@ public:
   /// The stress responses' adaptive normalization (docs/theory.md 5.1).
   void end_iteration() override;
   std::vector<double> response_scales() const override;
-  std::vector<std::pair<std::size_t, const StressAggregate *>> design_stress() const override;
+  std::vector<DesignStress> design_stress() const override;
   void restore_response_scales(const std::vector<double> &scales) override;
   /// Cell fields of design.xdmf beyond the densities: with a stress response, "von_mises", the
   /// relaxed von Mises stress eta(rho) v of every element [Pa] (docs/theory.md 5.1).
@@ -66,10 +66,10 @@ public:
     return {{"solve", "solve", solve_s_}, {"adjoint", "adjoint", adjoint_s_}};
   }
 
-  DesignField &field() override { return *field_; }
-  const DesignField &field() const override { return *field_; }
+  Design &design() override { return *design_; }
+  const Design &design() const override { return *design_; }
   const std::vector<std::string> &response_names() const override { return names_; }
-  const mesh::DistributedMesh &mesh() const override { return static_->mesh(); }
+  const mesh::DistributedMesh &mesh() const { return static_->mesh(); }
   fem::StaticProblem &static_problem() { return *static_; }
   int state_solves() const { return solves_; }
   /// Response i's stress (null unless it is a stress response).
@@ -94,7 +94,8 @@ private:
 
   std::vector<ResponseSettings> responses_; ///< objective, then constraints
   std::unique_ptr<fem::StaticProblem> static_;
-  std::unique_ptr<DesignField> field_;
+  std::unique_ptr<Design> design_;
+  DesignField *field_ = nullptr;                     ///< the design's one field
   std::vector<std::string> names_;                   ///< objective, then constraints
   std::vector<fem::PointLocation> sensor_locations_; ///< per response (displacement only)
   Vec grad_physical_ = nullptr;
