@@ -1,11 +1,16 @@
-// The connecting rod of cases/slider_crank_topopt: a plate link of 0.30 m between pin centres,
+// The connecting rod of cases/slider_crank_topopt: a plate link of L = 0.30 m between pin centres
+// (a file that sets L and includes this one makes the same link at another length:
+// topopt_crank.geo, fourbar_rocker.geo),
 // 40 mm deep (y) and 10 mm thick (z), with rounded ends (bosses of radius 20 mm) and pin holes
 // of radius 6 mm. The part between x = 30 mm and x = 270 mm is the design region; the bosses
 // stay solid, so the pin surfaces (the joints' rigid interfaces) never touch it.
 // Physical groups: volumes "design" and "boss" (both ends); surfaces "pin_a" (the hole at
 // x = 0, centroid at the origin) and "pin_b" (the hole at x = L).
 SetFactory("OpenCASCADE");
-L = 0.30; H = 0.04; T = 0.01; R = H / 2; r = 0.006; d = 0.03;
+If (!Exists(L))
+  L = 0.30;
+EndIf
+H = 0.04; T = 0.01; R = H / 2; r = 0.006; d = 0.03;
 Box(1) = {0, -H / 2, -T / 2, L, H, T};
 Cylinder(2) = {0, 0, -T / 2, 0, 0, T, R};
 Cylinder(3) = {L, 0, -T / 2, 0, 0, T, R};

@@ -48,6 +48,17 @@ def read_history(out):
     return cols
 
 
+
+def beta_text(beta):
+    """A stage's projection sharpness: a number, or with several design bodies (a map of each
+    body's) one number when they agree, else "body β, ..."."""
+    if not isinstance(beta, dict):
+        return f"{beta:g}"
+    values = set(beta.values())
+    if len(values) == 1:
+        return f"{values.pop():g}"
+    return ", ".join(f"{b} {v:g}" for b, v in beta.items())
+
 def plot_history(s, h, png):
     """Objective, constraints and max change against the iteration; beta stages marked."""
     it = h["iteration"]
@@ -71,7 +82,7 @@ def plot_history(s, h, png):
     for st in s.get("beta_stages", [])[1:]:
         for ax in axes:
             ax.axvline(st["first_iteration"] - 0.5, color="k", lw=0.8, ls="--")
-        axes[0].annotate(f"β = {st['beta']:g}", (st["first_iteration"], 1), xycoords=("data", "axes fraction"),
+        axes[0].annotate(f"β = {beta_text(st['beta'])}", (st["first_iteration"], 1), xycoords=("data", "axes fraction"),
                          xytext=(2, -12), textcoords="offset points", fontsize="small")
     for ax in axes:
         ax.grid(alpha=0.3)
