@@ -357,7 +357,11 @@ FdSummary finite_differences(DesignProblem &problem, Vec x0, const Evaluation &b
         if (k == 0 || gap < best_gap) best_gap = gap, best = k;
       }
       const double f = D(best), h = step * std::ldexp(1.0, -best);
-      const double fd_noise = 3 * noise.value[i] / h;
+      // The values' noise over the step: measured in the repeats, and at least the evaluation's
+      // own round-off (noise_floor |R|, as the Taylor test takes it): a response that does not
+      // depend on this variable (another body's sensor) differs by that much, not by zero.
+      const double round_off = problem.noise_floor(i) * std::abs(base.value(i));
+      const double fd_noise = 3 * std::max(noise.value[i], round_off) / h;
       const double uncertainty = std::max(best_gap, fd_noise) + adjoint[nr + i];
       const double scale = std::max(std::abs(f), 1e-300);
       const double rel = std::abs(adjoint[i] - f) / scale;
