@@ -294,8 +294,7 @@ void DynamicProblem::bind_stress(const optimize::ResponseSettings &r) {
   stress_body_.push_back(-1);
   stress_case_body_.push_back(-1);
   if (r.type != optimize::ResponseType::Stress) return;
-  std::size_t b = 0;
-  while (settings_.scene.bodies[b].name != r.body) ++b;
+  const auto b = static_cast<std::size_t>(case_body(settings_, r.body));
   const dynamics::BodyDescription &body = settings_.scene.bodies[b];
   const BodyModel bm = dynamics::simulated_model(body.model);
   // `model: auto` resolved to rigid reaches here; an explicit rigid body is refused when read.
@@ -367,16 +366,8 @@ DynamicProblem::~DynamicProblem() {
 
 double DynamicProblem::response_value(std::size_t i) const {
   const optimize::ResponseSettings &r = *specs_[i];
-  if (r.type == optimize::ResponseType::VolumeFraction) {
-    if (r.bodies.empty()) return design_->volume_fraction();
-    double solid = 0, volume = 0; // the listed design regions together (section 9.9)
-    for (const std::string &name : r.bodies) {
-      const optimize::DesignField &f = *design_of(case_body(settings_, name))->field;
-      solid += f.volume_fraction() * f.design_volume();
-      volume += f.design_volume();
-    }
-    return solid / volume;
-  }
+  // The listed design regions together, all without a list (section 9.9).
+  if (r.type == optimize::ResponseType::VolumeFraction) return design_->volume_fraction(r.bodies);
   if (r.type == optimize::ResponseType::Mass) {
     double m = 0;
     for (const std::string &name : r.bodies) m += body_mass(name);
@@ -423,7 +414,6 @@ void DynamicProblem::evaluate(Vec x, bool gradients, optimize::Evaluation &out) 
   LogScope log("FxDynamicEvaluate");
   ++evaluations_;
   ev_ = {};
-  ev_.sensor_frames.assign(specs_.size(), {});
   for (DesignBody &db : designs_) db.ev = {};
   // The design into the scene (sections 9.1, 9.6, 10): mass and modulus factors, the rigid
   // design bodies' mass parameters, the FFRF ones' reductions.
@@ -457,20 +447,10 @@ void DynamicProblem::pull_back(optimize::Evaluation &out) {
   }
   for (std::size_t i = 0; i < nr; ++i) {
     const optimize::ResponseSettings &r = *specs_[i];
-    // A volume fraction of the listed design regions (all of them without a list): each
-    // region's own derivative weighted by its share of their volume (section 9.9).
-    double listed = 0;
-    if (r.type == optimize::ResponseType::VolumeFraction)
-      for (const DesignBody &db : designs_)
-        if (r.bodies.empty() || std::find(r.bodies.begin(), r.bodies.end(),
-                                          db.field->settings().body) != r.bodies.end())
-          listed += db.field->design_volume();
     for (DesignBody &db : designs_) {
       if (r.type == optimize::ResponseType::VolumeFraction) {
-        const bool in = r.bodies.empty() || std::find(r.bodies.begin(), r.bodies.end(),
-                                                      db.field->settings().body) != r.bodies.end();
-        db.field->volume_fraction_gradient(db.grad_physical);
-        FX_PETSC(VecScale(db.grad_physical, in ? db.field->design_volume() / listed : 0.0));
+        // The listed design regions together (all without a list; section 9.9).
+        design_->volume_fraction_gradient(r.bodies, db.index, db.grad_physical);
       } else {
         PetscScalar *g;
         FX_PETSC(VecGetArray(db.grad_physical, &g));

@@ -242,9 +242,8 @@ void add_ffrf_body(MPI_Comm comm, const BodyDescription &spec, const fem::Isotro
   // A design body is reduced with its first design's element factors (once, not with the
   // solid material and again for the design).
   reduce::ElementFactors factors;
-  const bool designed =
-      design && std::find(design->bodies.begin(), design->bodies.end(), spec.name) !=
-                    design->bodies.end();
+  const bool designed = design && std::find(design->bodies.begin(), design->bodies.end(),
+                                            spec.name) != design->bodies.end();
   if (designed) factors = design->factors(spec.name, m);
   const double t0 = wall_time();
   const auto red = reduce_ffrf_body(m, spec, mat, designed ? &factors : nullptr);

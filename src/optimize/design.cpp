@@ -8,11 +8,6 @@
 
 namespace flexopt::optimize {
 
-namespace {
-/// Field k's keys are its Gmsh tags plus k times this (tags stay far below 2^48).
-constexpr std::uint64_t kFieldKeyStride = std::uint64_t{1} << 48;
-} // namespace
-
 Design::Design(std::vector<std::unique_ptr<DesignField>> fields) : fields_(std::move(fields)) {
   if (fields_.empty()) throw Error("Design: no design field", true);
   PetscInt at = 0;
@@ -23,7 +18,7 @@ Design::Design(std::vector<std::unique_ptr<DesignField>> fields) : fields_(std::
     at += local_.back();
     global_ += f.design_size();
     for (std::size_t tag : f.design_tags())
-      keys_.push_back(static_cast<std::uint64_t>(tag) + k * kFieldKeyStride);
+      keys_.push_back(key(k, tag)); // Gmsh tags stay far below 2^48
     Vec part;
     FX_PETSC(VecCreateMPIWithArray(comm(), 1, local_.back(), PETSC_DETERMINE, nullptr, &part));
     parts_.push_back(part);
@@ -33,12 +28,6 @@ Design::Design(std::vector<std::unique_ptr<DesignField>> fields) : fields_(std::
 
 Design::~Design() {
   for (Vec &v : parts_) VecDestroy(&v);
-}
-
-const DesignField *Design::field_of(const std::string &body) const {
-  for (const auto &f : fields_)
-    if (f->settings().body == body) return f.get();
-  return nullptr;
 }
 
 Vec Design::create_design_vector() const {
@@ -120,22 +109,33 @@ void Design::set_betas(const std::vector<double> &betas) {
     fields_[k]->set_beta(betas[k]);
 }
 
-double Design::design_volume() const {
-  double v = 0;
-  for (const auto &f : fields_) v += f->design_volume();
-  return v;
+namespace {
+/// Whether `bodies` (empty: every body) lists field f's body.
+bool listed(const std::vector<std::string> &bodies, const DesignField &f) {
+  return bodies.empty() ||
+         std::find(bodies.begin(), bodies.end(), f.settings().body) != bodies.end();
 }
+} // namespace
 
-double Design::volume_fraction() const {
+double Design::volume_fraction(const std::vector<std::string> &bodies) const {
   if (fields_.size() == 1) return fields_.front()->volume_fraction();
-  double solid = 0;
-  for (const auto &f : fields_) solid += f->volume_fraction() * f->design_volume();
-  return solid / design_volume();
+  double solid = 0, volume = 0;
+  for (const auto &f : fields_)
+    if (listed(bodies, *f)) {
+      solid += f->volume_fraction() * f->design_volume();
+      volume += f->design_volume();
+    }
+  return solid / volume;
 }
 
-void Design::volume_fraction_gradient(std::size_t k, Vec g) const {
+void Design::volume_fraction_gradient(const std::vector<std::string> &bodies, std::size_t k,
+                                      Vec g) const {
   fields_[k]->volume_fraction_gradient(g);
-  if (fields_.size() > 1) FX_PETSC(VecScale(g, fields_[k]->design_volume() / design_volume()));
+  if (fields_.size() == 1) return;
+  double volume = 0;
+  for (const auto &f : fields_)
+    if (listed(bodies, *f)) volume += f->design_volume();
+  FX_PETSC(VecScale(g, listed(bodies, *fields_[k]) ? fields_[k]->design_volume() / volume : 0.0));
 }
 
 std::string Design::filter_description() const {

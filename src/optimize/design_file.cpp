@@ -117,8 +117,8 @@ void check_design_values(const Design &design, const std::vector<double> &values
   char value[64];
   std::snprintf(value, sizeof value, "%.17g", bad_value);
   // The key's field and Gmsh tag (Design::design_keys: tag + field 2^48).
-  const auto field = static_cast<std::size_t>(static_cast<unsigned long long>(first) >> 48);
-  const long long tag = first & ((1LL << 48) - 1);
+  const std::size_t field = Design::key_field(static_cast<std::uint64_t>(first));
+  const long long tag = Design::key_tag(static_cast<std::uint64_t>(first));
   const std::string body =
       design.size() > 1 ? " of body '" + design.field(field).settings().body + "'" : "";
   throw Error(path + ": field '" + what + "': element " + std::to_string(tag) + body + " has " +

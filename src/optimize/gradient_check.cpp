@@ -274,9 +274,9 @@ std::vector<unsigned long long> sample_elements(const DesignProblem &problem,
 /// "48", or with several design bodies "rod:48": a design variable's element (its key's field
 /// and Gmsh tag, Design::design_keys).
 std::string element_label(const Design &d, unsigned long long key) {
-  const auto tag = static_cast<long long>(key & ((1ULL << 48) - 1));
+  const long long tag = Design::key_tag(key);
   if (d.size() == 1) return std::to_string(tag);
-  return d.field(static_cast<std::size_t>(key >> 48)).settings().body + ":" + std::to_string(tag);
+  return d.field(Design::key_field(key)).settings().body + ":" + std::to_string(tag);
 }
 
 /// Central differences c_k of every response in the design variable with Gmsh tag `tag`, at the
@@ -369,9 +369,9 @@ FdSummary finite_differences(DesignProblem &problem, Vec x0, const Evaluation &b
       out.max_rel = std::max(out.max_rel, rel);
       out.max_beyond = std::max(out.max_beyond, beyond);
       io::Json row = io::Json::object();
-      row["element"] = static_cast<long long>(tag & ((1ULL << 48) - 1));
+      row["element"] = Design::key_tag(tag);
       if (problem.design().size() > 1)
-        row["body"] = problem.design().field(static_cast<std::size_t>(tag >> 48)).settings().body;
+        row["body"] = problem.design().field(Design::key_field(tag)).settings().body;
       row["response"] = names[i];
       row["adjoint"] = adjoint[i];
       row["fd"] = f;

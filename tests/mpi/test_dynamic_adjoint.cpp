@@ -32,7 +32,8 @@ void random_design(const optimize::DesignProblem &p, Vec x) {
   VecGetArray(x, &a);
   // By Gmsh tag (a key's low 48 bits): a body's design is the same whatever the other bodies.
   const auto &keys = p.design_keys();
-  for (std::size_t k = 0; k < keys.size(); ++k) a[k] = density_of(keys[k] & ((1ULL << 48) - 1));
+  for (std::size_t k = 0; k < keys.size(); ++k)
+    a[k] = density_of(static_cast<std::size_t>(optimize::Design::key_tag(keys[k])));
   VecRestoreArray(x, &a);
 }
 
@@ -274,7 +275,7 @@ TEST(DynamicAdjoint, TwoPendulumsGradientIsTheOneBodyGradients) {
       double gmax = 0, diff = 0;
       std::size_t matched = 0;
       for (const auto &[key, value] : g1) {
-        const auto it = g2.find(key + (static_cast<std::uint64_t>(body) << 48));
+        const auto it = g2.find(optimize::Design::key(body, key));
         if (it == g2.end()) continue;
         ++matched;
         gmax = std::max(gmax, std::abs(value));

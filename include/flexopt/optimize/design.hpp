@@ -25,8 +25,6 @@ public:
   std::size_t size() const { return fields_.size(); }
   DesignField &field(std::size_t k) { return *fields_[k]; }
   const DesignField &field(std::size_t k) const { return *fields_[k]; }
-  /// The field of the body named `body`, or null.
-  const DesignField *field_of(const std::string &body) const;
   MPI_Comm comm() const { return fields_.front()->mesh().comm; }
 
   /// A vector over every field's design variables (caller destroys it). Collective.
@@ -41,6 +39,14 @@ public:
   /// A key per local design variable, unique over the fields and the same on any rank count:
   /// field 0's Gmsh element tags, field k's tag + k 2^48 (restart files, --design).
   const std::vector<std::uint64_t> &design_keys() const { return keys_; }
+  /// A key's field and Gmsh tag, and the key of field k's tag.
+  static std::size_t key_field(std::uint64_t key) { return static_cast<std::size_t>(key >> 48); }
+  static long long key_tag(std::uint64_t key) {
+    return static_cast<long long>(key & ((std::uint64_t{1} << 48) - 1));
+  }
+  static std::uint64_t key(std::size_t k, std::uint64_t tag) {
+    return tag + (std::uint64_t{k} << 48);
+  }
 
   /// Every field's update from its part of x (DesignField::update). Collective.
   void update(Vec x);
@@ -61,12 +67,12 @@ public:
   std::vector<double> betas() const;
   void set_betas(const std::vector<double> &betas);
 
-  /// The volume fraction of every design region together (their volumes as weights), of field k
-  /// alone, and its derivative with respect to field k's physical densities (element vector g).
-  double volume_fraction() const;
+  /// The volume fraction of the design regions of `bodies` together (their volumes as weights;
+  /// empty: every field's), of field k alone, and the derivative of the first with respect to
+  /// field k's physical densities (element vector g; zero when k is not listed).
+  double volume_fraction(const std::vector<std::string> &bodies = {}) const;
   double volume_fraction(std::size_t k) const { return fields_[k]->volume_fraction(); }
-  double design_volume() const;
-  void volume_fraction_gradient(std::size_t k, Vec g) const;
+  void volume_fraction_gradient(const std::vector<std::string> &bodies, std::size_t k, Vec g) const;
 
   /// The filters' descriptions, each after its body's name when there are several fields.
   std::string filter_description() const;
