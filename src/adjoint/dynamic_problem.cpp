@@ -343,21 +343,26 @@ void DynamicProblem::restore_response_scales(const std::vector<double> &scales) 
   optimize::restore_scales(stress_, scales);
 }
 
-io::GridLayout DynamicProblem::design_layout() const {
+std::vector<std::array<double, 12>> DynamicProblem::design_placements() const {
   // One design body keeps its mesh coordinates (its own frame, as a static design's).
-  if (designs_.size() == 1) return design_->grid_layout();
-  std::vector<std::vector<double>> placed;
+  std::vector<std::array<double, 12>> out;
+  if (designs_.size() == 1) return out;
   for (const DesignBody &db : designs_) {
     const dynamics::SceneBody &sb = scene_.bodies[static_cast<std::size_t>(db.body)];
-    const mesh::DistributedMesh &m = db.field->mesh();
-    std::vector<double> x(static_cast<std::size_t>(3 * m.owned_nodes));
-    for (std::size_t i = 0; i < x.size() / 3; ++i) {
-      const bodies::Vec3 p = sb.position + sb.R * bodies::Vec3(&m.coordinates[3 * i]);
-      for (int k = 0; k < 3; ++k) x[3 * i + static_cast<std::size_t>(k)] = p(k);
+    std::array<double, 12> pl{};
+    for (int r = 0; r < 3; ++r) {
+      pl[static_cast<std::size_t>(r)] = sb.position(r);
+      for (int c = 0; c < 3; ++c) pl[static_cast<std::size_t>(3 + 3 * r + c)] = sb.R(r, c);
     }
-    placed.push_back(std::move(x));
+    out.push_back(pl);
   }
-  return design_->grid_layout(placed);
+  return out;
+}
+
+io::GridLayout DynamicProblem::design_layout() const {
+  const auto placements = design_placements();
+  if (placements.empty()) return design_->grid_layout();
+  return design_->grid_layout(design_->placed_coordinates(placements));
 }
 
 DynamicProblem::~DynamicProblem() {
@@ -517,7 +522,9 @@ void DynamicProblem::check_checkpoint_memory(long long bytes, long long states) 
 std::string DynamicProblem::checkpoint_file() const {
   int rank = 0;
   MPI_Comm_rank(comm(), &rank);
-  return scratch_ + "/adjoint_checkpoints." + std::to_string(rank) + ".h5";
+  const std::string &tag = settings_.adjoint.file_tag;
+  return scratch_ + "/adjoint_checkpoints." + (tag.empty() ? "" : tag + ".") +
+         std::to_string(rank) + ".h5";
 }
 
 void DynamicProblem::finish_forward(double seconds, bool gradients, optimize::Evaluation &out) {

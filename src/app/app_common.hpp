@@ -32,10 +32,13 @@ std::string write_gradients(const optimize::DesignProblem &problem, const optimi
 void load_design(MPI_Comm comm, const io::Case &c, optimize::DesignProblem &design,
                  const std::string &file, Vec x);
 /// The design problem of a case: the static SIMP problem or the dynamic one (adjoint module);
-/// `optimizing`: a dynamic design region touching an interface of its flexible body is refused.
-/// Collective.
-std::unique_ptr<optimize::DesignProblem>
-create_design_problem(MPI_Comm comm, const io::Case &c, bool optimizing, const std::string &dir);
+/// a case with scenarios or load cases: their optimize::ScenarioProblem on `scenario_groups`
+/// groups of ranks (0: as many as ranks and conditions allow). `optimizing`: a dynamic design
+/// region touching an interface of its flexible body is refused. Collective.
+std::unique_ptr<optimize::DesignProblem> create_design_problem(MPI_Comm comm, const io::Case &c,
+                                                               bool optimizing,
+                                                               const std::string &dir,
+                                                               int scenario_groups = 0);
 } // namespace detail
 
 /// `check-gradient`: the Taylor test and central differences of a design problem's adjoint
@@ -69,9 +72,14 @@ int run_report(const Context &ctx, const Options &o);
 int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double t0);
 
 /// After `optimize` on a dynamic case: the mechanism with the first design (design.initial) and
-/// with the last one (dir/restart.h5) integrated and written to dir/motion_initial.xdmf and
-/// dir/motion_final.xdmf; their responses and motion figures into s. Collective.
+/// with the last one (dir/restart.h5) integrated and written to dir/motion_initial`suffix`.xdmf
+/// and dir/motion_final`suffix`.xdmf; their responses and motion figures into s (motion_initial,
+/// motion_final). Collective.
 void write_design_motions(const Context &ctx, const io::Case &c, adjoint::DynamicProblem &problem,
-                          const std::string &dir, io::Json &s);
+                          const std::string &dir, io::Json &s, const std::string &suffix = "");
+/// The same for every scenario of c, one after another on all ranks (motion_initial.NAME.xdmf,
+/// ...), into s["scenario_motions"][NAME]. Collective.
+void write_scenario_motions(const Context &ctx, const io::Case &c, const std::string &dir,
+                            io::Json &s);
 
 } // namespace flexopt::app

@@ -60,7 +60,7 @@ std::string check_gradient_solver_options(const Context &ctx, const io::Case &c)
 int run_check_gradient(const Context &ctx, const Options &o, const io::Case &c, double t0) {
   const std::string dir = detail::output_directory(ctx, o);
   std::unique_ptr<optimize::DesignProblem> problem =
-      detail::create_design_problem(ctx.comm(), c, false, dir);
+      detail::create_design_problem(ctx.comm(), c, false, dir, o.scenario_groups);
   const std::vector<std::string> limits = problem->solve_to_round_off();
   PetscBool warm = PETSC_FALSE;
   FX_PETSC(PetscOptionsGetBool(nullptr, nullptr, "-fx_warm_start", &warm, nullptr));

@@ -13,6 +13,7 @@
 #include "flexopt/mesh/load.hpp"
 #include "flexopt/optimize/design_file.hpp"
 #include "flexopt/optimize/optimizer.hpp"
+#include "flexopt/optimize/scenario_problem.hpp"
 #include "flexopt/optimize/topology_problem.hpp"
 #include "flexopt/plan/plan.hpp"
 #include "flexopt/reduce/craig_bampton.hpp"
@@ -130,14 +131,51 @@ void write_summary(const Context &ctx, const std::string &dir, io::Json &s, doub
   });
 }
 
-/// The design problem of a case: the static SIMP problem or the dynamic one (adjoint module);
-/// `optimizing`: a dynamic design region touching an interface of its flexible body is refused.
-/// Collective.
-std::unique_ptr<optimize::DesignProblem>
-create_design_problem(MPI_Comm comm, const io::Case &c, bool optimizing, const std::string &dir) {
+namespace {
+
+/// The design bodies' meshes and design fields alone on comm (a ScenarioProblem's design when
+/// its conditions run on groups of ranks): the same meshes and fields the conditions build.
+std::shared_ptr<optimize::Design> design_alone(MPI_Comm comm, const io::Case &c) {
+  struct Held {
+    std::vector<std::unique_ptr<mesh::DistributedMesh>> meshes;
+    std::unique_ptr<optimize::Design> design;
+  };
+  auto held = std::make_shared<Held>();
+  std::vector<std::unique_ptr<optimize::DesignField>> fields;
+  for (const optimize::DesignSettings &d : c.design) {
+    const dynamics::BodyDescription &b = c.scene.body(d.body);
+    held->meshes.push_back(
+        std::make_unique<mesh::DistributedMesh>(mesh::load_body_mesh(comm, b.mesh)));
+    fields.push_back(std::make_unique<optimize::DesignField>(*held->meshes.back(), d));
+  }
+  held->design = std::make_unique<optimize::Design>(std::move(fields));
+  return std::shared_ptr<optimize::Design>(held, held->design.get());
+}
+
+/// The design problem of one condition (or of a case without conditions).
+std::unique_ptr<optimize::DesignProblem> condition_problem(MPI_Comm comm, const io::Case &c,
+                                                           bool optimizing,
+                                                           const std::string &dir) {
   if (c.dynamic())
     return adjoint::DynamicProblem::create(comm, io::dynamic_settings(c), dir, optimizing);
   return optimize::TopologyProblem::create(comm, io::topology_settings(c));
+}
+
+} // namespace
+
+std::unique_ptr<optimize::DesignProblem> create_design_problem(MPI_Comm comm, const io::Case &c,
+                                                               bool optimizing,
+                                                               const std::string &dir,
+                                                               int scenario_groups) {
+  if (io::condition_names(c).empty()) return condition_problem(comm, c, optimizing, dir);
+  optimize::ScenarioSettings settings = io::scenario_settings(c);
+  settings.groups = scenario_groups;
+  return optimize::ScenarioProblem::create(
+      comm, settings,
+      [&](MPI_Comm group, std::size_t k, const std::vector<std::size_t> &responses) {
+        return condition_problem(group, io::condition_case(c, k, responses), optimizing, dir);
+      },
+      [&](MPI_Comm world) { return design_alone(world, c); });
 }
 
 } // namespace detail
@@ -530,7 +568,8 @@ int run_optimize(const Context &ctx, const Options &o, const io::Case &c, double
   const std::string dir = output_directory(ctx, o);
   io::Case run_case = c;
   if (o.max_iterations > 0) run_case.optimizer.max_iterations = o.max_iterations;
-  auto problem = detail::create_design_problem(ctx.comm(), run_case, true, dir);
+  auto problem =
+      detail::create_design_problem(ctx.comm(), run_case, true, dir, o.scenario_groups);
   const auto r =
       optimize::run_optimization(ctx.comm(), *problem, run_case.optimizer, dir, o.restart);
   io::Json s = base_summary(ctx, o, c);
@@ -596,6 +635,8 @@ int run_optimize(const Context &ctx, const Options &o, const io::Case &c, double
   s["history"] = (fs::path(dir) / "history.csv").string();
   if (auto *dynamic = dynamic_cast<adjoint::DynamicProblem *>(problem.get()))
     write_design_motions(ctx, run_case, *dynamic, dir, s);
+  else if (!run_case.scenarios.empty())
+    write_scenario_motions(ctx, run_case, dir, s);
   write_summary(ctx, dir, s, t0);
   print0(ctx.comm(),
          "wrote %s (densities every %d iteration(s) and the final design: threshold "

@@ -579,17 +579,13 @@ void integrate(const Context &ctx, const io::Case &c, dynamics::Scene &scene,
 
 } // namespace
 
-int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double t0) {
-  const std::string dir = detail::output_directory(ctx, o);
-  io::Json s = detail::base_summary(ctx, o, c);
-  s["analysis"] = "dynamic";
-  print0(ctx.comm(), "case %s (%s), analysis: dynamic, %d rank(s)\n", c.name.c_str(),
-         c.file.c_str(), ctx.size());
-  // A body may carry the settings of every model; say which ones its model leaves unused.
-  for (const dynamics::BodyDescription &b : c.scene.bodies) {
-    const std::string note = io::unused_settings_note(b);
-    if (!note.empty()) print0(ctx.comm(), "note: %s\n", note.c_str());
-  }
+namespace {
+
+/// simulate of one scene (a case, or one scenario's case): with a design, the design's
+/// responses (and with --gradient their gradients) through its forward run; dir/NAME.xdmf and
+/// the run's figures into s. Collective.
+void simulate_case(const Context &ctx, const Options &o, const io::Case &c, const std::string &dir,
+                   const std::string &name, io::Json &s) {
   // With a design: the design body's densities (design.initial or --design FILE), every
   // response, and with --gradient their adjoint gradients (docs/theory.md section 9); the
   // motion below is that of this design.
@@ -609,21 +605,66 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
   } else {
     built = dynamics::build_scene(ctx.comm(), c.scene);
   }
-  integrate(ctx, c, design ? design->scene() : built, design.get(), x, o.gradient, dir, "motion",
-            s);
+  integrate(ctx, c, design ? design->scene() : built, design.get(), x, o.gradient, dir, name, s);
   if (x) FX_PETSC(VecDestroy(&x));
+}
+
+} // namespace
+
+int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double t0) {
+  const std::string dir = detail::output_directory(ctx, o);
+  io::Json s = detail::base_summary(ctx, o, c);
+  s["analysis"] = "dynamic";
+  print0(ctx.comm(), "case %s (%s), analysis: dynamic, %d rank(s)\n", c.name.c_str(),
+         c.file.c_str(), ctx.size());
+  // A body may carry the settings of every model; say which ones its model leaves unused.
+  for (const dynamics::BodyDescription &b : c.scene.bodies) {
+    const std::string note = io::unused_settings_note(b);
+    if (!note.empty()) print0(ctx.comm(), "note: %s\n", note.c_str());
+  }
+  if (c.scenarios.empty()) {
+    simulate_case(ctx, o, c, dir, "motion", s);
+  } else {
+    // Every scenario, one after another on all ranks: motion.NAME.xdmf, its figures under
+    // summary.json's scenarios.NAME.
+    io::Json per = io::Json::object();
+    for (std::size_t k = 0; k < c.scenarios.size(); ++k) {
+      const std::string &name = c.scenarios[k].name;
+      print0(ctx.comm(), "scenario %s (%zu of %zu)\n", name.c_str(), k + 1, c.scenarios.size());
+      io::Json one = io::Json::object();
+      simulate_case(ctx, o, io::condition_case(c, k, io::condition_responses(c, k)), dir,
+                    "motion." + name, one);
+      per[name] = one;
+    }
+    s["scenarios"] = per;
+  }
   detail::write_summary(ctx, dir, s, t0);
   print0(ctx.comm(), "wrote %s/summary.json\n", dir.c_str());
   after_run(ctx, o, c, dir);
   return 0;
 }
 
+void write_scenario_motions(const Context &ctx, const io::Case &c, const std::string &dir,
+                            io::Json &s) {
+  io::Json per = io::Json::object();
+  for (std::size_t k = 0; k < c.scenarios.size(); ++k) {
+    const std::string &name = c.scenarios[k].name;
+    const io::Case one_case = io::condition_case(c, k, io::condition_responses(c, k));
+    auto problem =
+        adjoint::DynamicProblem::create(ctx.comm(), io::dynamic_settings(one_case), dir);
+    io::Json one = io::Json::object();
+    write_design_motions(ctx, one_case, *problem, dir, one, "." + name);
+    per[name] = one;
+  }
+  s["scenario_motions"] = per;
+}
+
 void write_design_motions(const Context &ctx, const io::Case &c, adjoint::DynamicProblem &problem,
-                          const std::string &dir, io::Json &s) {
+                          const std::string &dir, io::Json &s, const std::string &suffix) {
   Vec x = problem.create_design_vector();
   const std::vector<double> betas = problem.design().betas();
   for (const char *which : {"initial", "final"}) {
-    const std::string name = std::string("motion_") + which;
+    const std::string key = std::string("motion_") + which, name = key + suffix;
     if (std::string(which) == "initial") {
       problem.initial_design(x);
       if (problem.design().stages() > 0) problem.design().set_stage(0);
@@ -640,7 +681,7 @@ void write_design_motions(const Context &ctx, const io::Case &c, adjoint::Dynami
     for (const char *key :
          {"responses", "motion", "integration_s", "constraint_violation_max", "sensors"})
       brief[key] = one[key];
-    s[name] = brief;
+    s[key] = brief;
   }
   problem.design().set_betas(betas);
   FX_PETSC(VecDestroy(&x));

@@ -41,6 +41,9 @@ const char *kUsage =
     "  --body NAME  modes: the Craig-Bampton reduction basis of that body\n"
     "  --restart    optimize: continue from out/restart.h5\n"
     "  --max-iterations N  optimize: override optimizer.max_iterations\n"
+    "  --scenario-groups N  optimize, check-gradient: run the scenarios (load cases) on N\n"
+    "               groups of ranks (default: as many as ranks and scenarios allow; 1: one\n"
+    "               after another on all ranks)\n"
     "  --fd-step H  check-gradient: finite-difference step (default 1e-2)\n"
     "  --design FILE  simulate (dynamic, with design:), check-gradient: the design of a run's\n"
     "               restart.h5\n"
@@ -114,7 +117,10 @@ const char *command_help(const std::string &cmd) {
            "frames carried over from the interrupted run's design.h5.tmp or the last design.h5).\n"
            "Dynamic cases: at the end, out/motion_initial.xdmf and out/motion_final.xdmf show the\n"
            "mechanism moving with the first and the last design (densities on the design body).\n"
-           "A design region touching an interface of its flexible body is refused.\n";
+           "A design region touching an interface of its flexible body is refused.\n"
+           "A case with scenarios: (load_cases:) runs them concurrently on groups of ranks, as\n"
+           "many groups as ranks and scenarios allow (--scenario-groups N: N groups), and writes\n"
+           "motion_initial.NAME.xdmf and motion_final.NAME.xdmf per scenario.\n";
   if (cmd == "check-gradient")
     return "usage: flexopt check-gradient CASE [--design FILE] [--fd-step H] [--out DIR] [PETSc "
            "options]\n"
@@ -242,6 +248,8 @@ int main(int argc, char **argv) {
       opts.report = false;
     else if (a == "--max-iterations")
       positive_int("--max-iterations", opts.max_iterations);
+    else if (a == "--scenario-groups")
+      positive_int("--scenario-groups", opts.scenario_groups);
     else if (a == "--fd-step") {
       const std::string v = value("--fd-step");
       try {

@@ -129,7 +129,8 @@ void read_top_level(const Reader &r, YAML::Node root, Case &c) {
   r.check_keys(root, "",
                {"analysis", "materials", "bodies",      "ground",    "joints",  "drivers", "loads",
                 "supports", "tractions", "line_loads",  "time",      "sensors", "output",  "solver",
-                "design",   "objective", "constraints", "optimizer", "adjoint", "accuracy"});
+                "design",   "objective", "constraints", "optimizer", "adjoint", "accuracy",
+                "scenarios", "load_cases"});
 
   c.analysis =
       r.enumerated(r.require(root, "analysis", ""), "analysis",
@@ -146,11 +147,12 @@ void read_top_level(const Reader &r, YAML::Node root, Case &c) {
 }
 
 /// `supports:` (a static analysis's fixed surfaces) into c.loads.supports.
-void read_supports(const Reader &r, const YAML::Node &node, Case &c) {
-  r.require_sequence(node, "supports");
+void read_supports(const Reader &r, const YAML::Node &node, Case &c,
+                   const std::string &key = "supports") {
+  r.require_sequence(node, key);
   for (std::size_t i = 0; i < node.size(); ++i) {
     const YAML::Node &v = node[i];
-    const std::string path = "supports[" + std::to_string(i) + "]";
+    const std::string path = key + "[" + std::to_string(i) + "]";
     r.require_map(v, path);
     r.check_keys(v, path, {"body", "surface", "fix"});
     fem::Support s;
@@ -176,12 +178,12 @@ void read_supports(const Reader &r, const YAML::Node &node, Case &c) {
 }
 
 /// `tractions:` (`where_key` surface) or `line_loads:` (curve) of a static analysis into `out`.
-void read_tractions(const Reader &r, const YAML::Node &node, Case &c, const char *key,
+void read_tractions(const Reader &r, const YAML::Node &node, Case &c, const std::string &key,
                     const char *where_key, std::vector<fem::SurfaceLoad> &out) {
   r.require_sequence(node, key);
   for (std::size_t i = 0; i < node.size(); ++i) {
     const YAML::Node &v = node[i];
-    const std::string path = std::string(key) + "[" + std::to_string(i) + "]";
+    const std::string path = key + "[" + std::to_string(i) + "]";
     r.require_map(v, path);
     const bool surface = std::string(where_key) == "surface";
     if (surface)
@@ -203,6 +205,43 @@ void read_tractions(const Reader &r, const YAML::Node &node, Case &c, const char
       t.value = r.vector3(r.require(v, "value", path), path + ".value");
     }
     out.push_back(t);
+  }
+}
+
+/// `load_cases:` of a static analysis: each a name and the supports, tractions, line loads and
+/// gravity it gives instead of the case's (a key not given keeps the case's).
+void read_load_cases(const Reader &r, const YAML::Node &node, Case &c) {
+  r.require_sequence(node, "load_cases");
+  if (node.size() == 0) r.fail(node, "load_cases: list at least one load case");
+  for (std::size_t i = 0; i < node.size(); ++i) {
+    const YAML::Node &v = node[i];
+    const std::string path = "load_cases[" + std::to_string(i) + "]";
+    r.require_map(v, path);
+    r.check_keys(v, path, {"name", "supports", "tractions", "line_loads", "gravity"});
+    LoadCase lc;
+    lc.where = r.where(v);
+    lc.name = r.string(r.require(v, "name", path), path + ".name");
+    for (std::size_t k = 0; k < c.load_cases.size(); ++k)
+      if (c.load_cases[k].name == lc.name)
+        r.fail(v["name"], path + ".name: two load cases are named '" + lc.name + "' (load_cases[" +
+                              std::to_string(k) + "])");
+    Case one = c; // the case's loads, each given key replacing its part
+    if (v["supports"]) {
+      one.loads.supports.clear();
+      read_supports(r, v["supports"], one, path + ".supports");
+    }
+    if (v["tractions"]) {
+      one.loads.tractions.clear();
+      read_tractions(r, v["tractions"], one, path + ".tractions", "surface", one.loads.tractions);
+    }
+    if (v["line_loads"]) {
+      one.loads.line_loads.clear();
+      read_tractions(r, v["line_loads"], one, path + ".line_loads", "curve",
+                     one.loads.line_loads);
+    }
+    if (v["gravity"]) one.loads.gravity = r.vector3(v["gravity"], path + ".gravity");
+    lc.loads = one.loads;
+    c.load_cases.push_back(lc);
   }
 }
 
@@ -243,19 +282,31 @@ void read_loads(const Reader &r, const YAML::Node &l, Case &c) {
   }
 }
 
-/// `time:` (the grid and the integrator's settings of a dynamic analysis) into c.time.
-void read_time(const Reader &r, const YAML::Node &v, Case &c) {
-  const std::string path = "time";
+} // namespace
+
+/// `time:` (the grid and the integrator's settings of a dynamic analysis) at `path` into t;
+/// `partial` (a scenario's time): every key optional, t holding the case's values.
+void detail::read_time(const Reader &r, const YAML::Node &v, const std::string &path,
+                       dynamics::TimeSettings &t, bool partial) {
   r.require_map(v, path);
   r.check_keys(v, path, {"end", "step", "rho_inf", "newton_reuse"});
-  dynamics::TimeSettings &t = c.time;
   t.where = r.where(v);
-  t.end = r.number(r.require(v, "end", path), path + ".end");
-  if (!(t.end > 0)) r.fail(v["end"], path + ".end: must be positive");
-  t.step = r.number(r.require(v, "step", path), path + ".step");
-  if (!(t.step > 0)) r.fail(v["step"], path + ".step: must be positive");
-  if (!(t.step <= t.end))
-    r.fail(v["step"], path + ".step: must not exceed time.end (" + v["end"].Scalar() + ")");
+  if (!partial || v["end"]) {
+    t.end = r.number(r.require(v, "end", path), path + ".end");
+    if (!(t.end > 0)) r.fail(v["end"], path + ".end: must be positive");
+  }
+  if (!partial || v["step"]) {
+    t.step = r.number(r.require(v, "step", path), path + ".step");
+    if (!(t.step > 0)) r.fail(v["step"], path + ".step: must be positive");
+  }
+  if (!(t.step <= t.end)) {
+    char end[32];
+    std::snprintf(end, sizeof end, "%g", t.end);
+    r.fail(v["step"] ? v["step"] : v["end"],
+           path + ".step: must not exceed " +
+               (partial ? std::string("the scenario's end time (") + end + " s)"
+                        : "time.end (" + v["end"].Scalar() + ")"));
+  }
   if (v["rho_inf"]) {
     t.rho_inf = r.number(v["rho_inf"], path + ".rho_inf");
     if (!(t.rho_inf >= 0 && t.rho_inf <= 1))
@@ -270,6 +321,8 @@ void read_time(const Reader &r, const YAML::Node &v, Case &c) {
   }
   t.given = true;
 }
+
+namespace {
 
 /// `output:` (every N steps, or an interval of simulated time) into c.output.
 void read_output(const Reader &r, const YAML::Node &o, bool dynamic, Case &c) {
@@ -339,13 +392,27 @@ Case load_case(const std::string &directory) {
   if (root["joints"]) detail::read_joints(r, root["joints"], c);
   if (root["drivers"]) detail::read_drivers(r, root["drivers"], c);
   if (root["loads"]) read_loads(r, root["loads"], c);
-  if (root["time"]) read_time(r, root["time"], c);
+  if (root["time"]) detail::read_time(r, root["time"], "time", c.time, false);
   if (root["supports"]) read_supports(r, root["supports"], c);
   if (root["tractions"])
     read_tractions(r, root["tractions"], c, "tractions", "surface", c.loads.tractions);
   if (root["line_loads"])
     read_tractions(r, root["line_loads"], c, "line_loads", "curve", c.loads.line_loads);
   if (root["sensors"]) detail::read_sensors(r, root["sensors"], c);
+  if (root["scenarios"]) {
+    if (!dynamic)
+      r.fail(r.key_node(root, "scenarios"),
+             "scenarios: needs analysis: dynamic (a static case's conditions are load_cases:)");
+    detail::read_scenarios(r, root["scenarios"], c);
+  }
+  if (root["load_cases"]) {
+    if (dynamic)
+      r.fail(r.key_node(root, "load_cases"),
+             "load_cases: needs analysis: static (a dynamic case's operating conditions are "
+             "scenarios:, each changing drivers, loads, gravity, initial speeds, densities or "
+             "time)");
+    read_load_cases(r, root["load_cases"], c);
+  }
   if (root["output"]) read_output(r, root["output"], dynamic, c);
   if (root["solver"]) c.solver = r.string(root["solver"], "solver");
   if (root["accuracy"]) {

@@ -244,7 +244,8 @@ optimize::ResponseSettings read_response(const Reader &r, const YAML::Node &v,
   r.require_map(v, path);
   r.check_keys(v, path,
                {"type", "sensor", "direction", "body", "target", "component", "measure", "ks",
-                "max", "aggregate", "p", "normalization", "reference", "region"});
+                "max", "aggregate", "p", "normalization", "reference", "region", "scenarios",
+                "load_cases", "combine", "weights", "combine_ks"});
   optimize::ResponseSettings s;
   s.where = r.where(v);
   const bool dynamic = c.dynamic();
@@ -276,6 +277,9 @@ optimize::ResponseSettings read_response(const Reader &r, const YAML::Node &v,
     takes = {"body"};
   if (s.type == ResponseType::Stress)
     takes = {"body", "aggregate", "p", "ks", "normalization", "reference", "region"};
+  // `ks` of a type that has no KS parameter is the scenario combination's (combine: max).
+  const bool ks_taken = takes.count("ks") > 0;
+  if (!ks_taken && !condition_names(c).empty()) takes.insert("ks");
   for (const char *k : {"sensor", "direction", "body", "target", "component", "measure", "ks",
                         "aggregate", "p", "normalization", "reference", "region"})
     if (v[k] && !takes.count(k))
@@ -350,6 +354,7 @@ optimize::ResponseSettings read_response(const Reader &r, const YAML::Node &v,
   if (s.type == ResponseType::VolumeFraction && v["body"]) read_response_bodies(r, v, path, c, s);
   if (s.type == ResponseType::Stress) read_stress(r, v, path, constraint, c, s);
   read_bound(r, v, path, constraint, s);
+  read_response_conditions(r, v, path, c, constraint, ks_taken, s);
   return s;
 }
 
@@ -423,6 +428,27 @@ void read_optimization(const Reader &r, YAML::Node root, Case &c) {
     r.fail(root, "objective/constraints/optimizer need a design: section (the design field)");
   if (!c.design.empty() && !c.objective)
     r.fail(root["design"], "design: an optimization needs an objective:");
+
+  // Every condition is taken by some response (else it adds nothing but cost).
+  if (c.objective) {
+    const std::vector<std::string> names = condition_names(c);
+    std::vector<const optimize::ResponseSettings *> all{&*c.objective};
+    for (const optimize::ResponseSettings &con : c.constraints) all.push_back(&con);
+    for (std::size_t k = 0; k < names.size(); ++k) {
+      bool taken = false;
+      for (const optimize::ResponseSettings *resp : all)
+        taken = taken || std::find(resp->scenarios.begin(), resp->scenarios.end(), k) !=
+                             resp->scenarios.end();
+      if (!taken) {
+        const io::Location &at =
+            c.dynamic() ? c.scenarios[k].where : c.load_cases[k].where;
+        throw Error(at.str() + ": " + (c.dynamic() ? "scenario" : "load case") + " '" + names[k] +
+                        "' is taken by no response (objective and constraints name the ones "
+                        "they take): it would cost a run and change nothing",
+                    true);
+      }
+    }
+  }
 
   // The optimizer's share of other keys: the constraints' bounds, and design.xdmf's stride
   // (output.every counts iterations in a static analysis; in a dynamic one it counts the

@@ -353,11 +353,11 @@ void read_joints(const Reader &r, const YAML::Node &node, Case &c) {
   }
 }
 
-void read_drivers(const Reader &r, const YAML::Node &node, Case &c) {
-  r.require_sequence(node, "drivers");
+void read_drivers(const Reader &r, const YAML::Node &node, Case &c, const std::string &key) {
+  r.require_sequence(node, key);
   for (std::size_t i = 0; i < node.size(); ++i) {
     const YAML::Node &v = node[i];
-    const std::string path = "drivers[" + std::to_string(i) + "]";
+    const std::string path = key + "[" + std::to_string(i) + "]";
     r.require_map(v, path);
     r.check_keys(v, path, {"joint", "value"});
     dynamics::DriverDescription d;
@@ -379,15 +379,14 @@ void read_drivers(const Reader &r, const YAML::Node &node, Case &c) {
                              "joint");
     for (std::size_t k = 0; k < c.scene.drivers.size(); ++k)
       if (c.scene.drivers[k].joint == d.joint)
-        r.fail(v["joint"], path + ".joint: joint '" + d.joint + "' already has a driver (drivers[" +
-                               std::to_string(k) + "])");
+        r.fail(v["joint"], path + ".joint: joint '" + d.joint + "' already has a driver (" + key +
+                               "[" + std::to_string(k) + "])");
     d.expression = r.expression(r.require(v, "value", path), path + ".value");
     c.scene.drivers.push_back(d);
   }
 }
 
-void read_forces(const Reader &r, const YAML::Node &node, Case &c) {
-  const std::string key = "loads.forces";
+void read_forces(const Reader &r, const YAML::Node &node, Case &c, const std::string &key) {
   r.require_sequence(node, key);
   for (std::size_t i = 0; i < node.size(); ++i) {
     const YAML::Node &v = node[i];

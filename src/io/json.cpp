@@ -76,6 +76,8 @@ std::string Json::dump(int indent) const {
     }
   } else if (auto s = std::get_if<std::string>(&value_)) {
     escape_string(out, *s);
+  } else if (auto t = std::get_if<Serialized>(&value_)) {
+    out << t->text;
   } else if (auto a = std::get_if<Array>(&value_)) {
     // Arrays of numbers stay on one line; others one element per line.
     bool flat = true;

@@ -172,4 +172,22 @@ long long Design::global_elements() const {
   return n;
 }
 
+std::vector<std::vector<double>>
+Design::placed_coordinates(const std::vector<std::array<double, 12>> &placements) const {
+  std::vector<std::vector<double>> placed;
+  for (std::size_t k = 0; k < fields_.size(); ++k) {
+    const std::array<double, 12> &pl = placements.at(k);
+    const mesh::DistributedMesh &m = fields_[k]->mesh();
+    std::vector<double> x(static_cast<std::size_t>(3 * m.owned_nodes));
+    for (std::size_t i = 0; i < x.size() / 3; ++i)
+      for (std::size_t r = 0; r < 3; ++r) {
+        double v = pl[r];
+        for (std::size_t c = 0; c < 3; ++c) v += pl[3 + 3 * r + c] * m.coordinates[3 * i + c];
+        x[3 * i + r] = v;
+      }
+    placed.push_back(std::move(x));
+  }
+  return placed;
+}
+
 } // namespace flexopt::optimize

@@ -24,4 +24,16 @@ const char *response_type_name(ResponseType type) {
   return "?";
 }
 
+const char *combine_name(Combine combine) {
+  switch (combine) {
+  case Combine::Sum:
+    return "sum";
+  case Combine::Weighted:
+    return "weighted";
+  case Combine::Max:
+    return "max";
+  }
+  return "?";
+}
+
 } // namespace flexopt::optimize

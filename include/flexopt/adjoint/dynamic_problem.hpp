@@ -92,6 +92,9 @@ struct CheckpointSettings {
   CheckpointStorage storage = CheckpointStorage::Memory; ///< disk: an HDF5 file per rank
   /// FFRF design bodies: the exact derivative of the basis, or the basis held fixed
   reduce::BasisDerivative basis = reduce::BasisDerivative::Exact;
+  /// In the checkpoint files' names (a scenario's: adjoint_checkpoints.TAG.RANK.h5), so that
+  /// scenarios on groups of ranks do not share one.
+  std::string file_tag;
   io::Location where;
 };
 
@@ -162,6 +165,7 @@ public:
   /// Several design bodies: each in its initial placement (x = position + R X, the scene's), so
   /// that they appear where they sit in the mechanism; one keeps its mesh coordinates.
   io::GridLayout design_layout() const override;
+  std::vector<std::array<double, 12>> design_placements() const override;
   const std::vector<std::string> &response_names() const override { return names_; }
   void evaluate(Vec x, bool gradients, optimize::Evaluation &out) override;
   /// A caller's view of the forward runs of evaluate (not of the recomputations from

@@ -18,6 +18,9 @@ struct Options {
   bool restart = false;   ///< optimize: continue from out/restart.h5
   int max_iterations = 0; ///< optimize: overrides optimizer.max_iterations when > 0
   double fd_step = 0;     ///< check-gradient: finite-difference step h (0: the problem's)
+  /// optimize, check-gradient: groups of ranks the scenarios (or load cases) run on (0: as many
+  /// as ranks and conditions allow; 1: one after another on all ranks)
+  int scenario_groups = 0;
   std::string design;     ///< simulate (dynamic): the design of this restart.h5
   bool gradient = false;  ///< simulate (dynamic): also the adjoint gradients
   bool all_auto = false;  ///< plan: estimate every body as if its model were auto (--auto)

@@ -15,6 +15,7 @@
 #include "flexopt/optimize/design_field.hpp"
 #include "flexopt/optimize/optimizer.hpp"
 #include "flexopt/optimize/response.hpp"
+#include "flexopt/optimize/scenario_problem.hpp"
 #include "flexopt/optimize/topology_problem.hpp"
 #include "flexopt/plan/plan.hpp"
 
@@ -56,6 +57,23 @@ std::string unused_settings_note(const dynamics::BodyDescription &body);
 
 enum class Analysis { Static, Dynamic };
 
+/// One operating condition of a dynamic case (`scenarios:`, docs/case-format.md "Scenarios"):
+/// the case's scene and time grid with the scenario's changes (drivers, loads, gravity, initial
+/// speeds, densities, time settings) applied.
+struct Scenario {
+  std::string name;
+  dynamics::SceneDescription scene;
+  dynamics::TimeSettings time;
+  io::Location where;
+};
+
+/// One load case of a static case (`load_cases:`): its supports and loads.
+struct LoadCase {
+  std::string name;
+  fem::StaticLoads loads;
+  io::Location where;
+};
+
 struct Case {
   std::string directory; ///< the case directory as given
   std::string file;      ///< path of case.yaml
@@ -77,6 +95,9 @@ struct Case {
   optimize::OptimizerSettings optimizer;
   adjoint::CheckpointSettings
       adjoint; ///< dynamic optimization: checkpointing of the backward sweep
+  /// `scenarios:` (dynamic) or `load_cases:` (static); empty: the case is its one condition.
+  std::vector<Scenario> scenarios;
+  std::vector<LoadCase> load_cases;
   /// `accuracy`: the relative error of the sensors the user accepts; `model: auto` and
   /// `flexopt plan` choose each body's model for it (docs/theory.md section 12).
   double accuracy = 1e-2;
@@ -89,6 +110,18 @@ struct Case {
 
 /// The static problem of a static case: its one body's mesh and material, and the loads.
 fem::StaticSettings static_settings(const Case &c);
+
+/// The names of the case's scenarios or load cases (empty: none).
+std::vector<std::string> condition_names(const Case &c);
+/// The case as its condition k (a scenario's scene and time, or a load case's loads) whose
+/// objective and constraints are the responses `responses` of the case (indices: 0 the objective,
+/// i >= 1 constraint i - 1; the first becomes the objective). Without conditions, k = 0 is the case.
+Case condition_case(const Case &c, std::size_t k, const std::vector<std::size_t> &responses);
+/// The responses (0 the objective, i >= 1 constraint i - 1) that take condition k (empty: the
+/// case has no objective).
+std::vector<std::size_t> condition_responses(const Case &c, std::size_t k);
+/// The scenario combination of a case's responses (optimize::ScenarioProblem).
+optimize::ScenarioSettings scenario_settings(const Case &c);
 /// The topology optimization of a static case. Throws a collective flexopt::Error naming the
 /// case file if it has no design: or objective:.
 optimize::TopologySettings topology_settings(const Case &c);

@@ -37,6 +37,14 @@ public:
     return j;
   }
 
+  /// A value already serialized by dump() (a value made on another rank, sent as text); dump
+  /// writes it as it is.
+  static Json serialized(std::string text) {
+    Json j;
+    j.value_ = Serialized{std::move(text)};
+    return j;
+  }
+
   /// Object member access; creates the member (and turns a null into an object) if absent.
   Json &operator[](const std::string &key);
   /// Appends to an array (turns a null into an array).
@@ -47,7 +55,10 @@ public:
   std::string dump(int indent = 0) const;
 
 private:
-  std::variant<std::nullptr_t, bool, double, std::string, Array, Object> value_;
+  struct Serialized {
+    std::string text;
+  };
+  std::variant<std::nullptr_t, bool, double, std::string, Array, Object, Serialized> value_;
 };
 
 /// Writes text to `path` atomically: to `path.tmp`, then renamed. Throws flexopt::Error.

@@ -6,6 +6,7 @@
 #include "flexopt/io/xdmf.hpp"
 #include "flexopt/optimize/design_field.hpp"
 
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <petscvec.h>
@@ -81,6 +82,10 @@ public:
   /// in that grid's order (field 0's local elements, then field 1's, ...).
   io::GridLayout grid_layout(const std::vector<std::vector<double>> &placed = {}) const;
   std::vector<double> cells(Vec (DesignField::*which)() const) const;
+  /// Each field's owned node coordinates placed by `placements[k]` (p, then R row-major:
+  /// x = p + R X), for grid_layout.
+  std::vector<std::vector<double>>
+  placed_coordinates(const std::vector<std::array<double, 12>> &placements) const;
   long long global_elements() const;
 
 private:

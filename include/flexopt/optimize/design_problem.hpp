@@ -7,6 +7,7 @@
 #include "flexopt/optimize/design.hpp"
 #include "flexopt/optimize/stress_aggregate.hpp"
 
+#include <array>
 #include <cstdint>
 #include <map>
 #include <petscvec.h>
@@ -52,6 +53,10 @@ public:
   /// The grid of design.xdmf and gradient.xdmf: the design bodies' meshes (Design::grid_layout);
   /// a dynamic problem places each body as the scene does at the start.
   virtual io::GridLayout design_layout() const { return design().grid_layout(); }
+  /// Where each design body sits in its scene at the start, when design_layout() places them
+  /// (several dynamic design bodies): per field the position p and the rotation R (row-major),
+  /// x = p + R X. Empty: each body in its own frame.
+  virtual std::vector<std::array<double, 12>> design_placements() const { return {}; }
   /// "objective:TYPE", "constraint0:TYPE", ...
   virtual const std::vector<std::string> &response_names() const = 0;
   /// Evaluates the objective and every constraint at x; with `gradients`, also their

@@ -26,6 +26,12 @@ enum class ResponseType {
 /// The case-file name: "compliance", "volume_fraction", ...
 const char *response_type_name(ResponseType type);
 
+/// How a response combines its values over the scenarios (or load cases) it names
+/// (docs/theory.md section 13): their sum, a weighted sum, or their maximum as a KS aggregate.
+enum class Combine { Sum, Weighted, Max };
+/// "sum", "weighted", "max".
+const char *combine_name(Combine combine);
+
 /// How a `sensor` response reduces its samples over the run (section 9.3).
 enum class SensorMeasure { Final, MeanSquare, KsMax };
 
@@ -52,6 +58,14 @@ struct ResponseSettings {
   StressAggregateSettings aggregate;
   bool adaptive = false;
   std::string region;
+  /// A case with scenarios (or load cases): the ones this response takes (indices into the
+  /// case's list, in its order; every one unless `scenarios:` names some), how it combines
+  /// them, the weights of `weighted` (one per taken scenario) and the KS parameter of `max`
+  /// (relative to the largest |value| at the first design: docs/theory.md 13.2).
+  std::vector<std::size_t> scenarios;
+  Combine combine = Combine::Sum;
+  std::vector<double> weights;
+  double combine_ks = 50;
   double max = 0; ///< constraints: upper bound
   bool has_max = false;
   io::Location where;
