@@ -173,6 +173,9 @@ std::unique_ptr<ScenarioProblem> ScenarioProblem::create(MPI_Comm comm,
   p->values_.assign(settings.names.size(),
                     std::vector<double>(n, std::numeric_limits<double>::quiet_NaN()));
   p->ks_scale_.assign(n, 0.0);
+  // The parts' names before the first evaluation (history.csv's header).
+  p->timings_ = p->mine_.front().problem->timings();
+  for (Timing &t : p->timings_) t.seconds = 0;
   return p;
 }
 

@@ -3,6 +3,7 @@
 #include "flexopt/core/error.hpp"
 #include "flexopt/io/case.hpp"
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <gtest/gtest.h>
@@ -960,4 +961,130 @@ TEST_F(CaseFiles, DynamicResponsesAreValidated) {
   EXPECT_CASE_ERROR(std::string(kDynamic) + design + "objective: {type: volume_fraction}\n" +
                         "adjoint: {storage: tape}\n",
                     "adjoint.storage");
+}
+
+// ---- scenarios (issue 45) ----
+
+namespace {
+/// kDynamic with two scenarios and an optimization over them.
+std::string scenario_case(const std::string &responses) {
+  std::string y = kDynamic;
+  y += R"(scenarios:
+  - name: slow
+    drivers: [{joint: j0, value: "0.5*t"}]
+    loads: {gravity: [0, 0, -1]}
+    bodies: {rod: {density: 9000, initial: {angular_velocity: [0, 0, 7]}}}
+    time: {end: 1.5, step: 2.0e-3}
+  - {name: fast}
+design: {body: rod, region: web}
+)";
+  return y + responses;
+}
+} // namespace
+
+TEST_F(CaseFiles, ScenariosChangeTheirSceneAndTime) {
+  write(scenario_case("objective: {type: strain_energy_integral, body: rod}\n"
+                      "constraints:\n"
+                      "  - {type: volume_fraction, max: 0.5}\n"
+                      "  - {type: mass, body: rod, max: 9}\n"
+                      "  - {type: sensor, sensor: s, component: x, measure: final, scenarios: "
+                      "[fast], max: 1}\n"
+                      "  - {type: strain_energy_integral, body: rod, combine: weighted, weights: "
+                      "[1, 3], max: 1}\n"));
+  const auto c = load_case(dir_.string());
+  ASSERT_EQ(c.scenarios.size(), 2u);
+  const auto &slow = c.scenarios[0];
+  EXPECT_EQ(slow.scene.drivers[0].expression, "0.5*t");
+  EXPECT_EQ(slow.scene.drivers[1].expression, c.scene.drivers[1].expression);
+  EXPECT_EQ((*slow.scene.gravity)[2], -1.0);
+  EXPECT_EQ(slow.scene.body("rod").material.density, 9000.0);
+  EXPECT_EQ(c.scene.body("rod").material.density, 7850.0);
+  EXPECT_EQ(slow.scene.body("rod").initial.angular_velocity[2], 7.0);
+  EXPECT_EQ(slow.scene.body("rod").initial.velocity[0], 1.0); // kept
+  EXPECT_EQ(slow.time.end, 1.5);
+  EXPECT_EQ(slow.time.rho_inf, 0.7); // kept
+  EXPECT_EQ(c.scenarios[1].time.end, 2.0);
+  // Defaults: the objective sums every scenario, a constraint takes their maximum; the volume
+  // fraction is the design's alone (first scenario); the mass of a body whose density a scenario
+  // changes is per scenario.
+  EXPECT_EQ(c.objective->scenarios, (std::vector<std::size_t>{0, 1}));
+  EXPECT_EQ(c.objective->combine, optimize::Combine::Sum);
+  EXPECT_EQ(c.constraints[0].scenarios, (std::vector<std::size_t>{0}));
+  EXPECT_EQ(c.constraints[1].scenarios, (std::vector<std::size_t>{0, 1}));
+  EXPECT_EQ(c.constraints[1].combine, optimize::Combine::Max);
+  EXPECT_EQ(c.constraints[2].scenarios, (std::vector<std::size_t>{1}));
+  EXPECT_EQ(c.constraints[3].weights, (std::vector<double>{1, 3}));
+  // The case of scenario slow with the responses that take it.
+  const auto responses = flexopt::io::condition_responses(c, 0);
+  EXPECT_EQ(responses, (std::vector<std::size_t>{0, 1, 2, 4}));
+  const auto one = flexopt::io::condition_case(c, 0, responses);
+  EXPECT_TRUE(one.scenarios.empty());
+  EXPECT_EQ(one.time.end, 1.5);
+  EXPECT_EQ(one.constraints.size(), 3u);
+  EXPECT_EQ(one.optimizer.bounds, (std::vector<double>{0.5, 9, 1}));
+}
+
+TEST_F(CaseFiles, ScenarioResponsesAreChecked) {
+  EXPECT_CASE_ERROR(scenario_case("objective: {type: volume_fraction, scenarios: [fast]}\n"),
+                    "objective.scenarios", "is the same in every condition");
+  EXPECT_CASE_ERROR(
+      scenario_case("objective: {type: strain_energy_integral, body: rod, combine: weighted}\n"),
+      "objective.combine: weighted needs weights");
+  EXPECT_CASE_ERROR(scenario_case("objective: {type: strain_energy_integral, body: rod, combine: "
+                                  "weighted, weights: [1]}\n"),
+                    "objective.weights: 1 weights for 2 scenarios");
+  EXPECT_CASE_ERROR(
+      scenario_case("objective: {type: strain_energy_integral, body: rod, ks: 20}\n"),
+      "objective.ks: only combine: max takes it");
+  EXPECT_CASE_ERROR(scenario_case("objective: {type: strain_energy_integral, body: rod, "
+                                  "scenarios: [slow]}\n"),
+                    "scenario 'fast' is taken by no response");
+  EXPECT_CASE_ERROR(dynamic_with("output: {every: 10}", "output: {every: 10}\nscenarios:\n  - "
+                                                         "{name: a, time: {step: 5}}"),
+                    "scenarios[0].time.step: must not exceed the scenario's end time");
+  EXPECT_CASE_ERROR(dynamic_with("output: {every: 10}",
+                                 "output: {every: 10}\nscenarios:\n  - {name: a, bodies: {rdo: "
+                                 "{density: 1}}}"),
+                    "scenarios[0].bodies.rdo: no body named 'rdo'");
+  EXPECT_CASE_ERROR(std::string(kValid) + "scenarios:\n  - {name: a}\n",
+                    "scenarios: needs analysis: dynamic");
+  EXPECT_CASE_ERROR(std::string(kValid) + "design: {body: beam, region: web}\n"
+                                          "objective: {type: compliance, scenarios: all}\n",
+                    "objective.scenarios: a static case's conditions are load_cases:");
+}
+
+TEST(ScenarioCombination, KsBoundsAndDerivative) {
+  // max <= KS <= max + s ln(n) / rho, and dKS/df against central differences.
+  optimize::ScenarioUse use;
+  use.combine = optimize::Combine::Max;
+  use.ks = 20;
+  const std::vector<double> f{0.8, 1.0, 0.95};
+  const double s = 1.0;
+  const auto c = optimize::combine_values(use, f, s);
+  EXPECT_GE(c.value, 1.0);
+  EXPECT_LE(c.value, 1.0 + s * std::log(3.0) / use.ks);
+  double sum = 0;
+  for (double d : c.df) sum += d;
+  EXPECT_NEAR(sum, 1.0, 1e-15); // a convex combination
+  for (std::size_t k = 0; k < f.size(); ++k) {
+    const double h = 1e-6;
+    auto fp = f, fm = f;
+    fp[k] += h;
+    fm[k] -= h;
+    const double fd =
+        (optimize::combine_values(use, fp, s).value - optimize::combine_values(use, fm, s).value) /
+        (2 * h);
+    EXPECT_NEAR(c.df[k], fd, 1e-8) << "k = " << k;
+  }
+  // Large values: the factored-out maximum keeps the exponentials finite.
+  const auto big = optimize::combine_values(use, {1e5, 1e5 - 1}, 1.0);
+  EXPECT_TRUE(std::isfinite(big.value));
+  EXPECT_NEAR(big.value, 1e5 + std::log1p(std::exp(-20.0)) / 20, 1e-9);
+  // Sum and weighted: exact.
+  use.combine = optimize::Combine::Weighted;
+  use.weights = {1, 2, 0.5};
+  EXPECT_DOUBLE_EQ(optimize::combine_values(use, f, s).value, 0.8 + 2.0 + 0.475);
+  EXPECT_EQ(optimize::combine_values(use, f, s).df, use.weights);
+  use.combine = optimize::Combine::Sum;
+  EXPECT_DOUBLE_EQ(optimize::combine_values(use, f, s).value, 2.75);
 }
