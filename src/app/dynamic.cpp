@@ -632,6 +632,7 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
       const std::string &name = c.scenarios[k].name;
       print0(ctx.comm(), "scenario %s (%zu of %zu)\n", name.c_str(), k + 1, c.scenarios.size());
       io::Json one = io::Json::object();
+      const PrintPrefix prefix("[" + name + "] ");
       simulate_case(ctx, o, io::condition_case(c, k, io::condition_responses(c, k)), dir,
                     "motion." + name, one);
       per[name] = one;
@@ -650,6 +651,7 @@ void write_scenario_motions(const Context &ctx, const io::Case &c, const std::st
   for (std::size_t k = 0; k < c.scenarios.size(); ++k) {
     const std::string &name = c.scenarios[k].name;
     const io::Case one_case = io::condition_case(c, k, io::condition_responses(c, k));
+    const PrintPrefix building("[" + name + "] ");
     auto problem =
         adjoint::DynamicProblem::create(ctx.comm(), io::dynamic_settings(one_case), dir);
     io::Json one = io::Json::object();

@@ -57,11 +57,36 @@ void broadcast_text(MPI_Comm comm, std::string &s, int root) {
   MPI_Bcast(s.data(), static_cast<int>(n), MPI_CHAR, root, comm);
 }
 
+namespace {
+std::string g_prefix;         ///< PrintPrefix's
+bool g_at_line_start = true; ///< the last character print0 wrote ended a line
+} // namespace
+
+PrintPrefix::PrintPrefix(const std::string &prefix) { g_prefix = prefix; }
+PrintPrefix::~PrintPrefix() { g_prefix.clear(); }
+
 void print0(MPI_Comm comm, const char *format, ...) {
   if (comm_rank(comm) != 0) return;
   va_list args;
   va_start(args, format);
-  std::vprintf(format, args);
+  if (g_prefix.empty()) {
+    std::vprintf(format, args);
+  } else {
+    va_list copy;
+    va_copy(copy, args);
+    const int n = std::vsnprintf(nullptr, 0, format, copy);
+    va_end(copy);
+    std::string text(static_cast<std::size_t>(std::max(n, 0)) + 1, '\0');
+    std::vsnprintf(text.data(), text.size(), format, args);
+    text.resize(static_cast<std::size_t>(std::max(n, 0)));
+    std::string out;
+    for (char c : text) {
+      if (g_at_line_start && c != '\n') out += g_prefix;
+      out += c;
+      g_at_line_start = c == '\n' || c == '\r';
+    }
+    std::fputs(out.c_str(), stdout);
+  }
   va_end(args);
   std::fflush(stdout);
 }

@@ -79,18 +79,19 @@ DistributedMesh load_body_mesh(MPI_Comm comm, const MeshSource &source,
       refusal = e.what();
       throw;
     }
-    std::printf("mesh: body %s: meshing %s with Gmsh on rank 0 (", source.body.c_str(),
-                source.geometry_key.c_str());
-    if (source.size > 0) std::printf("size %g m, ", source.size);
-    std::printf("order %d; estimated %s %s elements, %s nodes) ...\n", source.order,
-                count_text(est.elements).c_str(), est.element_name().c_str(),
-                count_text(est.nodes).c_str());
-    std::fflush(stdout);
+    // (on rank 0 of comm, which print0 prints on)
+    char size[48] = "";
+    if (source.size > 0) std::snprintf(size, sizeof size, "size %g m, ", source.size);
+    print0(comm,
+           "mesh: body %s: meshing %s with Gmsh on rank 0 (%sorder %d; estimated %s %s "
+           "elements, %s nodes) ...\n",
+           source.body.c_str(), source.geometry_key.c_str(), size, source.order,
+           count_text(est.elements).c_str(), est.element_name().c_str(),
+           count_text(est.nodes).c_str());
   };
   options.progress = [&](const char *stage, double seconds) {
-    std::printf("mesh: body %s: Gmsh still meshing the %s, %.0f s so far ...\n",
-                source.body.c_str(), stage, seconds);
-    std::fflush(stdout);
+    print0(comm, "mesh: body %s: Gmsh still meshing the %s, %.0f s so far ...\n",
+           source.body.c_str(), stage, seconds);
   };
   run_on_root(comm, 0, [&] {
     try {

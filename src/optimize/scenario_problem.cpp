@@ -153,6 +153,7 @@ std::unique_ptr<ScenarioProblem> ScenarioProblem::create(MPI_Comm comm,
     for (Condition &c : p->mine_) {
       if (c.responses.empty())
         throw Error("scenario '" + settings.names[c.index] + "': no response takes it", true);
+      const PrintPrefix prefix("[" + settings.names[c.index] + "] ");
       c.problem = condition(p->group_comm_, c.index, c.responses);
     }
   });
@@ -268,7 +269,10 @@ void ScenarioProblem::evaluate(Vec x, bool gradients, Evaluation &out) {
     xin = xg_;
   }
   agree(comm_, [&] {
-    for (Condition &c : mine_) c.problem->evaluate(xin, gradients, c.ev);
+    for (Condition &c : mine_) {
+      const PrintPrefix prefix("[" + settings_.names[c.index] + "] ");
+      c.problem->evaluate(xin, gradients, c.ev);
+    }
   });
   // Every condition's values on every rank: one reduction (each group's leader contributes).
   std::vector<double> buf(conditions * n, 0.0);

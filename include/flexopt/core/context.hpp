@@ -40,6 +40,16 @@ int comm_size(MPI_Comm comm);
 /// Prints on rank 0 only (printf-style), flushing stdout.
 void print0(MPI_Comm comm, const char *format, ...) __attribute__((format(printf, 2, 3)));
 
+/// While it lives, every line print0 writes on this process starts with `prefix` (a scenario's
+/// "[fast] " while its group builds and runs it: groups print side by side). Not nested.
+class PrintPrefix {
+public:
+  explicit PrintPrefix(const std::string &prefix);
+  ~PrintPrefix();
+  PrintPrefix(const PrintPrefix &) = delete;
+  PrintPrefix &operator=(const PrintPrefix &) = delete;
+};
+
 /// Wall-clock seconds since an arbitrary origin (MPI_Wtime).
 double wall_time();
 
