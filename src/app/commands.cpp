@@ -153,9 +153,8 @@ std::shared_ptr<optimize::Design> design_alone(MPI_Comm comm, const io::Case &c)
 }
 
 /// The design problem of one condition (or of a case without conditions).
-std::unique_ptr<optimize::DesignProblem> condition_problem(MPI_Comm comm, const io::Case &c,
-                                                           bool optimizing,
-                                                           const std::string &dir) {
+std::unique_ptr<optimize::DesignProblem>
+condition_problem(MPI_Comm comm, const io::Case &c, bool optimizing, const std::string &dir) {
   if (c.dynamic())
     return adjoint::DynamicProblem::create(comm, io::dynamic_settings(c), dir, optimizing);
   return optimize::TopologyProblem::create(comm, io::topology_settings(c));
@@ -568,8 +567,7 @@ int run_optimize(const Context &ctx, const Options &o, const io::Case &c, double
   const std::string dir = output_directory(ctx, o);
   io::Case run_case = c;
   if (o.max_iterations > 0) run_case.optimizer.max_iterations = o.max_iterations;
-  auto problem =
-      detail::create_design_problem(ctx.comm(), run_case, true, dir, o.scenario_groups);
+  auto problem = detail::create_design_problem(ctx.comm(), run_case, true, dir, o.scenario_groups);
   const auto r =
       optimize::run_optimization(ctx.comm(), *problem, run_case.optimizer, dir, o.restart);
   io::Json s = base_summary(ctx, o, c);

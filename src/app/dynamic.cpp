@@ -652,8 +652,7 @@ void write_scenario_motions(const Context &ctx, const io::Case &c, const std::st
     const std::string &name = c.scenarios[k].name;
     const io::Case one_case = io::condition_case(c, k, io::condition_responses(c, k));
     const PrintPrefix building("[" + name + "] ");
-    auto problem =
-        adjoint::DynamicProblem::create(ctx.comm(), io::dynamic_settings(one_case), dir);
+    auto problem = adjoint::DynamicProblem::create(ctx.comm(), io::dynamic_settings(one_case), dir);
     io::Json one = io::Json::object();
     write_design_motions(ctx, one_case, *problem, dir, one, "." + name);
     per[name] = one;

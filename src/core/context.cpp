@@ -58,12 +58,16 @@ void broadcast_text(MPI_Comm comm, std::string &s, int root) {
 }
 
 namespace {
-std::string g_prefix;         ///< PrintPrefix's
+std::string g_prefix;        ///< PrintPrefix's
 bool g_at_line_start = true; ///< the last character print0 wrote ended a line
 } // namespace
 
-PrintPrefix::PrintPrefix(const std::string &prefix) { g_prefix = prefix; }
-PrintPrefix::~PrintPrefix() { g_prefix.clear(); }
+PrintPrefix::PrintPrefix(const std::string &prefix) {
+  g_prefix = prefix;
+}
+PrintPrefix::~PrintPrefix() {
+  g_prefix.clear();
+}
 
 void print0(MPI_Comm comm, const char *format, ...) {
   if (comm_rank(comm) != 0) return;

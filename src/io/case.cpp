@@ -127,10 +127,10 @@ void read_top_level(const Reader &r, YAML::Node root, Case &c) {
                            "flexopt");
   }
   r.check_keys(root, "",
-               {"analysis", "materials", "bodies",      "ground",    "joints",  "drivers", "loads",
-                "supports", "tractions", "line_loads",  "time",      "sensors", "output",  "solver",
-                "design",   "objective", "constraints", "optimizer", "adjoint", "accuracy",
-                "scenarios", "load_cases"});
+               {"analysis", "materials", "bodies",    "ground",     "joints",      "drivers",
+                "loads",    "supports",  "tractions", "line_loads", "time",        "sensors",
+                "output",   "solver",    "design",    "objective",  "constraints", "optimizer",
+                "adjoint",  "accuracy",  "scenarios", "load_cases"});
 
   c.analysis =
       r.enumerated(r.require(root, "analysis", ""), "analysis",
@@ -236,8 +236,7 @@ void read_load_cases(const Reader &r, const YAML::Node &node, Case &c) {
     }
     if (v["line_loads"]) {
       one.loads.line_loads.clear();
-      read_tractions(r, v["line_loads"], one, path + ".line_loads", "curve",
-                     one.loads.line_loads);
+      read_tractions(r, v["line_loads"], one, path + ".line_loads", "curve", one.loads.line_loads);
     }
     if (v["gravity"]) one.loads.gravity = r.vector3(v["gravity"], path + ".gravity");
     lc.loads = one.loads;

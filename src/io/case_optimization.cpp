@@ -440,8 +440,7 @@ void read_optimization(const Reader &r, YAML::Node root, Case &c) {
         taken = taken || std::find(resp->scenarios.begin(), resp->scenarios.end(), k) !=
                              resp->scenarios.end();
       if (!taken) {
-        const io::Location &at =
-            c.dynamic() ? c.scenarios[k].where : c.load_cases[k].where;
+        const io::Location &at = c.dynamic() ? c.scenarios[k].where : c.load_cases[k].where;
         throw Error(at.str() + ": " + (c.dynamic() ? "scenario" : "load case") + " '" + names[k] +
                         "' is taken by no response (objective and constraints name the ones "
                         "they take): it would cost a run and change nothing",

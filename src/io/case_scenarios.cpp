@@ -29,8 +29,9 @@ void read_scenario_drivers(const Reader &r, const YAML::Node &v, const std::stri
   read_drivers(r, v, given, path);
   for (std::size_t j = 0; j < given.scene.drivers.size(); ++j) {
     const dynamics::DriverDescription &d = given.scene.drivers[j];
-    auto it = std::find_if(s.scene.drivers.begin(), s.scene.drivers.end(),
-                           [&](const dynamics::DriverDescription &e) { return e.joint == d.joint; });
+    auto it =
+        std::find_if(s.scene.drivers.begin(), s.scene.drivers.end(),
+                     [&](const dynamics::DriverDescription &e) { return e.joint == d.joint; });
     if (it == s.scene.drivers.end()) {
       std::vector<std::string> driven;
       for (const dynamics::DriverDescription &e : c.scene.drivers) driven.push_back(e.joint);
@@ -51,8 +52,7 @@ void read_scenario_bodies(const Reader &r, const YAML::Node &v, const std::strin
   for (const auto &kv : v) {
     const std::string name = kv.first.as<std::string>();
     const std::string bp = path + "." + name;
-    if (!has_body(c, name))
-      r.fail(kv.first, bp + ": no body named '" + name + "'");
+    if (!has_body(c, name)) r.fail(kv.first, bp + ": no body named '" + name + "'");
     const YAML::Node &b = kv.second;
     r.require_map(b, bp);
     r.check_keys(b, bp, {"density", "initial"});
@@ -136,9 +136,9 @@ void read_response_conditions(const Reader &r, const YAML::Node &v, const std::s
   const char *other_key = dynamic ? "load_cases" : "scenarios";
   const char *ks_key = ks_taken ? "combine_ks" : (v["combine_ks"] ? "combine_ks" : "ks");
   if (v[other_key])
-    r.fail(r.key_node(v, other_key),
-           path + "." + other_key + ": a " + (dynamic ? "dynamic" : "static") +
-               " case's conditions are " + list_key + ":");
+    r.fail(r.key_node(v, other_key), path + "." + other_key + ": a " +
+                                         (dynamic ? "dynamic" : "static") +
+                                         " case's conditions are " + list_key + ":");
   if (names.empty()) {
     for (const char *k : {"scenarios", "load_cases", "combine", "weights", "combine_ks"})
       if (v[k])
@@ -176,8 +176,8 @@ void read_response_conditions(const Reader &r, const YAML::Node &v, const std::s
       auto it = std::find(names.begin(), names.end(), given[j]);
       if (it == names.end())
         r.fail(list[j], path + "." + list_key + "[" + std::to_string(j) + "]: no " +
-                            (dynamic ? "scenario" : "load case") + " named '" + given[j] +
-                            "' (" + list_key + ": " + join(names) + ")");
+                            (dynamic ? "scenario" : "load case") + " named '" + given[j] + "' (" +
+                            list_key + ": " + join(names) + ")");
       const std::size_t k = static_cast<std::size_t>(it - names.begin());
       if (std::find(s.scenarios.begin(), s.scenarios.end(), k) != s.scenarios.end())
         r.fail(list[j], path + "." + list_key + ": '" + given[j] + "' is named twice");
@@ -188,10 +188,9 @@ void read_response_conditions(const Reader &r, const YAML::Node &v, const std::s
   // the objective sums them.
   s.combine = constraint ? Combine::Max : Combine::Sum;
   if (v["combine"])
-    s.combine = r.enumerated(v["combine"], path + ".combine",
-                             {std::pair{"sum", Combine::Sum},
-                              {"weighted", Combine::Weighted},
-                              {"max", Combine::Max}});
+    s.combine = r.enumerated(
+        v["combine"], path + ".combine",
+        {std::pair{"sum", Combine::Sum}, {"weighted", Combine::Weighted}, {"max", Combine::Max}});
   if (s.combine == Combine::Weighted) {
     const YAML::Node &w = v["weights"];
     if (!w)
@@ -256,8 +255,7 @@ std::vector<std::size_t> condition_responses(const Case &c, std::size_t k) {
   std::vector<const optimize::ResponseSettings *> all{&*c.objective};
   for (const optimize::ResponseSettings &r : c.constraints) all.push_back(&r);
   for (std::size_t i = 0; i < all.size(); ++i)
-    if (std::find(all[i]->scenarios.begin(), all[i]->scenarios.end(), k) !=
-        all[i]->scenarios.end())
+    if (std::find(all[i]->scenarios.begin(), all[i]->scenarios.end(), k) != all[i]->scenarios.end())
       out.push_back(i);
   return out;
 }
@@ -269,11 +267,11 @@ optimize::ScenarioSettings scenario_settings(const Case &c) {
   std::vector<const optimize::ResponseSettings *> all{&*c.objective};
   for (const optimize::ResponseSettings &r : c.constraints) all.push_back(&r);
   for (std::size_t i = 0; i < all.size(); ++i) {
-    s.response_names.push_back((i == 0 ? std::string("objective") :
-                                         "constraint" + std::to_string(i - 1)) +
-                               ":" + optimize::response_type_name(all[i]->type));
-    s.responses.push_back(optimize::ScenarioUse{all[i]->scenarios, all[i]->combine,
-                                                all[i]->weights, all[i]->combine_ks});
+    s.response_names.push_back(
+        (i == 0 ? std::string("objective") : "constraint" + std::to_string(i - 1)) + ":" +
+        optimize::response_type_name(all[i]->type));
+    s.responses.push_back(optimize::ScenarioUse{all[i]->scenarios, all[i]->combine, all[i]->weights,
+                                                all[i]->combine_ks});
   }
   return s;
 }

@@ -1,8 +1,8 @@
 // One design under several conditions, run on groups of ranks (docs/theory.md section 13).
 #include "flexopt/optimize/scenario_problem.hpp"
 
-#include "flexopt/core/error.hpp"
 #include "flexopt/core/context.hpp"
+#include "flexopt/core/error.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -17,18 +17,6 @@ namespace {
 double max_over(MPI_Comm comm, double v) {
   MPI_Allreduce(MPI_IN_PLACE, &v, 1, MPI_DOUBLE, MPI_MAX, comm);
   return v;
-}
-
-int rank_of(MPI_Comm comm) {
-  int r = 0;
-  MPI_Comm_rank(comm, &r);
-  return r;
-}
-
-int size_of(MPI_Comm comm) {
-  int n = 0;
-  MPI_Comm_size(comm, &n);
-  return n;
 }
 
 /// Copies a's local values into b (vectors of the same local size on different communicators).
@@ -58,7 +46,7 @@ void agree(MPI_Comm comm, const std::function<void()> &f) {
     message = e.what();
     failed = 1;
   }
-  const int ranks = size_of(comm), rank = rank_of(comm);
+  const int ranks = comm_size(comm), rank = comm_rank(comm);
   int first = failed ? rank : ranks;
   MPI_Allreduce(MPI_IN_PLACE, &first, 1, MPI_INT, MPI_MIN, comm);
   if (first == ranks) return;
@@ -112,14 +100,14 @@ std::unique_ptr<ScenarioProblem> ScenarioProblem::create(MPI_Comm comm,
   std::unique_ptr<ScenarioProblem> p(new ScenarioProblem());
   p->comm_ = comm;
   p->settings_ = settings;
-  const int ranks = size_of(comm), rank = rank_of(comm);
+  const int ranks = comm_size(comm), rank = comm_rank(comm);
   const int conditions = static_cast<int>(settings.names.size());
   int groups = std::min(ranks, conditions);
   if (settings.groups > 0) groups = std::min(groups, settings.groups);
   p->groups_ = std::max(1, groups);
   p->group_ = group_of_rank(rank, ranks, p->groups_);
   MPI_Comm_split(comm, p->group_, rank, &p->group_comm_);
-  p->leader_ = rank_of(p->group_comm_) == 0;
+  p->leader_ = comm_rank(p->group_comm_) == 0;
   // The split, a line per group: its ranks and its conditions.
   print0(comm, "scenarios: %d on %d rank(s) in %d group(s)%s\n", conditions, ranks, p->groups_,
          p->groups_ < conditions ? " (a group runs its scenarios one after another)" : "");
@@ -193,7 +181,7 @@ void ScenarioProblem::build_map() {
   // Every key of the design on comm_ with its global index (ranks own contiguous ranges in rank
   // order), sorted; each group variable's index found by its key.
   const std::vector<std::uint64_t> &keys = design_->design_keys();
-  const int ranks = size_of(comm_);
+  const int ranks = comm_size(comm_);
   int local = static_cast<int>(keys.size());
   std::vector<int> counts(static_cast<std::size_t>(ranks)), displs(static_cast<std::size_t>(ranks));
   MPI_Allgather(&local, 1, MPI_INT, counts.data(), 1, MPI_INT, comm_);
@@ -280,8 +268,7 @@ void ScenarioProblem::evaluate(Vec x, bool gradients, Evaluation &out) {
     for (const Condition &c : mine_)
       for (std::size_t j = 0; j < c.responses.size(); ++j)
         buf[c.index * n + c.responses[j]] = c.ev.value(j);
-  MPI_Allreduce(MPI_IN_PLACE, buf.data(), static_cast<int>(buf.size()), MPI_DOUBLE, MPI_SUM,
-                comm_);
+  MPI_Allreduce(MPI_IN_PLACE, buf.data(), static_cast<int>(buf.size()), MPI_DOUBLE, MPI_SUM, comm_);
   out.constraints.assign(n - 1, 0.0);
   std::vector<std::vector<double>> coef(n, std::vector<double>(conditions, 0.0));
   for (std::size_t i = 0; i < n; ++i) {
@@ -321,7 +308,8 @@ void ScenarioProblem::evaluate(Vec x, bool gradients, Evaluation &out) {
     FX_PETSC(VecSet(target, 0.0));
     for (const Condition &c : mine_) {
       const int j = local_response(c, i);
-      if (j >= 0) FX_PETSC(VecAXPY(target, coef[i][c.index], c.ev.gradient(static_cast<std::size_t>(j))));
+      if (j >= 0)
+        FX_PETSC(VecAXPY(target, coef[i][c.index], c.ev.gradient(static_cast<std::size_t>(j))));
     }
     if (groups_ > 1) {
       FX_PETSC(VecSet(out.gradient(i), 0.0));
@@ -335,15 +323,16 @@ io::GridLayout ScenarioProblem::design_layout() const {
   // Several design bodies sit where the first scenario's scene places them.
   const auto placed = share([](const Condition &c) {
     std::vector<double> flat;
-    for (const auto &pl : c.problem->design_placements()) flat.insert(flat.end(), pl.begin(), pl.end());
+    for (const auto &pl : c.problem->design_placements())
+      flat.insert(flat.end(), pl.begin(), pl.end());
     return flat;
   });
   const std::vector<double> &flat = placed.front();
   if (flat.empty()) return design_->grid_layout();
   std::vector<std::array<double, 12>> placements(flat.size() / 12);
   for (std::size_t k = 0; k < placements.size(); ++k)
-    std::copy(flat.begin() + static_cast<long>(12 * k), flat.begin() + static_cast<long>(12 * k + 12),
-              placements[k].begin());
+    std::copy(flat.begin() + static_cast<long>(12 * k),
+              flat.begin() + static_cast<long>(12 * k + 12), placements[k].begin());
   return design_->grid_layout(design_->placed_coordinates(placements));
 }
 
@@ -380,7 +369,7 @@ void ScenarioProblem::describe(io::Json &summary) const {
   // summary.json is written by rank 0 (in group 0, which has condition 0): condition 0's figures
   // at the top level as a single problem's, and every condition's under "scenarios", the other
   // groups' sent to rank 0 as text.
-  const int rank = rank_of(comm_);
+  const int rank = comm_rank(comm_);
   io::Json per = io::Json::object();
   for (std::size_t k = 0; k < settings_.names.size(); ++k) {
     const int g = group_of(k);
@@ -409,7 +398,7 @@ void ScenarioProblem::describe(io::Json &summary) const {
     }
   }
   io::Json split = io::Json::array();
-  const int ranks = size_of(comm_);
+  const int ranks = comm_size(comm_);
   for (std::size_t k = 0; k < settings_.names.size(); ++k) {
     io::Json s = io::Json::object();
     s["name"] = settings_.names[k];
@@ -434,7 +423,9 @@ void ScenarioProblem::describe(io::Json &summary) const {
   summary["scenario_responses"] = values;
 }
 
-std::vector<Timing> ScenarioProblem::timings() const { return timings_; }
+std::vector<Timing> ScenarioProblem::timings() const {
+  return timings_;
+}
 
 long long ScenarioProblem::dofs() const {
   long long d = 0;
@@ -449,13 +440,17 @@ double ScenarioProblem::noise_floor() const {
   return max_over(comm_, v);
 }
 
-double ScenarioProblem::noise_floor(std::size_t i) const {
+double ScenarioProblem::largest(std::size_t i, PerResponse of) const {
   double v = 0;
   for (const Condition &c : mine_) {
     const int j = local_response(c, i);
-    if (j >= 0) v = std::max(v, c.problem->noise_floor(static_cast<std::size_t>(j)));
+    if (j >= 0) v = std::max(v, ((*c.problem).*of)(static_cast<std::size_t>(j)));
   }
   return max_over(comm_, v);
+}
+
+double ScenarioProblem::noise_floor(std::size_t i) const {
+  return largest(i, static_cast<PerResponse>(&DesignProblem::noise_floor));
 }
 
 double ScenarioProblem::fd_step() const {
@@ -471,12 +466,7 @@ int ScenarioProblem::fd_levels() const {
 }
 
 double ScenarioProblem::round_off_level(std::size_t i) const {
-  double v = 0;
-  for (const Condition &c : mine_) {
-    const int j = local_response(c, i);
-    if (j >= 0) v = std::max(v, c.problem->round_off_level(static_cast<std::size_t>(j)));
-  }
-  return max_over(comm_, v);
+  return largest(i, &DesignProblem::round_off_level);
 }
 
 std::vector<std::string> ScenarioProblem::solve_to_round_off() {

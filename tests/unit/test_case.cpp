@@ -1033,14 +1033,13 @@ TEST_F(CaseFiles, ScenarioResponsesAreChecked) {
   EXPECT_CASE_ERROR(scenario_case("objective: {type: strain_energy_integral, body: rod, combine: "
                                   "weighted, weights: [1]}\n"),
                     "objective.weights: 1 weights for 2 scenarios");
-  EXPECT_CASE_ERROR(
-      scenario_case("objective: {type: strain_energy_integral, body: rod, ks: 20}\n"),
-      "objective.ks: only combine: max takes it");
+  EXPECT_CASE_ERROR(scenario_case("objective: {type: strain_energy_integral, body: rod, ks: 20}\n"),
+                    "objective.ks: only combine: max takes it");
   EXPECT_CASE_ERROR(scenario_case("objective: {type: strain_energy_integral, body: rod, "
                                   "scenarios: [slow]}\n"),
                     "scenario 'fast' is taken by no response");
   EXPECT_CASE_ERROR(dynamic_with("output: {every: 10}", "output: {every: 10}\nscenarios:\n  - "
-                                                         "{name: a, time: {step: 5}}"),
+                                                        "{name: a, time: {step: 5}}"),
                     "scenarios[0].time.step: must not exceed the scenario's end time");
   EXPECT_CASE_ERROR(dynamic_with("output: {every: 10}",
                                  "output: {every: 10}\nscenarios:\n  - {name: a, bodies: {rdo: "

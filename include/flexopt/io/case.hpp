@@ -115,7 +115,8 @@ fem::StaticSettings static_settings(const Case &c);
 std::vector<std::string> condition_names(const Case &c);
 /// The case as its condition k (a scenario's scene and time, or a load case's loads) whose
 /// objective and constraints are the responses `responses` of the case (indices: 0 the objective,
-/// i >= 1 constraint i - 1; the first becomes the objective). Without conditions, k = 0 is the case.
+/// i >= 1 constraint i - 1; the first becomes the objective). Without conditions, k = 0 is the
+/// case.
 Case condition_case(const Case &c, std::size_t k, const std::vector<std::size_t> &responses);
 /// The responses (0 the objective, i >= 1 constraint i - 1) that take condition k (empty: the
 /// case has no objective).

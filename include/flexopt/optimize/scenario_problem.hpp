@@ -88,7 +88,9 @@ public:
 
   /// The groups (ranks per group, in rank order) and the group of condition k.
   int groups() const { return groups_; }
-  int group_of(std::size_t k) const { return static_cast<int>(k % static_cast<std::size_t>(groups_)); }
+  int group_of(std::size_t k) const {
+    return static_cast<int>(k % static_cast<std::size_t>(groups_));
+  }
   /// The conditions' last values per response (rows: conditions, columns: responses; NaN where
   /// a response does not take the condition), the same on every rank.
   const std::vector<std::vector<double>> &condition_values() const { return values_; }
@@ -102,6 +104,9 @@ private:
     std::vector<std::size_t> responses; ///< the whole problem's responses it evaluates
     Evaluation ev;
   };
+  /// The largest over the conditions that take response i of a per-response figure of theirs.
+  using PerResponse = double (DesignProblem::*)(std::size_t) const;
+  double largest(std::size_t i, PerResponse of) const;
   /// The local position of response i among condition c's (-1: not taken).
   int local_response(const Condition &c, std::size_t i) const;
   /// A vector of doubles per condition, made by its group, on every rank of comm_.
@@ -117,7 +122,7 @@ private:
   int groups_ = 1, group_ = 0;
   bool leader_ = false; ///< rank 0 of its group
   ScenarioSettings settings_;
-  std::list<Condition> mine_; ///< this group's conditions (Evaluation does not move)
+  std::list<Condition> mine_;   ///< this group's conditions (Evaluation does not move)
   std::shared_ptr<Design> own_; ///< the design on comm_ when there are several groups
   Design *design_ = nullptr;    ///< own_, or the one group's first condition's
   /// Several groups: the design vector of this group's layout, its image on comm_ and the
