@@ -691,6 +691,8 @@ int run(const Context &ctx, const Options &given) {
     plan::print_plan(ctx.comm(), p);
     o.plan = plan::plan_json(p);
     plan::apply_plan(c.scene, p);
+    // Every scenario takes the models planned for the case's own scene.
+    for (io::Scenario &sc : c.scenarios) plan::apply_plan(sc.scene, p);
   }
   const bool dynamic_simulate = o.command == "simulate" && c.dynamic() && !c.design.empty();
   if (!o.design.empty() &&
