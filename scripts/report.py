@@ -337,6 +337,11 @@ def main():
         pictures.append(("history.png", "Optimization history"))
     work = tempfile.mkdtemp(prefix="flexopt_report_")
     design = os.path.join(out, "design.xdmf")
+    scenario = None
+    if "scenario_motions" in s and s["scenario_motions"]:
+        # Scenarios: the first scenario's motions stand for the run's (each has its own files).
+        scenario = next(iter(s["scenario_motions"]))
+        s = dict(s, motion_final=s["scenario_motions"][scenario]["motion_final"])
     dynamic = s.get("analysis") == "dynamic" or "motion_final" in s
     if os.path.isfile(design):
         for which in (["first", "last"] if dynamic else ["last"]):
@@ -344,7 +349,8 @@ def main():
                          "threshold": "physical_density", "size": SIZE,
                          "png": os.path.join(work, f"design_{which}_{{k}}.png")})
     motion_key = "motion_final" if "motion_final" in s else None
-    motion = os.path.join(out, "motion_final.xdmf" if motion_key else "motion.xdmf")
+    motion = os.path.join(out, ("motion_final" + (f".{scenario}" if scenario else "") + ".xdmf")
+                          if motion_key else "motion.xdmf")
     times = motion_times(s, motion_key) if os.path.isfile(motion) else []
     if times:
         jobs.append({"xdmf": motion, "times": times, "view": "top", "threshold": "physical_density",
@@ -365,7 +371,8 @@ def main():
         pngs = [os.path.join(work, f"motion_{k}.png") for k in range(len(times))] if rendered else []
         draw, nsensors = sensor_plot(s, times, motion_key)
         compose(pngs, [f"t = {t:.4g} s" for t in times[:len(pngs)]], os.path.join(rep, "motion.png"),
-                rows=2, below=draw, title="the final design moving" if motion_key else "the motion",
+                rows=2, below=draw, title=("the final design moving" + (f" (scenario {scenario})" if scenario else ""))
+                if motion_key else "the motion",
                 panel=(4.6, 2.8), below_rows=nsensors)
         pictures.append(("motion.png", "Motion" + (" (colour: elastic displacement)" if rendered else "")))
     note = "; ".join(notes)
