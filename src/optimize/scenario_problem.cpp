@@ -142,7 +142,11 @@ std::unique_ptr<ScenarioProblem> ScenarioProblem::create(MPI_Comm comm,
       if (c.responses.empty())
         throw Error("scenario '" + settings.names[c.index] + "': no response takes it", true);
       const PrintPrefix prefix("[" + settings.names[c.index] + "] ");
-      c.problem = condition(p->group_comm_, c.index, c.responses);
+      try {
+        c.problem = condition(p->group_comm_, c.index, c.responses);
+      } catch (const Error &e) {
+        throw Error("scenario '" + settings.names[c.index] + "': " + e.what(), true);
+      }
     }
   });
   if (p->groups_ == 1) {
@@ -259,7 +263,11 @@ void ScenarioProblem::evaluate(Vec x, bool gradients, Evaluation &out) {
   agree(comm_, [&] {
     for (Condition &c : mine_) {
       const PrintPrefix prefix("[" + settings_.names[c.index] + "] ");
-      c.problem->evaluate(xin, gradients, c.ev);
+      try {
+        c.problem->evaluate(xin, gradients, c.ev);
+      } catch (const Error &e) {
+        throw Error("scenario '" + settings_.names[c.index] + "': " + e.what(), true);
+      }
     }
   });
   // Every condition's values on every rank: one reduction (each group's leader contributes).
