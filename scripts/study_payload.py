@@ -52,15 +52,7 @@ def main():
                     os.path.join(out, name, "out", "restart.h5")], os.path.join(out, name, "eval.log"))
         s = json.load(open(os.path.join(d, "summary.json")))
         rows[name]["energy"] = {k: s["scenarios"][k]["responses"]["objective"] for k in names}
-    best = {k: rows[k]["energy"][k] for k in names}
-    print("| design for | strain energy, light slider [J] | vs light's | heavy slider [J] | vs heavy's |")
-    print("|---|---|---|---|---|")
-    print(f"| initial | {initial['light']:.5g} | {initial['light'] / best['light'] - 1:+.1%} "
-          f"| {initial['heavy']:.5g} | {initial['heavy'] / best['heavy'] - 1:+.1%} |")
-    for name, r in rows.items():
-        e = r["energy"]
-        print(f"| {name} | {e['light']:.5g} | {e['light'] / best['light'] - 1:+.1%} | {e['heavy']:.5g} "
-              f"| {e['heavy'] / best['heavy'] - 1:+.1%} |")
+    st.print_table(names, ("light slider", "heavy slider"), initial, rows)
     json.dump({"initial": initial, "designs": rows}, open(os.path.join(out, "payload.json"), "w"),
               indent=2)
 

@@ -432,20 +432,13 @@ void read_optimization(const Reader &r, YAML::Node root, Case &c) {
   // Every condition is taken by some response (else it adds nothing but cost).
   if (c.objective) {
     const std::vector<std::string> names = condition_names(c);
-    std::vector<const optimize::ResponseSettings *> all{&*c.objective};
-    for (const optimize::ResponseSettings &con : c.constraints) all.push_back(&con);
     for (std::size_t k = 0; k < names.size(); ++k) {
-      bool taken = false;
-      for (const optimize::ResponseSettings *resp : all)
-        taken = taken || std::find(resp->scenarios.begin(), resp->scenarios.end(), k) !=
-                             resp->scenarios.end();
-      if (!taken) {
-        const io::Location &at = c.dynamic() ? c.scenarios[k].where : c.load_cases[k].where;
-        throw Error(at.str() + ": " + (c.dynamic() ? "scenario" : "load case") + " '" + names[k] +
-                        "' is taken by no response (objective and constraints name the ones "
-                        "they take): it would cost a run and change nothing",
-                    true);
-      }
+      if (!condition_responses(c, k).empty()) continue;
+      const io::Location &at = c.dynamic() ? c.scenarios[k].where : c.load_cases[k].where;
+      throw Error(at.str() + ": " + (c.dynamic() ? "scenario" : "load case") + " '" + names[k] +
+                      "' is taken by no response (objective and constraints name the ones "
+                      "they take): it would cost a run and change nothing",
+                  true);
     }
   }
 

@@ -226,6 +226,17 @@ std::vector<std::string> condition_names(const Case &c) {
   return out;
 }
 
+namespace {
+/// The objective, then the constraints (empty without an objective).
+std::vector<const optimize::ResponseSettings *> all_responses(const Case &c) {
+  std::vector<const optimize::ResponseSettings *> all;
+  if (!c.objective) return all;
+  all.push_back(&*c.objective);
+  for (const optimize::ResponseSettings &r : c.constraints) all.push_back(&r);
+  return all;
+}
+} // namespace
+
 Case condition_case(const Case &c, std::size_t k, const std::vector<std::size_t> &responses) {
   Case out = c;
   if (!c.scenarios.empty()) {
@@ -236,24 +247,21 @@ Case condition_case(const Case &c, std::size_t k, const std::vector<std::size_t>
   if (!c.load_cases.empty()) out.loads = c.load_cases.at(k).loads;
   out.scenarios.clear();
   out.load_cases.clear();
-  if (!c.objective) return out;
-  std::vector<optimize::ResponseSettings> all{*c.objective};
-  all.insert(all.end(), c.constraints.begin(), c.constraints.end());
-  out.objective = all.at(responses.at(0));
+  const auto all = all_responses(c);
+  if (all.empty()) return out;
+  out.objective = *all.at(responses.at(0));
   out.constraints.clear();
   out.optimizer.bounds.clear();
   for (std::size_t j = 1; j < responses.size(); ++j) {
-    out.constraints.push_back(all.at(responses[j]));
-    out.optimizer.bounds.push_back(all.at(responses[j]).max);
+    out.constraints.push_back(*all.at(responses[j]));
+    out.optimizer.bounds.push_back(all.at(responses[j])->max);
   }
   return out;
 }
 
 std::vector<std::size_t> condition_responses(const Case &c, std::size_t k) {
   std::vector<std::size_t> out;
-  if (!c.objective) return out;
-  std::vector<const optimize::ResponseSettings *> all{&*c.objective};
-  for (const optimize::ResponseSettings &r : c.constraints) all.push_back(&r);
+  const auto all = all_responses(c);
   for (std::size_t i = 0; i < all.size(); ++i)
     if (std::find(all[i]->scenarios.begin(), all[i]->scenarios.end(), k) != all[i]->scenarios.end())
       out.push_back(i);
@@ -263,9 +271,7 @@ std::vector<std::size_t> condition_responses(const Case &c, std::size_t k) {
 optimize::ScenarioSettings scenario_settings(const Case &c) {
   optimize::ScenarioSettings s;
   s.names = condition_names(c);
-  if (!c.objective) return s;
-  std::vector<const optimize::ResponseSettings *> all{&*c.objective};
-  for (const optimize::ResponseSettings &r : c.constraints) all.push_back(&r);
+  const auto all = all_responses(c);
   for (std::size_t i = 0; i < all.size(); ++i) {
     s.response_names.push_back(
         (i == 0 ? std::string("objective") : "constraint" + std::to_string(i - 1)) + ":" +

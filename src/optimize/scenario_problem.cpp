@@ -297,15 +297,14 @@ void ScenarioProblem::evaluate(Vec x, bool gradients, Evaluation &out) {
     for (std::size_t m = 0; m < use.scenarios.size(); ++m) coef[i][use.scenarios[m]] = cb.df[m];
   }
   // Timings: per part, each group's sum over its conditions, the largest over the groups.
-  timings_ = mine_.front().problem->timings();
-  for (std::size_t t = 0; t < timings_.size(); ++t) {
-    double sum = 0;
-    for (const Condition &c : mine_) {
-      const auto tc = c.problem->timings();
-      if (t < tc.size()) sum += tc[t].seconds;
-    }
-    timings_[t].seconds = max_over(comm_, sum);
+  // (the names are the same in every condition: the same bodies' models)
+  for (Timing &t : timings_) t.seconds = 0;
+  for (const Condition &c : mine_) {
+    const std::vector<Timing> tc = c.problem->timings();
+    for (std::size_t t = 0; t < timings_.size() && t < tc.size(); ++t)
+      timings_[t].seconds += tc[t].seconds;
   }
+  for (Timing &t : timings_) t.seconds = max_over(comm_, t.seconds);
   if (!gradients) return;
   if (!out.d_objective) {
     out.d_objective = create_design_vector();

@@ -21,10 +21,10 @@ struct Options {
   /// optimize, check-gradient: groups of ranks the scenarios (or load cases) run on (0: as many
   /// as ranks and conditions allow; 1: one after another on all ranks)
   int scenario_groups = 0;
-  std::string design;     ///< simulate (dynamic): the design of this restart.h5
-  bool gradient = false;  ///< simulate (dynamic): also the adjoint gradients
-  bool all_auto = false;  ///< plan: estimate every body as if its model were auto (--auto)
-  bool report = true;     ///< optimize, dynamic simulate: write OUT/report/ (--no-report: no)
+  std::string design;    ///< simulate (dynamic): the design of this restart.h5
+  bool gradient = false; ///< simulate (dynamic): also the adjoint gradients
+  bool all_auto = false; ///< plan: estimate every body as if its model were auto (--auto)
+  bool report = true;    ///< optimize, dynamic simulate: write OUT/report/ (--no-report: no)
   /// The plan that resolved the case's `model: auto` bodies (set by run(); null: none), for
   /// summary.json.
   io::Json plan;
