@@ -42,7 +42,7 @@ def select(summary, path):
     """Returns the value at a dotted path with [i] (negative: from the end) or [a:b] indices."""
     value = summary
     for part in path.split("."):
-        m = re.fullmatch(r"([A-Za-z_][A-Za-z0-9_]*)((?:\[-?[0-9:]+\])*)", part)
+        m = re.fullmatch(r"([A-Za-z_][A-Za-z0-9_:]*)((?:\[-?[0-9:]+\])*)", part)
         if not m:
             raise KeyError(f"bad path component '{part}'")
         value = value[m.group(1)]

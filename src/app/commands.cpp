@@ -320,23 +320,49 @@ int run_info(const Context &ctx, const Options &o, const io::Case &c, double t0)
   return 0;
 }
 
-int run_static(const Context &ctx, const Options &o, const io::Case &c, double t0) {
-  if (c.dynamic())
-    throw Error(
-        c.file + ": analysis '" + c.analysis_name() +
-            "' is not available yet in this version of flexopt (static only; `flexopt modes` "
-            "works on any single body)",
-        true);
-  const std::string dir = output_directory(ctx, o);
+namespace {
+
+/// One static solve of `c` (a case, or one load case's case): prints the solve, writes
+/// dir/NAME.xdmf (displacement, von Mises, owner rank) and the solve's figures into s; returns
+/// the .xdmf path. Collective.
+std::string solve_static(const Context &ctx, const io::Case &c, const std::string &design_file,
+                         const std::string &dir, const std::string &name, io::Json &s) {
   const double t_setup = wall_time();
-  auto problem = fem::StaticProblem::create(ctx.comm(), io::static_settings(c));
+  // With --design FILE: the responses of the case's topology problem at that design; the solve
+  // and the output below are of its last state solve (the stiffness of that design).
+  std::unique_ptr<optimize::TopologyProblem> topology;
+  std::unique_ptr<fem::StaticProblem> plain;
+  if (design_file.empty())
+    plain = fem::StaticProblem::create(ctx.comm(), io::static_settings(c));
+  else
+    topology = optimize::TopologyProblem::create(ctx.comm(), io::topology_settings(c));
+  fem::StaticProblem *problem = plain ? plain.get() : &topology->static_problem();
   const auto &m = problem->mesh();
   print0(ctx.comm(),
          "static: %lld DOFs on %d rank(s), K and f assembled in %.2f s (set-up %.2f s)\n",
          static_cast<long long>(problem->global_dofs()), ctx.size(), problem->timings().assemble,
          wall_time() - t_setup);
   const double t_solve = wall_time();
-  problem->solve();
+  std::vector<double> density;
+  if (plain) {
+    problem->solve();
+  } else {
+    Vec x = topology->create_design_vector();
+    detail::load_design(ctx.comm(), c, *topology, design_file, x);
+    print0(ctx.comm(), "design: the densities of %s\n", design_file.c_str());
+    optimize::Evaluation ev;
+    topology->evaluate(x, false, ev);
+    io::Json responses = io::Json::object();
+    const auto &names = topology->response_names();
+    for (std::size_t i = 0; i < names.size(); ++i) {
+      const std::string key = i == 0 ? "objective" : "constraint" + std::to_string(i - 1);
+      responses[key] = ev.value(i);
+      print0(ctx.comm(), "response %-12s %-28s %.10g\n", key.c_str(), names[i].c_str(),
+             ev.value(i));
+    }
+    s["responses"] = responses;
+    FX_PETSC(VecDestroy(&x));
+  }
   const double solve_s = wall_time() - t_solve;
   const double compliance = problem->compliance(), umax = problem->max_displacement();
   print0(ctx.comm(),
@@ -345,8 +371,6 @@ int run_static(const Context &ctx, const Options &o, const io::Case &c, double t
          solve_s, problem->timings().setup, problem->iterations(), problem->timings().solve,
          compliance, umax);
 
-  io::Json s = base_summary(ctx, o, c);
-  s["analysis"] = "static";
   s["element_type"] = fem::element_name(m.type);
   s["dofs"] = static_cast<long long>(problem->global_dofs());
   s["elements"] = static_cast<long long>(m.global_elements);
@@ -377,7 +401,7 @@ int run_static(const Context &ctx, const Options &o, const io::Case &c, double t
   }
   s["sensors"] = sensors;
 
-  io::XdmfWriter writer(mesh::grid_layout(m), dir, "static");
+  io::XdmfWriter writer(mesh::grid_layout(m), dir, name);
   writer.begin_step(0.0);
   const PetscScalar *u;
   FX_PETSC(VecGetArrayRead(problem->displacement(), &u));
@@ -390,8 +414,42 @@ int run_static(const Context &ctx, const Options &o, const io::Case &c, double t
   writer.cell_scalar("rank", owner.data());
   const std::string xdmf = writer.close();
   s["output"] = xdmf;
+  return xdmf;
+}
+
+} // namespace
+
+int run_static(const Context &ctx, const Options &o, const io::Case &c, double t0) {
+  if (c.dynamic())
+    throw Error(
+        c.file + ": analysis '" + c.analysis_name() +
+            "' is not available yet in this version of flexopt (static only; `flexopt modes` "
+            "works on any single body)",
+        true);
+  const std::string dir = output_directory(ctx, o);
+  io::Json s = base_summary(ctx, o, c);
+  s["analysis"] = "static";
+  std::string outputs;
+  if (c.load_cases.empty()) {
+    outputs = solve_static(ctx, c, o.design, dir, "static", s);
+  } else {
+    // Every load case, one after another on all ranks: static.NAME.xdmf, its figures under
+    // summary.json's load_cases.NAME.
+    io::Json per = io::Json::object();
+    for (std::size_t k = 0; k < c.load_cases.size(); ++k) {
+      const std::string &name = c.load_cases[k].name;
+      print0(ctx.comm(), "load case %s (%zu of %zu)\n", name.c_str(), k + 1, c.load_cases.size());
+      io::Json one = io::Json::object();
+      const PrintPrefix prefix("[" + name + "] ");
+      outputs += (outputs.empty() ? "" : ", ") +
+                 solve_static(ctx, io::condition_case(c, k, io::condition_responses(c, k)),
+                              o.design, dir, "static." + name, one);
+      per[name] = one;
+    }
+    s["load_cases"] = per;
+  }
   write_summary(ctx, dir, s, t0);
-  print0(ctx.comm(), "wrote %s (open it in ParaView) and %s\n", xdmf.c_str(),
+  print0(ctx.comm(), "wrote %s (open in ParaView) and %s\n", outputs.c_str(),
          (fs::path(dir) / "summary.json").c_str());
   return 0;
 }
@@ -696,9 +754,9 @@ int run(const Context &ctx, const Options &given) {
   }
   const bool dynamic_simulate = o.command == "simulate" && c.dynamic() && !c.design.empty();
   if (!o.design.empty() &&
-      !(dynamic_simulate || (o.command == "check-gradient" && !c.design.empty())))
-    throw Error("--design applies to `flexopt simulate` of a dynamic case with a design: section "
-                "and to `flexopt check-gradient` of a case with one; " +
+      !((o.command == "simulate" || o.command == "check-gradient") && !c.design.empty()))
+    throw Error("--design applies to `flexopt simulate` and `flexopt check-gradient` of a case "
+                "with a design: section; " +
                     c.file + " is " + c.analysis_name() +
                     (!c.design.empty() ? "" : " without design:"),
                 true);

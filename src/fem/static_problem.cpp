@@ -85,6 +85,22 @@ std::string configure_elasticity_solver(KSP ksp, Mat A, const mesh::DistributedM
   if (lattice_multigrid) *lattice_multigrid = geometric;
   FX_PETSC(KSPSetTolerances(ksp, 1e-8, 1e-50, PETSC_DEFAULT, 1000));
   FX_PETSC(KSPSetFromOptions(ksp));
+  if (pc_given) {
+    // The options chose the solver: name what runs (KSP, PC and a factorization's package).
+    KSPType ktype;
+    PCType ptype;
+    FX_PETSC(KSPGetType(ksp, &ktype));
+    FX_PETSC(PCGetType(pc, &ptype));
+    how = std::string(ktype) + " + " + ptype;
+    MatSolverType package = nullptr;
+    PetscBool factor = PETSC_FALSE;
+    FX_PETSC(PetscObjectTypeCompareAny(reinterpret_cast<PetscObject>(pc), &factor, PCLU, PCCHOLESKY,
+                                       ""));
+    if (factor) FX_PETSC(PCFactorGetMatSolverType(pc, &package));
+    if (package) how += " (" + std::string(package) + ")";
+    if (std::string(ptype) == PCGAMG) how += " (rigid-body near-null space)";
+    how += ", from the solver options";
+  }
   return how;
 }
 

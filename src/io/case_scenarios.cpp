@@ -271,6 +271,7 @@ std::vector<std::size_t> condition_responses(const Case &c, std::size_t k) {
 optimize::ScenarioSettings scenario_settings(const Case &c) {
   optimize::ScenarioSettings s;
   s.names = condition_names(c);
+  s.noun = c.dynamic() ? "scenario" : "load case";
   const auto all = all_responses(c);
   for (std::size_t i = 0; i < all.size(); ++i) {
     s.response_names.push_back(

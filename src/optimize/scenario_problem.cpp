@@ -109,8 +109,11 @@ std::unique_ptr<ScenarioProblem> ScenarioProblem::create(MPI_Comm comm,
   MPI_Comm_split(comm, p->group_, rank, &p->group_comm_);
   p->leader_ = comm_rank(p->group_comm_) == 0;
   // The split, a line per group: its ranks and its conditions.
-  print0(comm, "scenarios: %d on %d rank(s) in %d group(s)%s\n", conditions, ranks, p->groups_,
-         p->groups_ < conditions ? " (a group runs its scenarios one after another)" : "");
+  const std::string plural = settings.noun + "s";
+  print0(comm, "%s: %d on %d rank(s) in %d group(s)%s\n", plural.c_str(), conditions, ranks,
+         p->groups_,
+         p->groups_ < conditions ? (" (a group runs its " + plural + " one after another)").c_str()
+                                 : "");
   for (int g = 0; g < p->groups_; ++g) {
     int first = ranks, last = -1;
     for (int r = 0; r < ranks; ++r)
@@ -140,12 +143,13 @@ std::unique_ptr<ScenarioProblem> ScenarioProblem::create(MPI_Comm comm,
   agree(comm, [&] {
     for (Condition &c : p->mine_) {
       if (c.responses.empty())
-        throw Error("scenario '" + settings.names[c.index] + "': no response takes it", true);
+        throw Error(settings.noun + " '" + settings.names[c.index] + "': no response takes it",
+                    true);
       const PrintPrefix prefix("[" + settings.names[c.index] + "] ");
       try {
         c.problem = condition(p->group_comm_, c.index, c.responses);
       } catch (const Error &e) {
-        throw Error("scenario '" + settings.names[c.index] + "': " + e.what(), true);
+        throw Error(settings.noun + " '" + settings.names[c.index] + "': " + e.what(), true);
       }
     }
   });
@@ -266,7 +270,7 @@ void ScenarioProblem::evaluate(Vec x, bool gradients, Evaluation &out) {
       try {
         c.problem->evaluate(xin, gradients, c.ev);
       } catch (const Error &e) {
-        throw Error("scenario '" + settings_.names[c.index] + "': " + e.what(), true);
+        throw Error(settings_.noun + " '" + settings_.names[c.index] + "': " + e.what(), true);
       }
     }
   });

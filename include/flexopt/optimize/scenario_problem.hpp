@@ -32,6 +32,8 @@ struct ScenarioSettings {
   std::vector<ScenarioUse> responses;      ///< 0 the objective, i >= 1 constraint i - 1
   /// Groups of ranks; 0: min(ranks, conditions). Condition k runs on group k mod groups.
   int groups = 0;
+  /// What a condition is called in messages: "scenario" (dynamic) or "load case" (static).
+  std::string noun = "scenario";
 };
 
 /// The combination of response values f (one per taken condition) by `use`: the value, and its
