@@ -9,6 +9,7 @@ namespace flexopt::adjoint {
 class DynamicProblem;
 }
 
+#include <functional>
 #include <memory>
 #include <string>
 
@@ -39,6 +40,13 @@ std::unique_ptr<optimize::DesignProblem> create_design_problem(MPI_Comm comm, co
                                                                bool optimizing,
                                                                const std::string &dir,
                                                                int scenario_groups = 0);
+/// Every condition of c (its scenarios or load cases), one after another on all ranks: prints
+/// "scenario NAME (k of n)" (or "load case ..."), runs one(the condition's case, NAME, figures)
+/// with the lines it prints prefixed "[NAME] ", and returns the figures keyed by NAME.
+/// Collective.
+io::Json
+each_condition(const Context &ctx, const io::Case &c,
+               const std::function<void(const io::Case &, const std::string &, io::Json &)> &one);
 } // namespace detail
 
 /// `check-gradient`: the Taylor test and central differences of a design problem's adjoint

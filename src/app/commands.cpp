@@ -177,9 +177,26 @@ std::unique_ptr<optimize::DesignProblem> create_design_problem(MPI_Comm comm, co
       [&](MPI_Comm world) { return design_alone(world, c); });
 }
 
+io::Json
+each_condition(const Context &ctx, const io::Case &c,
+               const std::function<void(const io::Case &, const std::string &, io::Json &)> &one) {
+  const std::vector<std::string> names = io::condition_names(c);
+  io::Json per = io::Json::object();
+  for (std::size_t k = 0; k < names.size(); ++k) {
+    print0(ctx.comm(), "%s %s (%zu of %zu)\n", c.dynamic() ? "scenario" : "load case",
+           names[k].c_str(), k + 1, names.size());
+    io::Json figures = io::Json::object();
+    const PrintPrefix prefix("[" + names[k] + "] ");
+    one(io::condition_case(c, k, io::condition_responses(c, k)), names[k], figures);
+    per[names[k]] = figures;
+  }
+  return per;
+}
+
 } // namespace detail
 
 using detail::base_summary;
+using detail::each_condition;
 using detail::output_directory;
 using detail::write_summary;
 
@@ -435,18 +452,11 @@ int run_static(const Context &ctx, const Options &o, const io::Case &c, double t
   } else {
     // Every load case, one after another on all ranks: static.NAME.xdmf, its figures under
     // summary.json's load_cases.NAME.
-    io::Json per = io::Json::object();
-    for (std::size_t k = 0; k < c.load_cases.size(); ++k) {
-      const std::string &name = c.load_cases[k].name;
-      print0(ctx.comm(), "load case %s (%zu of %zu)\n", name.c_str(), k + 1, c.load_cases.size());
-      io::Json one = io::Json::object();
-      const PrintPrefix prefix("[" + name + "] ");
-      outputs += (outputs.empty() ? "" : ", ") +
-                 solve_static(ctx, io::condition_case(c, k, io::condition_responses(c, k)),
-                              o.design, dir, "static." + name, one);
-      per[name] = one;
-    }
-    s["load_cases"] = per;
+    s["load_cases"] = each_condition(
+        ctx, c, [&](const io::Case &one, const std::string &name, io::Json &figures) {
+          outputs += (outputs.empty() ? "" : ", ") +
+                     solve_static(ctx, one, o.design, dir, "static." + name, figures);
+        });
   }
   write_summary(ctx, dir, s, t0);
   print0(ctx.comm(), "wrote %s (open in ParaView) and %s\n", outputs.c_str(),

@@ -627,17 +627,10 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
   } else {
     // Every scenario, one after another on all ranks: motion.NAME.xdmf, its figures under
     // summary.json's scenarios.NAME.
-    io::Json per = io::Json::object();
-    for (std::size_t k = 0; k < c.scenarios.size(); ++k) {
-      const std::string &name = c.scenarios[k].name;
-      print0(ctx.comm(), "scenario %s (%zu of %zu)\n", name.c_str(), k + 1, c.scenarios.size());
-      io::Json one = io::Json::object();
-      const PrintPrefix prefix("[" + name + "] ");
-      simulate_case(ctx, o, io::condition_case(c, k, io::condition_responses(c, k)), dir,
-                    "motion." + name, one);
-      per[name] = one;
-    }
-    s["scenarios"] = per;
+    s["scenarios"] = detail::each_condition(
+        ctx, c, [&](const io::Case &one, const std::string &name, io::Json &figures) {
+          simulate_case(ctx, o, one, dir, "motion." + name, figures);
+        });
   }
   detail::write_summary(ctx, dir, s, t0);
   print0(ctx.comm(), "wrote %s/summary.json\n", dir.c_str());
@@ -647,17 +640,11 @@ int run_dynamic(const Context &ctx, const Options &o, const io::Case &c, double 
 
 void write_scenario_motions(const Context &ctx, const io::Case &c, const std::string &dir,
                             io::Json &s) {
-  io::Json per = io::Json::object();
-  for (std::size_t k = 0; k < c.scenarios.size(); ++k) {
-    const std::string &name = c.scenarios[k].name;
-    const io::Case one_case = io::condition_case(c, k, io::condition_responses(c, k));
-    const PrintPrefix building("[" + name + "] ");
-    auto problem = adjoint::DynamicProblem::create(ctx.comm(), io::dynamic_settings(one_case), dir);
-    io::Json one = io::Json::object();
-    write_design_motions(ctx, one_case, *problem, dir, one, "." + name);
-    per[name] = one;
-  }
-  s["scenario_motions"] = per;
+  s["scenario_motions"] = detail::each_condition(
+      ctx, c, [&](const io::Case &one, const std::string &name, io::Json &figures) {
+        auto problem = adjoint::DynamicProblem::create(ctx.comm(), io::dynamic_settings(one), dir);
+        write_design_motions(ctx, one, *problem, dir, figures, "." + name);
+      });
 }
 
 void write_design_motions(const Context &ctx, const io::Case &c, adjoint::DynamicProblem &problem,
