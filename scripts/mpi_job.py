@@ -88,3 +88,16 @@ def run(cmd, *, timeout=None, input=None, check=False, capture_output=False, **k
     if check and p.returncode:
         raise subprocess.CalledProcessError(p.returncode, cmd, out, err)
     return subprocess.CompletedProcess(cmd, p.returncode, out, err)
+
+
+def flexopt(binary, args, ranks, timeout=1800, tail=2500):
+    """`mpirun -n RANKS BINARY ARGS` with ENV and no report or plan check (the tests' runs):
+    prints the last `tail` characters of its output and returns the output; exits the calling
+    script naming the command if the run fails."""
+    env = dict(ENV, FLEXOPT_REPORT="0", FLEXOPT_PLAN_CHECK="0")
+    p = run(["mpirun", "-n", str(ranks), binary] + list(args), env=env, stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT, text=True, timeout=timeout)
+    print(p.stdout[-tail:])
+    if p.returncode != 0:
+        raise SystemExit(f"FAIL: {' '.join(args)} on {ranks} rank(s) exited with {p.returncode}")
+    return p.stdout

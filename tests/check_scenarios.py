@@ -14,26 +14,18 @@ Usage: check_scenarios.py FLEXOPT CASE OUT N TOL
 import json
 import os
 import shutil
-import subprocess
 import sys
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "scripts"))
 import mpi_job  # noqa: E402 (after the path to scripts/)
 
 flexopt, case, out, n, tol = sys.argv[1], sys.argv[2], sys.argv[3], int(sys.argv[4]), float(sys.argv[5])
-env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
-           OMPI_MCA_rmaps_base_oversubscribe="1", FLEXOPT_REPORT="0", FLEXOPT_PLAN_CHECK="0")
 shutil.rmtree(out, ignore_errors=True)
 failures = []
 
 
 def run(args, ranks):
-    p = mpi_job.run(["mpirun", "-n", str(ranks), flexopt] + args, env=env, stdout=subprocess.PIPE,
-                    stderr=subprocess.STDOUT, text=True, timeout=1800)
-    print(p.stdout[-2500:])
-    if p.returncode != 0:
-        sys.exit(f"FAIL: {' '.join(args)} on {ranks} rank(s) exited with {p.returncode}")
-    return p.stdout
+    return mpi_job.flexopt(flexopt, args, ranks)
 
 
 runs = {}
