@@ -9,6 +9,7 @@
 #include "flexopt/reduce/field_projection.hpp"
 #include "flexopt/reduce/flexible_reduction.hpp"
 #include "flexopt/reduce/modal.hpp"
+#include "flexopt/reduce/reduction_adjoint.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -366,14 +367,16 @@ void place(MPI_Comm comm, const SceneDescription &c, Scene &scene) {
 
 } // namespace
 
-std::shared_ptr<reduce::FlexibleReduction> reduce_ffrf_body(const mesh::DistributedMesh &m,
-                                                            const BodyDescription &spec,
-                                                            const fem::IsotropicMaterial &mat,
-                                                            const reduce::ElementFactors *design) {
+std::shared_ptr<reduce::FlexibleReduction>
+reduce_ffrf_body(const mesh::DistributedMesh &m, const BodyDescription &spec,
+                 const fem::IsotropicMaterial &mat, const reduce::ElementFactors *design,
+                 const reduce::FlexibleReduction *previous) {
   auto red = std::make_shared<reduce::FlexibleReduction>();
+  std::shared_ptr<reduce::ClampedProblem> reuse;
+  if (previous && previous->adjoint) reuse = previous->adjoint->interior;
   reduce::reduce_flexible_body(
       m, fem::IsotropicMaterial{mat.E, mat.nu, mat.density}, spec.interfaces, spec.reduction.modes,
-      spec.reduction.geometric_stiffening, *red, spec.reduction.frame, design);
+      spec.reduction.geometric_stiffening, *red, spec.reduction.frame, design, std::move(reuse));
   if (design) reduce::check_modal_cut(*red, spec.name, m.comm);
   return red;
 }
@@ -707,7 +710,7 @@ set_ffrf_design(MPI_Comm comm, const SceneDescription &c, Scene &scene, std::siz
     throw Error("set_ffrf_design: body '" + spec.name + "' is not an FFRF body", true);
   const mesh::DistributedMesh &m = scene.meshes[b];
   const double t0 = wall_time();
-  const auto red = reduce_ffrf_body(m, spec, spec.material, &factors);
+  const auto red = reduce_ffrf_body(m, spec, spec.material, &factors, sb.reduction.get());
   sb.reduction = red;
   scene.owned_modes[b] = reduce::owned_basis_values(*red, m.owned_nodes);
   scene.reduction_seconds[b] = wall_time() - t0;

@@ -50,8 +50,12 @@ void craig_bampton(const mesh::DistributedMesh &mesh, Mat K, Mat M,
   }
   out.interface_dofs = constrained;
   out.next_eigenvalue = std::numeric_limits<double>::quiet_NaN();
-  out.interior = std::make_shared<ClampedProblem>(K, M, constrained, fixed_modes, "cb_",
-                                                  options.tolerance, options.next_eigenvalue);
+  if (options.reuse &&
+      options.reuse->update(K, M, constrained, fixed_modes, options.next_eigenvalue))
+    out.interior = options.reuse;
+  else
+    out.interior = std::make_shared<ClampedProblem>(K, M, constrained, fixed_modes, "cb_",
+                                                    options.tolerance, options.next_eigenvalue);
   ClampedProblem &clamped = *out.interior;
   // Static modes: prescribed rigid motion u_D of interface k, the others clamped.
   std::vector<Vec> rhs(ns), x(ns);

@@ -65,7 +65,7 @@ Vec basis_combination(const std::vector<Vec> &basis, const Eigen::VectorXd &c) {
 void reduce_flexible_body(const mesh::DistributedMesh &mesh, const fem::IsotropicMaterial &material,
                           const std::vector<std::string> &interfaces, int fixed_modes,
                           bool geometric_stiffening, FlexibleReduction &out, FrameCondition frame,
-                          const ElementFactors *design) {
+                          const ElementFactors *design, std::shared_ptr<ClampedProblem> reuse) {
   LogScope log("FxFlexReduce");
   if (frame == FrameCondition::Chord && (interfaces.size() < 2 || geometric_stiffening))
     throw Error("FFRF reduction: the chord frame needs a second interface and no centrifugal "
@@ -82,6 +82,7 @@ void reduce_flexible_body(const mesh::DistributedMesh &mesh, const fem::Isotropi
   if (design) {
     options.tolerance = 1e-13;
     options.next_eigenvalue = true;
+    options.reuse = std::move(reuse);
   }
   craig_bampton(mesh, K, M, interfaces, fixed_modes, cb, options);
   // With a single interface (the frame), the Craig-Bampton problem (every interface clamped) is

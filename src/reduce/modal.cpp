@@ -136,7 +136,11 @@ void solve_modes(Mat K, Mat M, const std::vector<PetscInt> &fixed_dofs, int coun
 
 ClampedProblem::ClampedProblem(Mat K, Mat M, const std::vector<PetscInt> &clamped, int modes,
                                const char *prefix, double tolerance, bool next)
-    : K_(K), modes_(modes), next_(next && modes > 0) {
+    : K_(K), modes_(modes), next_(next && modes > 0), clamped_(clamped) {
+  std::sort(clamped_.begin(), clamped_.end());
+  clamped_.erase(std::unique(clamped_.begin(), clamped_.end()), clamped_.end());
+  FX_PETSC(MatGetSize(K, &rows_, nullptr));
+  FX_PETSC(MatGetLocalSize(K, &local_rows_, nullptr));
   free_ = free_dofs(K, clamped);
   FX_PETSC(MatCreateSubMatrix(K, free_, free_, MAT_INITIAL_MATRIX, &Kf_));
   // The clamped surfaces hold the body: K_ff is positive definite, so MUMPS can factor without
@@ -162,9 +166,43 @@ ClampedProblem::ClampedProblem(Mat K, Mat M, const std::vector<PetscInt> &clampe
     if (op == Kf_) {
       FX_PETSC(PetscObjectReference(reinterpret_cast<PetscObject>(ksp)));
       ksp_ = ksp;
+      shared_ = true;
     }
+    BV bv;
+    PetscRandom random;
+    FX_PETSC(EPSGetBV(eps_, &bv));
+    FX_PETSC(BVGetRandomContext(bv, &random));
+    FX_PETSC(PetscRandomGetSeed(random, &seed_));
   }
   if (!ksp_) ksp_ = create_direct_solver(Kf_, Factorization::Cholesky, prefix);
+}
+
+bool ClampedProblem::update(Mat K, Mat M, const std::vector<PetscInt> &clamped, int modes,
+                            bool next) {
+  std::vector<PetscInt> c = clamped;
+  std::sort(c.begin(), c.end());
+  c.erase(std::unique(c.begin(), c.end()), c.end());
+  PetscInt rows, local_rows;
+  FX_PETSC(MatGetSize(K, &rows, nullptr));
+  FX_PETSC(MatGetLocalSize(K, &local_rows, nullptr));
+  // Collective agreement: the clamped DOFs are each rank's owned ones.
+  int same = c == clamped_ && modes == modes_ && (next && modes > 0) == next_ && rows == rows_ &&
+             local_rows == local_rows_;
+  MPI_Comm comm;
+  FX_PETSC(PetscObjectGetComm(reinterpret_cast<PetscObject>(Kf_), &comm));
+  MPI_Allreduce(MPI_IN_PLACE, &same, 1, MPI_INT, MPI_MIN, comm);
+  if (!same) return false;
+  K_ = K;
+  // The same submatrices with the new values: their nonzero state is unchanged, so the
+  // factorization's next set-up is numerical only (PCSetUp: SAME_NONZERO_PATTERN).
+  FX_PETSC(MatCreateSubMatrix(K, free_, free_, MAT_REUSE_MATRIX, &Kf_));
+  if (Mf_) FX_PETSC(MatCreateSubMatrix(M, free_, free_, MAT_REUSE_MATRIX, &Mf_));
+  if (eps_) {
+    FX_PETSC(EPSSetOperators(eps_, Kf_, Mf_));
+    FX_PETSC(EPSSetUp(eps_)); // the numerical factorization
+  }
+  if (!shared_) FX_PETSC(KSPSetOperators(ksp_, Kf_, Kf_));
+  return true;
 }
 
 ClampedProblem::~ClampedProblem() {
@@ -234,6 +272,12 @@ void ClampedProblem::solve(const std::vector<Vec> &b, const std::vector<Vec> &x,
 
 void ClampedProblem::lowest_modes(ModalResult &result) {
   if (!eps_) return;
+  BV bv;
+  PetscRandom random;
+  FX_PETSC(EPSGetBV(eps_, &bv));
+  FX_PETSC(BVGetRandomContext(bv, &random));
+  FX_PETSC(PetscRandomSetSeed(random, seed_));
+  FX_PETSC(PetscRandomSeed(random));
   FX_PETSC(EPSSolve(eps_));
   extract_modes(eps_, K_, Kf_, free_, modes_, result, next_);
 }

@@ -162,12 +162,13 @@ set_ffrf_design(MPI_Comm comm, const SceneDescription &d, Scene &scene, std::siz
 reduce::Field initial_elastic_field(const BodyDescription &spec, bool rate);
 
 /// The reduction of the FFRF body `spec` meshed as `m` (its interfaces, modes, stiffening and
-/// frame; with a design body's element factors, if given, and then its modal-cut check).
-/// Collective.
-std::shared_ptr<reduce::FlexibleReduction> reduce_ffrf_body(const mesh::DistributedMesh &m,
-                                                            const BodyDescription &spec,
-                                                            const fem::IsotropicMaterial &mat,
-                                                            const reduce::ElementFactors *design);
+/// frame; with a design body's element factors, if given, and then its modal-cut check). With
+/// `previous`, the body's reduction at an earlier design: its factorization's symbolic analysis
+/// is reused. Collective.
+std::shared_ptr<reduce::FlexibleReduction>
+reduce_ffrf_body(const mesh::DistributedMesh &m, const BodyDescription &spec,
+                 const fem::IsotropicMaterial &mat, const reduce::ElementFactors *design,
+                 const reduce::FlexibleReduction *previous = nullptr);
 
 /// The scene's ACF bodies, in order (DistributedAlpha's list).
 std::vector<const bodies::AcfBody *> acf_body_list(const Scene &scene);

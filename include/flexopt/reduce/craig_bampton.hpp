@@ -54,6 +54,9 @@ struct CraigBamptonBasis {
 struct CraigBamptonOptions {
   double tolerance = 1e-10;
   bool next_eigenvalue = false;
+  /// A previous design's interior problem of the same body: updated with this K and M
+  /// (ClampedProblem::update: the symbolic factorization made once) instead of a new one.
+  std::shared_ptr<ClampedProblem> reuse;
 };
 void craig_bampton(const mesh::DistributedMesh &mesh, Mat K, Mat M,
                    const std::vector<std::string> &interfaces, int fixed_modes,

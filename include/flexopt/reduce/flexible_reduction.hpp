@@ -17,6 +17,8 @@
 
 namespace flexopt::reduce {
 
+class ClampedProblem;
+
 /// Where the floating frame sits on the body (docs/theory.md section 7.1). Clamped: the frame is
 /// interface 0, clamped (its rigid node neither moves nor turns in the frame). Chord: the
 /// frame's origin is the centroid of interface 0 and its axis through the centroid of
@@ -78,7 +80,8 @@ void reduce_flexible_body(const mesh::DistributedMesh &mesh, const fem::Isotropi
                           const std::vector<std::string> &interfaces, int fixed_modes,
                           bool geometric_stiffening, FlexibleReduction &out,
                           FrameCondition frame = FrameCondition::Clamped,
-                          const ElementFactors *design = nullptr);
+                          const ElementFactors *design = nullptr,
+                          std::shared_ptr<ClampedProblem> reuse = nullptr);
 
 /// For a design body's reduction: throws a collective flexopt::Error naming `body` and both
 /// frequencies if the last kept fixed-interface eigenvalue and the next are equal (relative gap

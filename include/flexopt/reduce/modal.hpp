@@ -58,16 +58,28 @@ public:
   void solve(const std::vector<Vec> &b, const std::vector<Vec> &x, const std::string &what,
              const std::string &hint = "");
   /// The lowest `modes` eigenpairs K phi = omega^2 M phi with phi = 0 on the clamped DOFs
-  /// (full-size, M-orthonormal), ascending.
+  /// (full-size, M-orthonormal), ascending. Every call starts the eigensolver from the same
+  /// random vector as the first (results do not depend on earlier calls).
   void lowest_modes(ModalResult &result);
+  /// The same problem for new values of K and M on the same mesh (the same layout and nonzero
+  /// pattern: a design's stiffness and mass), if `clamped`, `modes` and `next` are this
+  /// problem's: the submatrices take the new values and the factorization is redone numerically,
+  /// on the ordering and symbolic analysis made once (docs/theory.md section 10). Returns false,
+  /// changing nothing, if the problem differs. K and M must outlive the use of this problem.
+  /// Collective.
+  bool update(Mat K, Mat M, const std::vector<PetscInt> &clamped, int modes, bool next);
 
 private:
   IS free_ = nullptr;
   Mat K_ = nullptr, Kf_ = nullptr, Mf_ = nullptr;
   EPS eps_ = nullptr;
-  KSP ksp_ = nullptr; ///< the factorization of K_ff used by solve (the EPS's when shared)
+  KSP ksp_ = nullptr;   ///< the factorization of K_ff used by solve (the EPS's when shared)
+  bool shared_ = false; ///< ksp_ is the EPS's
   int modes_ = 0;
   bool next_ = false;
+  std::vector<PetscInt> clamped_; ///< sorted, without repeats
+  PetscInt rows_ = 0, local_rows_ = 0;
+  unsigned long seed_ = 0; ///< the eigensolver's random start (its seed when first set up)
 };
 
 /// The reduced matrix V^T A V of the full-size `vectors` V (symmetrized; every rank gets the same
