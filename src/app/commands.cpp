@@ -183,8 +183,8 @@ each_condition(const Context &ctx, const io::Case &c,
   const std::vector<std::string> names = io::condition_names(c);
   io::Json per = io::Json::object();
   for (std::size_t k = 0; k < names.size(); ++k) {
-    print0(ctx.comm(), "%s %s (%zu of %zu)\n", c.dynamic() ? "scenario" : "load case",
-           names[k].c_str(), k + 1, names.size());
+    print0(ctx.comm(), "%s %s (%zu of %zu)\n", io::condition_noun(c), names[k].c_str(), k + 1,
+           names.size());
     io::Json figures = io::Json::object();
     const PrintPrefix prefix("[" + names[k] + "] ");
     one(io::condition_case(c, k, io::condition_responses(c, k)), names[k], figures);
@@ -360,7 +360,6 @@ std::string solve_static(const Context &ctx, const io::Case &c, const std::strin
          static_cast<long long>(problem->global_dofs()), ctx.size(), problem->timings().assemble,
          wall_time() - t_setup);
   const double t_solve = wall_time();
-  std::vector<double> density;
   if (plain) {
     problem->solve();
   } else {

@@ -435,7 +435,7 @@ void read_optimization(const Reader &r, YAML::Node root, Case &c) {
     for (std::size_t k = 0; k < names.size(); ++k) {
       if (!condition_responses(c, k).empty()) continue;
       const io::Location &at = c.dynamic() ? c.scenarios[k].where : c.load_cases[k].where;
-      throw Error(at.str() + ": " + (c.dynamic() ? "scenario" : "load case") + " '" + names[k] +
+      throw Error(at.str() + ": " + condition_noun(c) + " '" + names[k] +
                       "' is taken by no response (objective and constraints name the ones "
                       "they take): it would cost a run and change nothing",
                   true);

@@ -176,8 +176,8 @@ void read_response_conditions(const Reader &r, const YAML::Node &v, const std::s
       auto it = std::find(names.begin(), names.end(), given[j]);
       if (it == names.end())
         r.fail(list[j], path + "." + list_key + "[" + std::to_string(j) + "]: no " +
-                            (dynamic ? "scenario" : "load case") + " named '" + given[j] + "' (" +
-                            list_key + ": " + join(names) + ")");
+                            condition_noun(c) + " named '" + given[j] + "' (" + list_key + ": " +
+                            join(names) + ")");
       const std::size_t k = static_cast<std::size_t>(it - names.begin());
       if (std::find(s.scenarios.begin(), s.scenarios.end(), k) != s.scenarios.end())
         r.fail(list[j], path + "." + list_key + ": '" + given[j] + "' is named twice");
@@ -195,8 +195,8 @@ void read_response_conditions(const Reader &r, const YAML::Node &v, const std::s
     const YAML::Node &w = v["weights"];
     if (!w)
       r.fail(v["combine"], path + ".combine: weighted needs weights: [...], one per " +
-                               (dynamic ? "scenario" : "load case") + " taken (" +
-                               std::to_string(s.scenarios.size()) + ")");
+                               condition_noun(c) + " taken (" + std::to_string(s.scenarios.size()) +
+                               ")");
     r.require_sequence(w, path + ".weights");
     if (w.size() != s.scenarios.size())
       r.fail(w, path + ".weights: " + std::to_string(w.size()) + " weights for " +
@@ -218,6 +218,10 @@ void read_response_conditions(const Reader &r, const YAML::Node &v, const std::s
 }
 
 } // namespace detail
+
+const char *condition_noun(const Case &c) {
+  return c.dynamic() ? "scenario" : "load case";
+}
 
 std::vector<std::string> condition_names(const Case &c) {
   std::vector<std::string> out;
@@ -271,7 +275,7 @@ std::vector<std::size_t> condition_responses(const Case &c, std::size_t k) {
 optimize::ScenarioSettings scenario_settings(const Case &c) {
   optimize::ScenarioSettings s;
   s.names = condition_names(c);
-  s.noun = c.dynamic() ? "scenario" : "load case";
+  s.noun = condition_noun(c);
   const auto all = all_responses(c);
   for (std::size_t i = 0; i < all.size(); ++i) {
     s.response_names.push_back(

@@ -111,6 +111,8 @@ struct Case {
 /// The static problem of a static case: its one body's mesh and material, and the loads.
 fem::StaticSettings static_settings(const Case &c);
 
+/// What a condition of the case is called: "scenario" (dynamic) or "load case" (static).
+const char *condition_noun(const Case &c);
 /// The names of the case's scenarios or load cases (empty: none).
 std::vector<std::string> condition_names(const Case &c);
 /// The case as its condition k (a scenario's scene and time, or a load case's loads) whose
