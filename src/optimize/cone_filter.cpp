@@ -49,8 +49,7 @@ std::vector<Point> local_points(const mesh::DistributedMesh &mesh) {
 
 /// Refuses, before any weight is computed, a cone filter whose weights would take more than
 /// 80 % of a node's available memory: per element about (4/3) pi R^3 / V neighbours (V this
-/// rank's mean element volume), each held as a (column, weight) pair while the rows are built
-/// and again in the AIJ matrix. Collective.
+/// rank's mean element volume), each pair stored once (W's upper triangle). Collective.
 void check_cone_memory(const mesh::DistributedMesh &mesh, const std::vector<Point> &mine,
                        double radius) {
   double volume = 0;
@@ -58,9 +57,11 @@ void check_cone_memory(const mesh::DistributedMesh &mesh, const std::vector<Poin
   const double mean = mine.empty() ? 1.0 : volume / static_cast<double>(mine.size());
   const double per_element = std::min(4.0 / 3.0 * M_PI * radius * radius * radius / mean,
                                       static_cast<double>(mesh.global_elements));
-  const double pair = sizeof(PetscInt) + sizeof(double);
-  const auto bytes = static_cast<long long>(static_cast<double>(mine.size()) * per_element *
-                                            (pair + sizeof(std::pair<PetscInt, double>)));
+  // W's upper triangle: half the pairs, a column index and a value each (docs/theory.md
+  // section 4.2); the rows are built one at a time.
+  const double entry = sizeof(PetscInt) + sizeof(double);
+  const auto bytes =
+      static_cast<long long>(static_cast<double>(mine.size()) * 0.5 * (per_element + 1) * entry);
   const NodeMemory need = node_memory(mesh.comm, bytes);
   if (need.fits(0.8)) return;
   char buf[400];
@@ -125,6 +126,73 @@ std::vector<Point> remote_points(MPI_Comm comm, const std::vector<Point> &mine, 
   return pts;
 }
 
+/// One neighbour of an element: its global number and its weight w = R - distance.
+struct Neighbour {
+  PetscInt column;
+  double weight, volume;
+  bool operator<(const Neighbour &o) const { return column < o.column; }
+};
+
+/// The cone filter's neighbour search: every candidate (own and received elements) binned in
+/// cubes of edge R; the neighbours of an element lie in the 27 cubes around its own.
+class NeighbourSearch {
+public:
+  NeighbourSearch(std::vector<Point> candidates, double radius)
+      : all_(std::move(candidates)), radius_(radius) {
+    for (std::size_t i = 0; i < all_.size(); ++i) {
+      const long long ci = cell(all_[i].x), cj = cell(all_[i].y), ck = cell(all_[i].z);
+      if (std::max({std::llabs(ci), std::llabs(cj), std::llabs(ck)}) >= (1LL << 20) - 1)
+        abort_local("cone filter: the radius is too small for the extent of the mesh (more than "
+                    "2^20 radii from the origin)");
+      bins_[key(ci, cj, ck)].push_back(i);
+    }
+  }
+
+  /// The neighbours of p (|c_p - c_q| < R, p itself included) sorted by global number, and
+  /// d_p = sum of w V in that order: a fixed order makes d_p independent of the partition.
+  double row(const Point &p, std::vector<Neighbour> &out) const {
+    out.clear();
+    const long long ci = cell(p.x), cj = cell(p.y), ck = cell(p.z);
+    for (long long di = -1; di <= 1; ++di)
+      for (long long dj = -1; dj <= 1; ++dj)
+        for (long long dk = -1; dk <= 1; ++dk) {
+          const auto it = bins_.find(key(ci + di, cj + dj, ck + dk));
+          if (it == bins_.end()) continue;
+          for (std::size_t i : it->second) {
+            const Point &q = all_[i];
+            const double d = std::sqrt((p.x - q.x) * (p.x - q.x) + (p.y - q.y) * (p.y - q.y) +
+                                       (p.z - q.z) * (p.z - q.z));
+            if (d < radius_) out.push_back({static_cast<PetscInt>(q.gid), radius_ - d, q.volume});
+          }
+        }
+    std::sort(out.begin(), out.end());
+    double sum = 0;
+    for (const Neighbour &n : out) sum += n.weight * n.volume;
+    return sum;
+  }
+
+private:
+  long long cell(double v) const { return static_cast<long long>(std::floor(v / radius_)); }
+  static long long key(long long i, long long j, long long k) {
+    // 21 bits per direction (offset so that negative indices fit): unique for |index| < 2^20.
+    return ((i + (1LL << 20)) << 42) | ((j + (1LL << 20)) << 21) | (k + (1LL << 20));
+  }
+  std::vector<Point> all_;
+  double radius_;
+  std::unordered_map<long long, std::vector<std::size_t>> bins_;
+};
+
+/// An element vector of `mesh`'s element layout holding `values` (its owned entries).
+Vec element_vector(const mesh::DistributedMesh &mesh, const std::vector<double> &values) {
+  Vec v;
+  FX_PETSC(VecCreateMPI(mesh.comm, mesh.local_elements(), PETSC_DETERMINE, &v));
+  PetscScalar *a;
+  FX_PETSC(VecGetArrayWrite(v, &a));
+  std::copy(values.begin(), values.end(), a);
+  FX_PETSC(VecRestoreArrayWrite(v, &a));
+  return v;
+}
+
 } // namespace
 
 std::unique_ptr<ConeFilter> ConeFilter::create(const mesh::DistributedMesh &mesh, double radius) {
@@ -138,90 +206,78 @@ std::unique_ptr<ConeFilter> ConeFilter::create(const mesh::DistributedMesh &mesh
   std::vector<Point> all = mine;
   const std::vector<Point> remote = remote_points(mesh.comm, mine, radius);
   all.insert(all.end(), remote.begin(), remote.end());
+  const NeighbourSearch search(std::move(all), radius);
 
-  // Bin every candidate into cubes of edge R: the neighbours of an element lie in the 27 cubes
-  // around its own.
-  auto cell = [radius](double v) { return static_cast<long long>(std::floor(v / radius)); };
-  auto key = [](long long i, long long j, long long k) {
-    // 21 bits per direction (offset so that negative indices fit): unique for |index| < 2^20.
-    return ((i + (1LL << 20)) << 42) | ((j + (1LL << 20)) << 21) | (k + (1LL << 20));
-  };
-  std::unordered_map<long long, std::vector<std::size_t>> bins;
-  for (std::size_t i = 0; i < all.size(); ++i) {
-    const long long ci = cell(all[i].x), cj = cell(all[i].y), ck = cell(all[i].z);
-    if (std::max({std::llabs(ci), std::llabs(cj), std::llabs(ck)}) >= (1LL << 20) - 1)
-      abort_local("cone filter: the radius is too small for the extent of the mesh (more than "
-                  "2^20 radii from the origin)");
-    bins[key(ci, cj, ck)].push_back(i);
-  }
-
-  // Rows of H: columns (global element numbers) and weights, normalised to unit row sums.
-  std::vector<std::vector<std::pair<PetscInt, double>>> rows(static_cast<std::size_t>(ne));
-  std::vector<PetscInt> d_nnz(static_cast<std::size_t>(ne), 0), o_nnz(d_nnz);
+  // H = D^-1 W V (docs/theory.md section 4.2). First pass: the row sums d_e and the exact
+  // preallocation of W's upper triangle (columns >= the row), diagonal and off-diagonal blocks.
   const PetscInt first = mesh.element_start, last = mesh.element_start + ne;
+  std::vector<PetscInt> d_nnz(static_cast<std::size_t>(ne), 0), o_nnz(d_nnz);
+  std::vector<double> dinv(static_cast<std::size_t>(ne)), volume(dinv);
+  std::vector<Neighbour> row;
   PetscInt max_row = 0;
   for (PetscInt e = 0; e < ne; ++e) {
-    const Point &p = mine[static_cast<std::size_t>(e)];
-    auto &row = rows[static_cast<std::size_t>(e)];
-    const long long ci = cell(p.x), cj = cell(p.y), ck = cell(p.z);
-    for (long long di = -1; di <= 1; ++di)
-      for (long long dj = -1; dj <= 1; ++dj)
-        for (long long dk = -1; dk <= 1; ++dk) {
-          const auto it = bins.find(key(ci + di, cj + dj, ck + dk));
-          if (it == bins.end()) continue;
-          for (std::size_t i : it->second) {
-            const Point &q = all[i];
-            const double d = std::sqrt((p.x - q.x) * (p.x - q.x) + (p.y - q.y) * (p.y - q.y) +
-                                       (p.z - q.z) * (p.z - q.z));
-            if (d < radius) row.emplace_back(static_cast<PetscInt>(q.gid), (radius - d) * q.volume);
-          }
-        }
-    // A fixed column order makes the row sum, and so H, independent of the partition.
-    std::sort(row.begin(), row.end());
-    double sum = 0;
-    for (const auto &[col, w] : row) sum += w;
-    for (auto &[col, w] : row) {
-      w /= sum;
-      (col >= first && col < last ? d_nnz : o_nnz)[static_cast<std::size_t>(e)]++;
-    }
+    const auto ee = static_cast<std::size_t>(e);
+    dinv[ee] = 1.0 / search.row(mine[ee], row);
+    volume[ee] = mine[ee].volume;
+    for (const Neighbour &n : row)
+      if (n.column >= first + e) (n.column < last ? d_nnz : o_nnz)[ee]++;
     max_row = std::max(max_row, static_cast<PetscInt>(row.size()));
   }
   MPI_Allreduce(&max_row, &f->max_neighbours_, 1, MPIU_INT, MPI_MAX, mesh.comm);
+  f->dinv_ = element_vector(mesh, dinv);
+  f->volume_ = element_vector(mesh, volume);
+  FX_PETSC(VecDuplicate(f->volume_, &f->work_));
 
-  FX_PETSC(MatCreateAIJ(mesh.comm, ne, ne, PETSC_DETERMINE, PETSC_DETERMINE, 0, d_nnz.data(), 0,
-                        o_nnz.data(), &f->H_));
+  // Second pass: each row again, its upper part inserted (W's entries, in column order).
+  FX_PETSC(MatCreateSBAIJ(mesh.comm, 1, ne, ne, PETSC_DETERMINE, PETSC_DETERMINE, 0, d_nnz.data(),
+                          0, o_nnz.data(), &f->W_));
+  std::vector<PetscInt> cols;
+  std::vector<PetscScalar> vals;
   for (PetscInt e = 0; e < ne; ++e) {
-    const auto &row = rows[static_cast<std::size_t>(e)];
-    std::vector<PetscInt> cols(row.size());
-    std::vector<PetscScalar> vals(row.size());
-    for (std::size_t k = 0; k < row.size(); ++k) cols[k] = row[k].first, vals[k] = row[k].second;
+    search.row(mine[static_cast<std::size_t>(e)], row);
+    cols.clear();
+    vals.clear();
+    for (const Neighbour &n : row)
+      if (n.column >= first + e) {
+        cols.push_back(n.column);
+        vals.push_back(n.weight);
+      }
     const PetscInt grow = first + e;
-    FX_PETSC(MatSetValues(f->H_, 1, &grow, static_cast<PetscInt>(cols.size()), cols.data(),
+    FX_PETSC(MatSetValues(f->W_, 1, &grow, static_cast<PetscInt>(cols.size()), cols.data(),
                           vals.data(), INSERT_VALUES));
   }
-  FX_PETSC(MatAssemblyBegin(f->H_, MAT_FINAL_ASSEMBLY));
-  FX_PETSC(MatAssemblyEnd(f->H_, MAT_FINAL_ASSEMBLY));
+  FX_PETSC(MatAssemblyBegin(f->W_, MAT_FINAL_ASSEMBLY));
+  FX_PETSC(MatAssemblyEnd(f->W_, MAT_FINAL_ASSEMBLY));
   return f;
 }
 
 ConeFilter::~ConeFilter() {
-  MatDestroy(&H_);
+  MatDestroy(&W_);
+  VecDestroy(&dinv_);
+  VecDestroy(&volume_);
+  VecDestroy(&work_);
 }
 
 Vec ConeFilter::create_element_vector() const {
   Vec v;
-  FX_PETSC(MatCreateVecs(H_, &v, nullptr));
+  FX_PETSC(VecDuplicate(volume_, &v));
   return v;
 }
 
 void ConeFilter::apply(Vec rho, Vec rho_filtered) const {
   LogScope log("FxFilterSolve");
-  FX_PETSC(MatMult(H_, rho, rho_filtered));
+  // D^-1 (W (V rho)).
+  FX_PETSC(VecPointwiseMult(work_, volume_, rho));
+  FX_PETSC(MatMult(W_, work_, rho_filtered));
+  FX_PETSC(VecPointwiseMult(rho_filtered, dinv_, rho_filtered));
 }
 
 void ConeFilter::apply_transpose(Vec g_filtered, Vec g) const {
   LogScope log("FxFilterSolve");
-  FX_PETSC(MatMultTranspose(H_, g_filtered, g));
+  // V (W (D^-1 g)).
+  FX_PETSC(VecPointwiseMult(work_, dinv_, g_filtered));
+  FX_PETSC(MatMult(W_, work_, g));
+  FX_PETSC(VecPointwiseMult(g, volume_, g));
 }
 
 std::string ConeFilter::describe() const {

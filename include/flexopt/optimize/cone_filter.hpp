@@ -8,8 +8,9 @@ namespace flexopt::optimize {
 
 /// rho~_e = sum_i w_ei V_i rho_i / sum_i w_ei V_i,  w_ei = max(0, R - |c_e - c_i|), over all
 /// elements i of the mesh whose centroid c_i lies within R of the centroid c_e (on any rank).
-/// Stored as a row-normalised sparse matrix H (MPIAIJ), so that the filter is H rho and its
-/// transpose H^T g.
+/// H = D^-1 W V with W_ei = w_ei symmetric, V = diag(V_i), D = diag(sum_i w_ei V_i): W's upper
+/// triangle is stored once (MPISBAIJ), so that the filter is D^-1 W V rho and its transpose
+/// V W D^-1 g.
 class ConeFilter : public DensityFilter {
 public:
   /// Builds H for radius R > 0 [m]. Collective.
@@ -28,7 +29,9 @@ public:
 private:
   ConeFilter() = default;
   double radius_ = 0;
-  Mat H_ = nullptr;
+  Mat W_ = nullptr;                       ///< the symmetric weights w_ei, upper triangle
+  Vec dinv_ = nullptr, volume_ = nullptr; ///< 1 / d_e and V_e
+  Vec work_ = nullptr;                    ///< V rho or D^-1 g (apply's scratch)
   PetscInt max_neighbours_ = 0;
 };
 
