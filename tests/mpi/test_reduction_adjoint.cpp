@@ -400,3 +400,86 @@ TEST(ReductionAdjoint, SplitPairAtTheCutIsRefused) {
                                &f);
   EXPECT_NO_THROW(reduce::check_modal_cut(two, "box", m.comm));
 }
+
+namespace {
+
+/// Stiffness factors 1 - 0.6 (2 |c_k - 0.5|)^2 of the box's elements, c the centroid: the outer
+/// fibres of direction k (1: y, 2: z) softened, so the box bends in that direction most easily.
+reduce::ElementFactors softened_fibres(const mesh::DistributedMesh &m, int k) {
+  reduce::ElementFactors f;
+  for (PetscInt e = 0; e < m.local_elements(); ++e) {
+    const fem::ElementCoords X = m.element_coordinates(e);
+    const double c = X.col(k).mean(), r = 2 * std::abs(c - 0.5);
+    f.stiffness.push_back(1 - 0.6 * r * r);
+    f.mass.push_back(0.8);
+  }
+  return f;
+}
+
+/// |Psi_a^T M_a Psi_b| for one-mode reductions (1: the same mode, 0: M-orthogonal ones).
+double mode_overlap(const reduce::FlexibleReduction &a, const reduce::FlexibleReduction &b) {
+  Vec w;
+  VecDuplicate(a.basis[0], &w);
+  MatMult(a.adjoint->M, a.basis[0], w);
+  PetscScalar d;
+  VecDot(w, b.basis[0], &d);
+  VecDestroy(&w);
+  return std::abs(d);
+}
+
+} // namespace
+
+// Reuse across designs (docs/theory.md section 10, "Reuse across designs"): the reduction at a
+// design B made from design A's interior problem (its symbolic factorization kept, the
+// eigensolver restarted from the same vector) equals a fresh reduction at B, across a crossing.
+// The square box clamped at one end has a y- and a z-bending mode at one eigenvalue; softening
+// the outer y fibres (A) puts the y mode lowest, softening the z fibres (B) the z mode. With one
+// kept mode, the kept mode of A leaves the kept set at B: the reused problem must give B's own
+// lowest mode (overlap 1 with the fresh one, far from A's), its eigenvalue, its reduced matrices
+// and the same adjoint sensitivities, to the eigensolver's tolerance.
+TEST(ReductionReuse, SameAsFreshAcrossACrossing) {
+  auto m = test_support::load_test_mesh("box_2x1x1_hex.geo");
+  const fem::IsotropicMaterial steel{2.1e11, 0.3, 7850};
+  const reduce::ElementFactors a = softened_fibres(m, 1), b = softened_fibres(m, 2);
+  reduce::FlexibleReduction ra, fresh, reused;
+  const auto clamped = reduce::FrameCondition::Clamped;
+  reduce::reduce_flexible_body(m, steel, {"clamp"}, 1, false, ra, clamped, &a);
+  reduce::reduce_flexible_body(m, steel, {"clamp"}, 1, false, fresh, clamped, &b);
+  reduce::reduce_flexible_body(m, steel, {"clamp"}, 1, false, reused, clamped, &b,
+                               ra.adjoint->interior);
+  ASSERT_EQ(reused.adjoint->interior, ra.adjoint->interior)
+      << "the interior problem was not reused";
+  const double la = ra.adjoint->fixed_eigenvalues[0], lb = fresh.adjoint->fixed_eigenvalues[0];
+  const double lr = reused.adjoint->fixed_eigenvalues[0];
+  // The crossing happened: A's mode is (nearly) M-orthogonal to B's.
+  const double across = mode_overlap(fresh, ra);
+  EXPECT_LT(across, 0.1);
+  EXPECT_NEAR(lr, lb, 1e-10 * lb) << "A's eigenvalue " << la;
+  EXPECT_NEAR(mode_overlap(fresh, reused), 1.0, 1e-9);
+  EXPECT_NEAR(reused.K(0, 0), fresh.K(0, 0), 1e-9 * std::abs(fresh.K(0, 0)));
+  EXPECT_NEAR(reused.M(0, 0), fresh.M(0, 0), 1e-9 * std::abs(fresh.M(0, 0)));
+  // The same sensitivities of K_r + 0.5 M_r (sign-free for one mode).
+  auto sensitivities = [&](const reduce::FlexibleReduction &r) {
+    reduce::ReductionCotangent bar;
+    bar.K = Matrix::Constant(1, 1, 1.0);
+    bar.M = Matrix::Constant(1, 1, 0.5);
+    std::vector<std::vector<double>> s_hat, w_hat;
+    reduce::reduction_adjoint(m, r, {bar}, reduce::BasisDerivative::Exact, s_hat, w_hat);
+    std::vector<double> all = s_hat[0];
+    all.insert(all.end(), w_hat[0].begin(), w_hat[0].end());
+    return all;
+  };
+  const std::vector<double> sf = sensitivities(fresh), sr = sensitivities(reused);
+  double diff = 0, size = 0;
+  for (std::size_t i = 0; i < sf.size(); ++i) {
+    diff = std::max(diff, std::abs(sf[i] - sr[i]));
+    size = std::max(size, std::abs(sf[i]));
+  }
+  MPI_Allreduce(MPI_IN_PLACE, &diff, 1, MPI_DOUBLE, MPI_MAX, m.comm);
+  MPI_Allreduce(MPI_IN_PLACE, &size, 1, MPI_DOUBLE, MPI_MAX, m.comm);
+  if (comm_rank(m.comm) == 0)
+    std::printf("reuse across a crossing: lambda A %.10e, B fresh %.10e, B reused %.10e; "
+                "overlap(A, B) %.2e; sensitivities differ by %.2e of %.3e\n",
+                la, lb, lr, across, diff, size);
+  EXPECT_LT(diff, 1e-8 * size);
+}
