@@ -41,6 +41,22 @@ IS free_dofs(Mat K, std::vector<PetscInt> fixed) {
   return is;
 }
 
+/// `dofs` sorted, without repeats.
+std::vector<PetscInt> sorted_unique(std::vector<PetscInt> dofs) {
+  std::sort(dofs.begin(), dofs.end());
+  dofs.erase(std::unique(dofs.begin(), dofs.end()), dofs.end());
+  return dofs;
+}
+
+/// The random generator from which `eps` draws its start vector.
+PetscRandom start_generator(EPS eps) {
+  BV bv;
+  PetscRandom random;
+  FX_PETSC(EPSGetBV(eps, &bv));
+  FX_PETSC(BVGetRandomContext(bv, &random));
+  return random;
+}
+
 /// Krylov-Schur for the `count` eigenvalues of (Kf, Mf) nearest `shift`, shift-and-invert with
 /// MUMPS Cholesky, then the -eps_* / -st_* options.
 EPS create_eps(Mat Kf, Mat Mf, int count, double shift, double tolerance = 1e-10) {
@@ -136,12 +152,10 @@ void solve_modes(Mat K, Mat M, const std::vector<PetscInt> &fixed_dofs, int coun
 
 ClampedProblem::ClampedProblem(Mat K, Mat M, const std::vector<PetscInt> &clamped, int modes,
                                const char *prefix, double tolerance, bool next)
-    : K_(K), modes_(modes), next_(next && modes > 0), clamped_(clamped) {
-  std::sort(clamped_.begin(), clamped_.end());
-  clamped_.erase(std::unique(clamped_.begin(), clamped_.end()), clamped_.end());
+    : K_(K), modes_(modes), next_(next && modes > 0), clamped_(sorted_unique(clamped)) {
   FX_PETSC(MatGetSize(K, &rows_, nullptr));
   FX_PETSC(MatGetLocalSize(K, &local_rows_, nullptr));
-  free_ = free_dofs(K, clamped);
+  free_ = free_dofs(K, clamped_);
   FX_PETSC(MatCreateSubMatrix(K, free_, free_, MAT_INITIAL_MATRIX, &Kf_));
   // The clamped surfaces hold the body: K_ff is positive definite, so MUMPS can factor without
   // pivoting (its SYM = 1 variant).
@@ -168,26 +182,19 @@ ClampedProblem::ClampedProblem(Mat K, Mat M, const std::vector<PetscInt> &clampe
       ksp_ = ksp;
       shared_ = true;
     }
-    BV bv;
-    PetscRandom random;
-    FX_PETSC(EPSGetBV(eps_, &bv));
-    FX_PETSC(BVGetRandomContext(bv, &random));
-    FX_PETSC(PetscRandomGetSeed(random, &seed_));
+    FX_PETSC(PetscRandomGetSeed(start_generator(eps_), &seed_));
   }
   if (!ksp_) ksp_ = create_direct_solver(Kf_, Factorization::Cholesky, prefix);
 }
 
 bool ClampedProblem::update(Mat K, Mat M, const std::vector<PetscInt> &clamped, int modes,
                             bool next) {
-  std::vector<PetscInt> c = clamped;
-  std::sort(c.begin(), c.end());
-  c.erase(std::unique(c.begin(), c.end()), c.end());
   PetscInt rows, local_rows;
   FX_PETSC(MatGetSize(K, &rows, nullptr));
   FX_PETSC(MatGetLocalSize(K, &local_rows, nullptr));
   // Collective agreement: the clamped DOFs are each rank's owned ones.
-  int same = c == clamped_ && modes == modes_ && (next && modes > 0) == next_ && rows == rows_ &&
-             local_rows == local_rows_;
+  int same = sorted_unique(clamped) == clamped_ && modes == modes_ &&
+             (next && modes > 0) == next_ && rows == rows_ && local_rows == local_rows_;
   MPI_Comm comm;
   FX_PETSC(PetscObjectGetComm(reinterpret_cast<PetscObject>(Kf_), &comm));
   MPI_Allreduce(MPI_IN_PLACE, &same, 1, MPI_INT, MPI_MIN, comm);
@@ -272,10 +279,7 @@ void ClampedProblem::solve(const std::vector<Vec> &b, const std::vector<Vec> &x,
 
 void ClampedProblem::lowest_modes(ModalResult &result) {
   if (!eps_) return;
-  BV bv;
-  PetscRandom random;
-  FX_PETSC(EPSGetBV(eps_, &bv));
-  FX_PETSC(BVGetRandomContext(bv, &random));
+  PetscRandom random = start_generator(eps_);
   FX_PETSC(PetscRandomSetSeed(random, seed_));
   FX_PETSC(PetscRandomSeed(random));
   FX_PETSC(EPSSolve(eps_));
