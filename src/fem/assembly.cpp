@@ -4,6 +4,7 @@
 #include "flexopt/core/error.hpp"
 #include "flexopt/core/log.hpp"
 
+#include <Eigen/Dense>
 #include <algorithm>
 #include <sstream>
 #include <utility>
@@ -513,6 +514,42 @@ void add_surface_traction(const mesh::DistributedMesh &mesh, const std::string &
   const int npf = nodes_per_face(s.type);
   for (std::size_t k = 0; k < s.size(); ++k) {
     const ElementVector fe = face_traction_load(s.type, s.face_coordinates(k), t);
+    FX_PETSC(VecSetValuesBlocked(f, npf, &s.global_nodes[k * static_cast<std::size_t>(npf)],
+                                 fe.data(), ADD_VALUES));
+  }
+  FX_PETSC(VecAssemblyBegin(f));
+  FX_PETSC(VecAssemblyEnd(f));
+}
+
+void add_surface_force(const mesh::DistributedMesh &mesh, const std::string &surface,
+                       const Eigen::Vector3d &F, const Eigen::Vector3d &M, const std::string &where,
+                       Vec f) {
+  const double area = surface_area(mesh, surface, where);
+  if (!(area > 0)) throw Error(where + ": surface '" + surface + "' has zero area", true);
+  if (M.isZero(0.0)) {
+    add_surface_traction(mesh, surface, F / area, where, f);
+    return;
+  }
+  const Eigen::Vector3d c = surface_centroid(mesh, surface, where);
+  const mesh::LocalSurface &s = mesh.surface(surface, where);
+  Eigen::Matrix3d J = Eigen::Matrix3d::Zero();
+  for (std::size_t k = 0; k < s.size(); ++k)
+    J += face_second_moment(s.type, s.face_coordinates(k), c);
+  MPI_Allreduce(MPI_IN_PLACE, J.data(), 9, MPI_DOUBLE, MPI_SUM, mesh.comm);
+  // J is symmetric positive semi-definite; a flat surface has full rank, a line of faces not.
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(J);
+  if (!(eig.eigenvalues()(0) > 1e-10 * eig.eigenvalues()(2)))
+    throw Error(where + ": surface '" + surface +
+                    "' cannot carry a moment (its faces lie on a "
+                    "line: the second moment of area is singular)",
+                true);
+  const Eigen::Vector3d beta = J.ldlt().solve(M);
+  Eigen::Matrix3d T;
+  T << 0, -beta(2), beta(1), beta(2), 0, -beta(0), -beta(1), beta(0), 0;
+  const int npf = nodes_per_face(s.type);
+  for (std::size_t k = 0; k < s.size(); ++k) {
+    const ElementVector fe =
+        face_linear_traction_load(s.type, s.face_coordinates(k), F / area, T, c);
     FX_PETSC(VecSetValuesBlocked(f, npf, &s.global_nodes[k * static_cast<std::size_t>(npf)],
                                  fe.data(), ADD_VALUES));
   }

@@ -82,7 +82,49 @@ double integrate_face(FaceType type, const FaceCoords &Xf, double *nodal) {
   return area;
 }
 
+/// Calls visit(wda, N, x) at each quadrature point of a rule that integrates N_a times a linear
+/// field exactly on flat straight-sided faces (the face's own rule, at least degree 2).
+template <class Visit> void for_face_points(FaceType type, const FaceCoords &Xf, Visit &&visit) {
+  const ShapeTable &tab = face_table(type, std::max(face_degree(type), 2));
+  const int n = tab.num_nodes;
+  for (int q = 0; q < tab.num_points; ++q) {
+    const double *dN = &tab.dN[static_cast<std::size_t>(q * n * 2)];
+    const double wda =
+        tab.weights[static_cast<std::size_t>(q)] *
+        (type == FaceType::Line2 || type == FaceType::Line3 ? curve_jacobian(Xf, dN)
+                                                            : surface_jacobian(Xf, dN));
+    const double *N = &tab.N[static_cast<std::size_t>(q * n)];
+    Eigen::Vector3d x = Eigen::Vector3d::Zero();
+    for (int a = 0; a < n; ++a) x += N[a] * Xf.row(a).transpose();
+    visit(wda, N, x);
+  }
+}
+
 } // namespace
+
+ElementVector face_linear_traction_load(FaceType type, const FaceCoords &Xf,
+                                        const Eigen::Vector3d &t0, const Eigen::Matrix3d &T,
+                                        const Eigen::Vector3d &c) {
+  check_face_coords(type, Xf, "face_linear_traction_load");
+  const int n = nodes_per_face(type);
+  ElementVector f = ElementVector::Zero(3 * n);
+  for_face_points(type, Xf, [&](double wda, const double *N, const Eigen::Vector3d &x) {
+    const Eigen::Vector3d t = t0 + T * (x - c);
+    for (int a = 0; a < n; ++a)
+      for (int i = 0; i < 3; ++i) f[3 * a + i] += wda * N[a] * t[i];
+  });
+  return f;
+}
+
+Eigen::Matrix3d face_second_moment(FaceType type, const FaceCoords &Xf, const Eigen::Vector3d &c) {
+  check_face_coords(type, Xf, "face_second_moment");
+  Eigen::Matrix3d J = Eigen::Matrix3d::Zero();
+  for_face_points(type, Xf, [&](double wda, const double *, const Eigen::Vector3d &x) {
+    const Eigen::Vector3d r = x - c;
+    J += wda * (r.squaredNorm() * Eigen::Matrix3d::Identity() - r * r.transpose());
+  });
+  return J;
+}
 
 ElementVector face_traction_load(FaceType type, const FaceCoords &Xf, const Eigen::Vector3d &t) {
   check_face_coords(type, Xf, "face_traction_load");

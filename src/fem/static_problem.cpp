@@ -150,14 +150,13 @@ std::unique_ptr<StaticProblem> StaticProblem::create(MPI_Comm comm, const Static
     add_surface_traction(m, t.surface, Eigen::Vector3d(t.value[0], t.value[1], t.value[2]),
                          t.where.str() + ": line_loads", p->f_surface_);
   for (const auto &t : loads.tractions) {
-    Eigen::Vector3d value(t.value[0], t.value[1], t.value[2]);
+    const Eigen::Vector3d value(t.value[0], t.value[1], t.value[2]);
     const std::string where = t.where.str() + ": tractions";
-    if (t.total) { // a total force, spread uniformly: traction = force / area
-      const double area = surface_area(m, t.surface, where);
-      if (!(area > 0)) throw Error(where + ": surface '" + t.surface + "' has zero area", true);
-      value /= area;
-    }
-    add_surface_traction(m, t.surface, value, where, p->f_surface_);
+    if (t.total) // a total force (and moment), spread over the surface
+      add_surface_force(m, t.surface, value, Eigen::Vector3d(t.moment[0], t.moment[1], t.moment[2]),
+                        where, p->f_surface_);
+    else
+      add_surface_traction(m, t.surface, value, where, p->f_surface_);
   }
   if (loads.gravity || loads.inertia) {
     // The body acceleration field b(X) = g - (a + alpha x r + omega x (omega x r)), r = X - p.

@@ -187,7 +187,7 @@ void read_tractions(const Reader &r, const YAML::Node &node, Case &c, const std:
     r.require_map(v, path);
     const bool surface = std::string(where_key) == "surface";
     if (surface)
-      r.check_keys(v, path, {"body", where_key, "value", "force"});
+      r.check_keys(v, path, {"body", where_key, "value", "force", "moment"});
     else
       r.check_keys(v, path, {"body", where_key, "value"});
     fem::SurfaceLoad t;
@@ -201,7 +201,11 @@ void read_tractions(const Reader &r, const YAML::Node &node, Case &c, const std:
                                   "force, spread uniformly over the surface), not both");
       t.total = true;
       t.value = r.vector3(v["force"], path + ".force");
+      if (v["moment"]) t.moment = r.vector3(v["moment"], path + ".moment");
     } else {
+      if (surface && v["moment"])
+        r.fail(v["moment"], path + ".moment: a moment goes with force (the total force and the "
+                                   "moment about the surface's centroid), not with value");
       t.value = r.vector3(r.require(v, "value", path), path + ".value");
     }
     out.push_back(t);

@@ -164,6 +164,36 @@ TEST_P(Parallel, TractionIntegratesToForce) {
   VecDestroy(&f);
 }
 
+// A total force F and a moment M about the centroid on the beam's tip face (fem::add_surface_force,
+// the linear traction of docs/theory.md section 14.3): the consistent nodal loads sum to F and
+// their moment about the centroid is M, to rounding (the traction is linear and the rule exact
+// for N_a times a linear field on the flat straight-sided faces; Tet10's quadratic faces too).
+TEST_P(Parallel, ForceAndMomentOnASurfaceIntegrateToThem) {
+  auto m = load(GetParam());
+  Vec f = fem::create_ghosted_vector(m);
+  VecZeroEntries(f);
+  const Eigen::Vector3d F(1.0e3, -2.0e3, 5.0e2), M(30.0, -20.0, 10.0);
+  fem::add_surface_force(m, "tip", F, M, "test", f);
+  const Eigen::Vector3d c = fem::surface_centroid(m, "tip", "test");
+  double sum[6] = {0, 0, 0, 0, 0, 0};
+  const PetscScalar *a = nullptr;
+  VecGetArrayRead(f, &a);
+  for (PetscInt i = 0; i < m.owned_nodes; ++i) {
+    const Eigen::Vector3d fi(a[3 * i], a[3 * i + 1], a[3 * i + 2]);
+    const Eigen::Vector3d xi(m.coordinates[3 * i], m.coordinates[3 * i + 1],
+                             m.coordinates[3 * i + 2]);
+    const Eigen::Vector3d mi = (xi - c).cross(fi);
+    for (int k = 0; k < 3; ++k) sum[k] += fi(k), sum[3 + k] += mi(k);
+  }
+  VecRestoreArrayRead(f, &a);
+  MPI_Allreduce(MPI_IN_PLACE, sum, 6, MPI_DOUBLE, MPI_SUM, m.comm);
+  for (int k = 0; k < 3; ++k) {
+    EXPECT_NEAR(sum[k], F(k), 1e-12 * F.norm()) << "force " << k;
+    EXPECT_NEAR(sum[3 + k], M(k), 1e-12 * M.norm()) << "moment " << k;
+  }
+  VecDestroy(&f);
+}
+
 TEST_P(Parallel, ProbeInterpolatesLinearFieldExactly) {
   auto m = load(GetParam());
   Vec u = fem::create_ghosted_vector(m);

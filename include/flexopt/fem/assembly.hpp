@@ -100,6 +100,17 @@ double surface_area(const mesh::DistributedMesh &mesh, const std::string &surfac
 void add_surface_traction(const mesh::DistributedMesh &mesh, const std::string &surface,
                           const Eigen::Vector3d &t, const std::string &where, Vec f);
 
+/// Adds the consistent load of a total force F [N] and a moment M [N m] about the surface's
+/// centroid C, carried by the named surface as the linear traction
+/// t(x) = F / area + (J^-1 M) x (x - C), J = int (|x - C|^2 I - (x - C)(x - C)^T) dA: it has the
+/// resultant F and the moment M about C and nothing else (docs/theory.md section 14.3). M = 0
+/// gives the uniform spread of `force:`. Collective; throws a collective flexopt::Error naming
+/// `where` for a missing surface, one without area, or a moment on a surface that cannot carry
+/// it (J singular: a line of faces).
+void add_surface_force(const mesh::DistributedMesh &mesh, const std::string &surface,
+                       const Eigen::Vector3d &F, const Eigen::Vector3d &M, const std::string &where,
+                       Vec f);
+
 /// Global DOF numbers (owned by this rank) of the given components of the nodes of `surface`.
 std::vector<PetscInt> surface_dofs(const mesh::DistributedMesh &mesh, const std::string &surface,
                                    const std::array<bool, 3> &components, const std::string &where);

@@ -171,6 +171,16 @@ Voigt von_mises_gradient(const Voigt &sigma);
 /// node (Gmsh ordering). Exact for flat straight-sided Tri3/Tri6 and planar Quad4; curved Tri6 and
 /// warped Quad4 faces use a high-order rule (Tri6: degree 10, Quad4: 4x4 points).
 ElementVector face_traction_load(FaceType type, const FaceCoords &Xf, const Eigen::Vector3d &t);
+/// Consistent nodal load [N] of the linear traction t(x) = t0 + T (x - c) on a face:
+/// f_(a,k) = int N_a t_k dA (the face's rule, at least degree 2: exact on flat straight-sided
+/// faces). A force F and moment M about c carried by a surface: t0 = F / area, T = [J^-1 M]x with
+/// J the surface's face_second_moment about its centroid c (docs/theory.md section 14.3).
+ElementVector face_linear_traction_load(FaceType type, const FaceCoords &Xf,
+                                        const Eigen::Vector3d &t0, const Eigen::Matrix3d &T,
+                                        const Eigen::Vector3d &c);
+/// int (|x - c|^2 I - (x - c)(x - c)^T) dA over a face [m^4] (the rule of
+/// face_linear_traction_load).
+Eigen::Matrix3d face_second_moment(FaceType type, const FaceCoords &Xf, const Eigen::Vector3d &c);
 /// Face area int dA [m^2], with the same quadrature as face_traction_load (so that the nodal loads
 /// of a constant traction sum to t * face_area).
 double face_area(FaceType type, const FaceCoords &Xf);

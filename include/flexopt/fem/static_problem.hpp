@@ -37,6 +37,9 @@ struct SurfaceLoad {
   /// `force:` given instead of `value:`: `value` is a total force, spread as a uniform
   /// traction over the surface (value / area).
   bool total = false;
+  /// With `force:`, `moment:` [N m] about the surface's centroid, carried by a traction linear
+  /// over the surface (fem::add_surface_force).
+  std::array<double, 3> moment{0, 0, 0};
   io::Location where;
 };
 
