@@ -4,6 +4,7 @@
 #include "flexopt/bodies/quaternion.hpp"
 #include "flexopt/core/error.hpp"
 
+#include <functional>
 #include <map>
 #include <utility>
 
@@ -81,6 +82,10 @@ private:
   Matrix rows_;
 };
 
+/// The name of the body's interface whose centroid is at a body point (relative to the origin,
+/// undeformed), or empty.
+using InterfaceAt = std::function<std::string(const Vec3 &)>;
+
 /// "joint NAME (type)" and "driver of joint NAME" -> NAME; anything else: empty.
 std::string joint_name(const std::string &owner) {
   const std::string driver = "driver of joint ", joint = "joint ";
@@ -100,9 +105,9 @@ Vec3 body_point(const Vec3 &s, const joints::Elastic &S, const Vector &zeta) {
 /// generalized force -Phi_qb^T lambda of its rows, as a force (body axes) and a moment about
 /// the origin, turned into a moment about the joint's point on the body.
 std::vector<PointLoad> joint_loads(const Mechanism &mech, int mb, const State &s,
-                                   const BodyMotion &m) {
+                                   const BodyMotion &m, const InterfaceAt &interface_at) {
   struct Sum {
-    Vec3 force{0, 0, 0}, moment{0, 0, 0}, point{0, 0, 0};
+    Vec3 force{0, 0, 0}, moment{0, 0, 0}, point{0, 0, 0}, rest{0, 0, 0};
   };
   std::map<std::string, Sum> joints;
   std::vector<std::string> order;
@@ -125,25 +130,28 @@ std::vector<PointLoad> joint_loads(const Mechanism &mech, int mb, const State &s
     j.force += m.A.transpose() * g.head<3>();
     j.moment += 0.5 * gbar * g.segment<4>(3); // f_p = 2 Gbar^T n  =>  n = Gbar f_p / 2
     if (e.kind == joints::Equation::Kind::Coincide ||
-        e.kind == joints::Equation::Kind::PointOnPlane)
+        e.kind == joints::Equation::Kind::PointOnPlane) {
       j.point = e.a == mb ? body_point(e.sa, e.Sa, m.zeta) : body_point(e.sb, e.Sb, m.zeta);
+      j.rest = e.a == mb ? e.sa : e.sb;
+    }
   }
   std::vector<PointLoad> out;
   for (const std::string &name : order) {
     const Sum &j = joints[name];
-    out.push_back({"joint " + name, j.point, j.force, j.moment - j.point.cross(j.force)});
+    out.push_back({"joint " + name, interface_at(j.rest), j.point, j.force,
+                   j.moment - j.point.cross(j.force)});
   }
   return out;
 }
 
 /// The case's interface forces on body mb (world values at t, applied at s + S zeta).
 void add_point_forces(const Mechanism &mech, int mb, const State &s, const BodyMotion &m,
-                      std::vector<PointLoad> &out) {
+                      const InterfaceAt &interface_at, std::vector<PointLoad> &out) {
   for (std::size_t k = 0; k < mech.forces.size(); ++k) {
     const PointForce &f = mech.forces[k];
     if (f.body != mb) continue;
     const Vec3 world(f.value[0](s.t), f.value[1](s.t), f.value[2](s.t));
-    out.push_back({"force " + std::to_string(k), body_point(f.s, f.S, m.zeta),
+    out.push_back({"force " + std::to_string(k), interface_at(f.s), body_point(f.s, f.S, m.zeta),
                    m.A.transpose() * world, Vec3::Zero()});
   }
 }
@@ -207,10 +215,18 @@ BodyLoads body_loads(const Scene &scene, std::size_t b, const State &s, Mat mass
   if (mb < 0) throw Error("body_loads: an ACF body's loads are not defined", true);
   const Mechanism &mech = scene.mechanism;
   const BodyMotion m = body_motion(mech, mb, s);
+  const Vec3 origin = mech.bodies[static_cast<std::size_t>(mb)]->origin();
+  // Interface centroids and attachment points are the same numbers up to the placement's
+  // rounding; joints whose points miss by less than 1e-4 of the scene are placed at body a's.
+  const InterfaceAt interface_at = [&](const Vec3 &point) {
+    for (const auto &[name, centroid] : scene.bodies[b].interfaces)
+      if ((centroid - origin - point).norm() <= 1e-4 * scene.length_scale) return name;
+    return std::string();
+  };
   BodyLoads out;
-  out.points = joint_loads(mech, mb, s, m);
-  add_point_forces(mech, mb, s, m, out.points);
-  inertia_loads(scene, b, mech.bodies[static_cast<std::size_t>(mb)]->origin(), m, mass, out);
+  out.points = joint_loads(mech, mb, s, m, interface_at);
+  add_point_forces(mech, mb, s, m, interface_at, out.points);
+  inertia_loads(scene, b, origin, m, mass, out);
 
   out.force_residual = out.inertia_force;
   out.moment_residual = out.inertia_moment;

@@ -14,7 +14,7 @@
 //   iterations stop at 1e-12 on the coordinates, relative to 1 + max|q|, which leaves the
 //   acceleration-level residual some thousand times larger, relative to the forces);
 // - a joint's loads on its two bodies are opposite in world axes (Newton's third law), to 1e-12
-//   of the force.
+//   of the force, and each sits at the interface the joint attaches to.
 #include "flexopt/dynamics/body_loads.hpp"
 #include "flexopt/dynamics/integrator.hpp"
 #include "flexopt/fem/assembly.hpp"
@@ -92,6 +92,15 @@ TEST(BodyLoads, BalanceAndThirdLawOnTheFlexibleSliderCrank) {
       worst_exact = std::max({worst_exact, ef, em});
       worst_balance = std::max({worst_balance, bf, bm});
     }
+    // Each joint's load sits at the interface it attaches to.
+    const std::vector<std::vector<std::pair<std::string, std::string>>> at = {
+        {{"joint main", "end_a"}, {"joint crank_pin", "end_b"}},
+        {{"joint crank_pin", "end_a"}, {"joint wrist_pin", "end_b"}},
+        {{"joint wrist_pin", "pin"}, {"joint guide", "pin"}}};
+    for (std::size_t b = 0; b < at.size(); ++b)
+      for (const auto &[owner, interface] : at[b])
+        EXPECT_EQ(find_load(loads[b], owner).interface, interface)
+            << c.scene.bodies[b].name << ": " << owner;
     const auto world = [&](std::size_t b, const dynamics::PointLoad &p) -> Eigen::Vector3d {
       const int o = mech.offset(scene.bodies[b].mechanism);
       return bodies::rotation(record.state.q.segment<4>(o + 3)) * p.force;

@@ -17,7 +17,8 @@ namespace flexopt::dynamics {
 /// the body's origin (Body::origin(); for an FFRF body its deformed position), the moment about
 /// the point.
 struct PointLoad {
-  std::string owner; ///< "joint NAME" (with its driver's row) or "force K" (the case's forces)
+  std::string owner;     ///< "joint NAME" (with its driver's row) or "force K" (the case's forces)
+  std::string interface; ///< the body's interface whose centroid the point is (empty: none)
   Vec3 point{0, 0, 0}, force{0, 0, 0}, moment{0, 0, 0};
 };
 
