@@ -508,17 +508,30 @@ double surface_area(const mesh::DistributedMesh &mesh, const std::string &surfac
   return global;
 }
 
-void add_surface_traction(const mesh::DistributedMesh &mesh, const std::string &surface,
-                          const Eigen::Vector3d &t, const std::string &where, Vec f) {
+namespace {
+
+/// Adds face_load(type, face coordinates) of every face of `surface` into f. Collective.
+template <class FaceLoad>
+void add_face_loads(const mesh::DistributedMesh &mesh, const std::string &surface,
+                    const std::string &where, Vec f, FaceLoad &&face_load) {
   const mesh::LocalSurface &s = mesh.surface(surface, where);
   const int npf = nodes_per_face(s.type);
   for (std::size_t k = 0; k < s.size(); ++k) {
-    const ElementVector fe = face_traction_load(s.type, s.face_coordinates(k), t);
+    const ElementVector fe = face_load(s.type, s.face_coordinates(k));
     FX_PETSC(VecSetValuesBlocked(f, npf, &s.global_nodes[k * static_cast<std::size_t>(npf)],
                                  fe.data(), ADD_VALUES));
   }
   FX_PETSC(VecAssemblyBegin(f));
   FX_PETSC(VecAssemblyEnd(f));
+}
+
+} // namespace
+
+void add_surface_traction(const mesh::DistributedMesh &mesh, const std::string &surface,
+                          const Eigen::Vector3d &t, const std::string &where, Vec f) {
+  add_face_loads(mesh, surface, where, f, [&](FaceType type, const FaceCoords &Xf) {
+    return face_traction_load(type, Xf, t);
+  });
 }
 
 void add_surface_force(const mesh::DistributedMesh &mesh, const std::string &surface,
@@ -546,15 +559,9 @@ void add_surface_force(const mesh::DistributedMesh &mesh, const std::string &sur
   const Eigen::Vector3d beta = J.ldlt().solve(M);
   Eigen::Matrix3d T;
   T << 0, -beta(2), beta(1), beta(2), 0, -beta(0), -beta(1), beta(0), 0;
-  const int npf = nodes_per_face(s.type);
-  for (std::size_t k = 0; k < s.size(); ++k) {
-    const ElementVector fe =
-        face_linear_traction_load(s.type, s.face_coordinates(k), F / area, T, c);
-    FX_PETSC(VecSetValuesBlocked(f, npf, &s.global_nodes[k * static_cast<std::size_t>(npf)],
-                                 fe.data(), ADD_VALUES));
-  }
-  FX_PETSC(VecAssemblyBegin(f));
-  FX_PETSC(VecAssemblyEnd(f));
+  add_face_loads(mesh, surface, where, f, [&](FaceType type, const FaceCoords &Xf) {
+    return face_linear_traction_load(type, Xf, F / area, T, c);
+  });
 }
 
 std::vector<PetscInt> surface_dofs(const mesh::DistributedMesh &mesh, const std::string &surface,

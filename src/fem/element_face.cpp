@@ -65,39 +65,40 @@ int face_degree(FaceType type) {
   throw Error("flexopt::fem: invalid FaceType value");
 }
 
-/// Returns sum_q w_q dA_q and fills nodal[a] = sum_q w_q dA_q N_a(q) if nodal is non-null.
-double integrate_face(FaceType type, const FaceCoords &Xf, double *nodal) {
-  const ShapeTable &tab = face_table(type, face_degree(type));
+/// Calls visit(wda, N, x) at each point of the face rule of degree `degree`: the weight times
+/// the surface (or curve) element, the shape functions and the physical point.
+template <class Visit>
+void for_face_points(FaceType type, const FaceCoords &Xf, int degree, Visit &&visit) {
+  const ShapeTable &tab = face_table(type, degree);
   const int n = tab.num_nodes;
-  if (nodal) std::fill(nodal, nodal + n, 0.0);
-  double area = 0.0;
-  for (int q = 0; q < tab.num_points; ++q) {
-    const double wda = tab.weights[q] * (type == FaceType::Line2 || type == FaceType::Line3
-                                             ? curve_jacobian(Xf, &tab.dN[q * n * 2])
-                                             : surface_jacobian(Xf, &tab.dN[q * n * 2]));
-    area += wda;
-    if (nodal)
-      for (int a = 0; a < n; ++a) nodal[a] += wda * tab.N[q * n + a];
-  }
-  return area;
-}
-
-/// Calls visit(wda, N, x) at each quadrature point of a rule that integrates N_a times a linear
-/// field exactly on flat straight-sided faces (the face's own rule, at least degree 2).
-template <class Visit> void for_face_points(FaceType type, const FaceCoords &Xf, Visit &&visit) {
-  const ShapeTable &tab = face_table(type, std::max(face_degree(type), 2));
-  const int n = tab.num_nodes;
+  const bool curve = type == FaceType::Line2 || type == FaceType::Line3;
   for (int q = 0; q < tab.num_points; ++q) {
     const double *dN = &tab.dN[static_cast<std::size_t>(q * n * 2)];
-    const double wda =
-        tab.weights[static_cast<std::size_t>(q)] *
-        (type == FaceType::Line2 || type == FaceType::Line3 ? curve_jacobian(Xf, dN)
-                                                            : surface_jacobian(Xf, dN));
+    const double wda = tab.weights[static_cast<std::size_t>(q)] *
+                       (curve ? curve_jacobian(Xf, dN) : surface_jacobian(Xf, dN));
     const double *N = &tab.N[static_cast<std::size_t>(q * n)];
     Eigen::Vector3d x = Eigen::Vector3d::Zero();
     for (int a = 0; a < n; ++a) x += N[a] * Xf.row(a).transpose();
     visit(wda, N, x);
   }
+}
+
+/// Returns sum_q w_q dA_q and fills nodal[a] = sum_q w_q dA_q N_a(q) if nodal is non-null.
+double integrate_face(FaceType type, const FaceCoords &Xf, double *nodal) {
+  const int n = nodes_per_face(type);
+  if (nodal) std::fill(nodal, nodal + n, 0.0);
+  double area = 0.0;
+  for_face_points(type, Xf, face_degree(type), [&](double wda, const double *N, const auto &) {
+    area += wda;
+    if (nodal)
+      for (int a = 0; a < n; ++a) nodal[a] += wda * N[a];
+  });
+  return area;
+}
+
+/// The rule for a linear field times N_a: exact on flat straight-sided faces (at least degree 2).
+int linear_field_degree(FaceType type) {
+  return std::max(face_degree(type), 2);
 }
 
 } // namespace
@@ -108,21 +109,23 @@ ElementVector face_linear_traction_load(FaceType type, const FaceCoords &Xf,
   check_face_coords(type, Xf, "face_linear_traction_load");
   const int n = nodes_per_face(type);
   ElementVector f = ElementVector::Zero(3 * n);
-  for_face_points(type, Xf, [&](double wda, const double *N, const Eigen::Vector3d &x) {
-    const Eigen::Vector3d t = t0 + T * (x - c);
-    for (int a = 0; a < n; ++a)
-      for (int i = 0; i < 3; ++i) f[3 * a + i] += wda * N[a] * t[i];
-  });
+  for_face_points(type, Xf, linear_field_degree(type),
+                  [&](double wda, const double *N, const Eigen::Vector3d &x) {
+                    const Eigen::Vector3d t = t0 + T * (x - c);
+                    for (int a = 0; a < n; ++a)
+                      for (int i = 0; i < 3; ++i) f[3 * a + i] += wda * N[a] * t[i];
+                  });
   return f;
 }
 
 Eigen::Matrix3d face_second_moment(FaceType type, const FaceCoords &Xf, const Eigen::Vector3d &c) {
   check_face_coords(type, Xf, "face_second_moment");
   Eigen::Matrix3d J = Eigen::Matrix3d::Zero();
-  for_face_points(type, Xf, [&](double wda, const double *, const Eigen::Vector3d &x) {
-    const Eigen::Vector3d r = x - c;
-    J += wda * (r.squaredNorm() * Eigen::Matrix3d::Identity() - r * r.transpose());
-  });
+  for_face_points(type, Xf, linear_field_degree(type),
+                  [&](double wda, const double *, const Eigen::Vector3d &x) {
+                    const Eigen::Vector3d r = x - c;
+                    J += wda * (r.squaredNorm() * Eigen::Matrix3d::Identity() - r * r.transpose());
+                  });
   return J;
 }
 
