@@ -49,6 +49,10 @@ each_condition(const Context &ctx, const io::Case &c,
                const std::function<void(const io::Case &, const std::string &, io::Json &)> &one);
 } // namespace detail
 
+/// `optimize` of a case with `optimizer: {method: esl}`: the equivalent static loads' outer
+/// iteration (src/app/esl.cpp; docs/theory.md section 14). Collective.
+int run_esl(const Context &ctx, const Options &o, const io::Case &c, double t0);
+
 /// `check-gradient`: the Taylor test and central differences of a design problem's adjoint
 /// gradients, on evaluations solved to round-off, with their measured noise
 /// (src/app/check_gradient.cpp; docs/theory.md section 5, "Checking a gradient"). Collective.

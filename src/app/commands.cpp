@@ -631,6 +631,7 @@ int run_modes(const Context &ctx, const Options &o, const io::Case &c, double t0
 int run_optimize(const Context &ctx, const Options &o, const io::Case &c, double t0) {
   if (c.design.empty())
     throw Error(c.file + ": optimize needs design:, objective: (and constraints:) sections", true);
+  if (c.esl) return run_esl(ctx, o, c, t0);
   const std::string dir = output_directory(ctx, o);
   io::Case run_case = c;
   if (o.max_iterations > 0) run_case.optimizer.max_iterations = o.max_iterations;

@@ -17,8 +17,10 @@ BodyLoads::BodyLoads(BodyLoads &&other) noexcept {
 BodyLoads &BodyLoads::operator=(BodyLoads &&other) noexcept {
   if (this == &other) return *this;
   if (nodal) VecDestroy(&nodal);
+  if (body_force) VecDestroy(&body_force);
   points = std::move(other.points);
   nodal = std::exchange(other.nodal, nullptr);
+  body_force = std::exchange(other.body_force, nullptr);
   inertia_force = other.inertia_force, inertia_moment = other.inertia_moment;
   force_residual = other.force_residual, moment_residual = other.moment_residual;
   force_scale = other.force_scale, moment_scale = other.moment_scale;
@@ -27,6 +29,7 @@ BodyLoads &BodyLoads::operator=(BodyLoads &&other) noexcept {
 
 BodyLoads::~BodyLoads() {
   if (nodal) VecDestroy(&nodal);
+  if (body_force) VecDestroy(&body_force);
 }
 
 namespace {
@@ -163,8 +166,8 @@ void inertia_loads(const Scene &scene, std::size_t b, const Vec3 &origin, const 
   const Eigen::MatrixXd &modes = scene.owned_modes[b];
   const auto owned = static_cast<Eigen::Index>(mesh.owned_nodes);
   const bool elastic = m.zeta.size() > 0;
-  Vec field = nullptr;
-  FX_PETSC(MatCreateVecs(mass, &field, &out.nodal));
+  FX_PETSC(MatCreateVecs(mass, &out.body_force, &out.nodal));
+  Vec field = out.body_force;
   PetscInt local = 0;
   FX_PETSC(VecGetLocalSize(field, &local));
   std::vector<Vec3> xbar(static_cast<std::size_t>(owned));
@@ -189,11 +192,9 @@ void inertia_loads(const Scene &scene, std::size_t b, const Vec3 &origin, const 
   int bad = local == 3 * owned ? 0 : 1;
   MPI_Allreduce(MPI_IN_PLACE, &bad, 1, MPI_INT, MPI_MAX, comm);
   if (bad) {
-    VecDestroy(&field);
     throw Error("body_loads: the mass matrix does not have the mesh's layout", true);
   }
   FX_PETSC(MatMult(mass, field, out.nodal));
-  FX_PETSC(VecDestroy(&field));
   std::array<double, 6> sum{};
   const PetscScalar *f = nullptr;
   FX_PETSC(VecGetArrayRead(out.nodal, &f));

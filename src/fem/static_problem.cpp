@@ -120,6 +120,54 @@ void check_converged(KSP ksp, const std::string &what) {
   }
 }
 
+namespace {
+
+/// Every local element's consistent body load f_e = M_e b_e (flat, 3 per element node; empty
+/// without a body force) of the specific body force b(X) = g - (a + alpha x r + omega x (omega x
+/// r)), r = X - point (gravity, loads.inertia), plus the nodal field loads.body_force. Collective
+/// (the nodal field's mesh check).
+std::vector<double> element_body_loads(const mesh::DistributedMesh &m, double density,
+                                       const StaticLoads &loads, const std::string &case_file) {
+  if (!loads.gravity && !loads.inertia && !loads.body_force) return {};
+  Eigen::Vector3d g = Eigen::Vector3d::Zero(), a = g, w = g, al = g, x0 = g;
+  auto v3 = [](const std::array<double, 3> &v) { return Eigen::Vector3d(v[0], v[1], v[2]); };
+  if (loads.gravity) g = v3(*loads.gravity);
+  if (loads.inertia) {
+    a = v3(loads.inertia->acceleration), w = v3(loads.inertia->angular_velocity);
+    al = v3(loads.inertia->angular_acceleration), x0 = v3(loads.inertia->point);
+  }
+  const double *nodal = nullptr;
+  if (loads.body_force) {
+    const NodalBodyForce &field = *loads.body_force;
+    int other = !field.coordinates || *field.coordinates != m.coordinates ||
+                field.values.size() != m.coordinates.size();
+    MPI_Allreduce(MPI_IN_PLACE, &other, 1, MPI_INT, MPI_MAX, m.comm);
+    if (other)
+      throw Error(case_file + ": a nodal body force made on another mesh or distribution (the "
+                              "static problem must load the body's mesh on the same ranks)",
+                  true);
+    nodal = field.values.data();
+  }
+  const int npe = m.nodes_per_element(), nd = 3 * npe;
+  std::vector<double> out(static_cast<std::size_t>(m.local_elements() * nd), 0.0);
+  for (PetscInt e = 0; e < m.local_elements(); ++e) {
+    const ElementCoords X = m.element_coordinates(e);
+    ElementVector b(nd);
+    for (int k = 0; k < npe; ++k) {
+      const Eigen::Vector3d r = X.row(k).transpose() - x0;
+      b.segment<3>(3 * k) = g - (a + al.cross(r) + w.cross(w.cross(r)));
+      if (nodal)
+        b.segment<3>(3 * k) += Eigen::Map<const Eigen::Vector3d>(
+            nodal + 3 * m.connectivity[static_cast<std::size_t>(e * npe + k)]);
+    }
+    const ElementVector fe = element_mass(m.type, X, density) * b;
+    std::copy(fe.data(), fe.data() + nd, out.begin() + e * nd);
+  }
+  return out;
+}
+
+} // namespace
+
 std::unique_ptr<StaticProblem> StaticProblem::create(MPI_Comm comm, const StaticSettings &c) {
   std::unique_ptr<StaticProblem> p(new StaticProblem());
   p->material_ = c.material;
@@ -158,28 +206,7 @@ std::unique_ptr<StaticProblem> StaticProblem::create(MPI_Comm comm, const Static
     else
       add_surface_traction(m, t.surface, value, where, p->f_surface_);
   }
-  if (loads.gravity || loads.inertia) {
-    // The body acceleration field b(X) = g - (a + alpha x r + omega x (omega x r)), r = X - p.
-    Eigen::Vector3d g = Eigen::Vector3d::Zero(), a = g, w = g, al = g, x0 = g;
-    auto v3 = [](const std::array<double, 3> &v) { return Eigen::Vector3d(v[0], v[1], v[2]); };
-    if (loads.gravity) g = v3(*loads.gravity);
-    if (loads.inertia) {
-      a = v3(loads.inertia->acceleration), w = v3(loads.inertia->angular_velocity);
-      al = v3(loads.inertia->angular_acceleration), x0 = v3(loads.inertia->point);
-    }
-    const int npe = m.nodes_per_element(), nd = 3 * npe;
-    p->body_load_.assign(static_cast<std::size_t>(m.local_elements() * nd), 0.0);
-    for (PetscInt e = 0; e < m.local_elements(); ++e) {
-      const ElementCoords X = m.element_coordinates(e);
-      ElementVector b(nd);
-      for (int k = 0; k < npe; ++k) {
-        const Eigen::Vector3d r = X.row(k).transpose() - x0;
-        b.segment<3>(3 * k) = g - (a + al.cross(r) + w.cross(w.cross(r)));
-      }
-      const ElementVector fe = element_mass(m.type, X, mat.density) * b;
-      std::copy(fe.data(), fe.data() + nd, p->body_load_.begin() + e * nd);
-    }
-  }
+  p->body_load_ = element_body_loads(m, mat.density, loads, c.case_file);
   p->set_body_load_factors({});
 
   FX_PETSC(KSPCreate(comm, &p->ksp_));

@@ -384,10 +384,43 @@ void read_adjoint(const Reader &r, const YAML::Node &v, Case &c) {
                             {"fixed", reduce::BasisDerivative::Fixed}});
 }
 
+/// optimizer.method and the equivalent static loads' keys into c.esl (docs/theory.md 14): a
+/// dynamic case with one design body that is not ACF, an objective of its strain energy.
+void read_esl(const Reader &r, const YAML::Node &o, Case &c) {
+  const bool esl = o["method"] && r.enumerated(o["method"], "optimizer.method",
+                                               {std::pair{"mma", false}, {"esl", true}});
+  for (const char *key : {"instants", "outer_iterations", "inner_iterations"})
+    if (o[key] && !esl)
+      r.fail(o[key], std::string("optimizer.") + key +
+                         ": belongs to method: esl (equivalent static loads)");
+  if (!esl) return;
+  const YAML::Node &m = o["method"];
+  if (!c.dynamic())
+    r.fail(m, "optimizer.method: esl designs a body of a moving mechanism from its loads at "
+              "instants of the motion: it needs analysis: dynamic (a static case is designed "
+              "for its own loads already)");
+  optimize::EslSettings e;
+  e.where = r.where(m);
+  auto count = [&](const char *key, int &value, int least) {
+    if (!o[key]) return;
+    value = r.integer(o[key], std::string("optimizer.") + key);
+    if (value < least)
+      r.fail(o[key], std::string("optimizer.") + key + ": must be >= " + std::to_string(least) +
+                         " (got " + std::to_string(value) + ")");
+  };
+  count("instants", e.instants, 1);
+  count("outer_iterations", e.outer_iterations, 1);
+  count("inner_iterations", e.inner_iterations, 1);
+  c.esl = e;
+}
+
 /// `optimizer:` into c.optimizer (the iterations, the move limit, the tolerance).
 void read_optimizer(const Reader &r, const YAML::Node &o, Case &c) {
   r.require_map(o, "optimizer");
-  r.check_keys(o, "optimizer", {"max_iterations", "move_limit", "tolerance"});
+  r.check_keys(o, "optimizer",
+               {"max_iterations", "move_limit", "tolerance", "method", "instants",
+                "outer_iterations", "inner_iterations"});
+  read_esl(r, o, c);
   if (o["max_iterations"]) {
     c.optimizer.max_iterations = r.integer(o["max_iterations"], "optimizer.max_iterations");
     if (c.optimizer.max_iterations < 1)
@@ -402,6 +435,49 @@ void read_optimizer(const Reader &r, const YAML::Node &o, Case &c) {
     c.optimizer.tolerance = r.number(o["tolerance"], "optimizer.tolerance");
     if (!(c.optimizer.tolerance >= 0)) r.fail(o["tolerance"], "optimizer.tolerance: must be >= 0");
   }
+}
+
+/// What method: esl can design (docs/theory.md 14.6): one design body, rigid or FFRF (ACF's
+/// loads are not built), an objective of its strain energy, constraints on its volume, mass or
+/// stress, one motion (no scenarios), at most one instant per step.
+void check_esl(const Reader &r, const YAML::Node &root, const Case &c) {
+  const optimize::EslSettings &e = *c.esl;
+  const std::string at = e.where.str() + ": optimizer.method: esl ";
+  auto refuse = [&](const io::Location &where, const std::string &what) {
+    throw Error(where.str() + ": " + what, true);
+  };
+  if (c.design.size() != 1)
+    refuse(e.where, "optimizer.method: esl designs one body (design: names " +
+                        std::to_string(c.design.size()) + ")");
+  const std::string &body = c.design.front().body;
+  for (const auto &b : c.scene.bodies)
+    if (b.name == body && b.model == dynamics::BodyModel::Acf)
+      refuse(e.where, "optimizer.method: esl: design body '" + body +
+                          "' is model acf, whose loads at an instant are not built yet; use "
+                          "model: ffrf or rigid for it, or method: mma");
+  const optimize::ResponseSettings &o = *c.objective;
+  if (o.type != optimize::ResponseType::StrainEnergyIntegral ||
+      o.bodies != std::vector<std::string>{body})
+    refuse(o.where, "objective: method: esl minimizes the design body's strain energy "
+                    "(objective: {type: strain_energy_integral, body: " +
+                        body + "}); the static designs approximate it");
+  for (const optimize::ResponseSettings &k : c.constraints) {
+    const bool design_only =
+        k.type == optimize::ResponseType::VolumeFraction ||
+        (k.type == optimize::ResponseType::Mass && k.bodies == std::vector<std::string>{body});
+    const bool stress = k.type == optimize::ResponseType::Stress && k.body == body;
+    if (!design_only && !stress)
+      refuse(k.where, "constraints: method: esl takes the design body's volume_fraction, mass "
+                      "and stress constraints (a static design has no motion to measure)");
+  }
+  if (root["scenarios"])
+    refuse(r.where(root["scenarios"]), "scenarios: method: esl takes one motion (its instants are "
+                                       "the load cases)");
+  const double steps = c.time.given ? std::round(c.time.end / c.time.step) : 0;
+  if (c.time.given && e.instants > steps)
+    throw Error(at + "takes " + std::to_string(e.instants) + " instants, more than the run's " +
+                    std::to_string(static_cast<long long>(steps)) + " steps",
+                true);
 }
 
 } // namespace
@@ -428,6 +504,7 @@ void read_optimization(const Reader &r, YAML::Node root, Case &c) {
     r.fail(root, "objective/constraints/optimizer need a design: section (the design field)");
   if (!c.design.empty() && !c.objective)
     r.fail(root["design"], "design: an optimization needs an objective:");
+  if (c.esl) check_esl(r, root, c);
 
   // Every condition is taken by some response (else it adds nothing but cost).
   if (c.objective) {

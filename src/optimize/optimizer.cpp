@@ -94,6 +94,8 @@ public:
 
   /// Continues after the iterations stored in restart.h5 (docs/theory-mma.md §7).
   void read_restart();
+  /// x = settings.start, or the design field's initial design.
+  void first_design(Vec x) const;
   void check_restart_contents(const io::RestartData &r) const;
   /// Runs the iterations up to the limit or the stop rule.
   void iterate();
@@ -184,7 +186,8 @@ OptimizationRun::OptimizationRun(MPI_Comm comm, DesignProblem &design, const Opt
   result_.design_variables = problem->design_size();
 
   x_ = problem->create_design_vector();
-  problem->initial_design(x_);
+  first_design(x_);
+  stage_ = std::min(std::max(c.first_stage, 0), std::max(stages_ - 1, 0));
   FX_PETSC(VecDuplicate(x_, &xold_));
   FX_PETSC(VecDuplicate(x_, &xmin_));
   FX_PETSC(VecDuplicate(x_, &xmax_));
@@ -224,6 +227,19 @@ OptimizationRun::OptimizationRun(MPI_Comm comm, DesignProblem &design, const Opt
   print_header();
   restart_path_ = (std::filesystem::path(out_dir) / "restart.h5").string();
   tags_ = problem->design_keys();
+}
+
+void OptimizationRun::first_design(Vec x) const {
+  if (c_.start.empty()) return problem_->initial_design(x);
+  PetscInt n = 0;
+  FX_PETSC(VecGetLocalSize(x, &n));
+  int bad = static_cast<std::size_t>(n) != c_.start.size();
+  MPI_Allreduce(MPI_IN_PLACE, &bad, 1, MPI_INT, MPI_MAX, comm_);
+  if (bad) throw Error("optimize: the starting design has another layout than the problem's", true);
+  PetscScalar *xv = nullptr;
+  FX_PETSC(VecGetArray(x, &xv));
+  std::copy(c_.start.begin(), c_.start.end(), xv);
+  FX_PETSC(VecRestoreArray(x, &xv));
 }
 
 /// design.xdmf's frames and estimated size, printed before the run; a warning above
@@ -360,9 +376,10 @@ void OptimizationRun::read_restart() {
   // Solvers that keep what they built for the run's first design (GAMG's interpolation) build
   // it again from that design, at the first stage's projection, as the uninterrupted run did.
   {
-    if (stages_ > 0) problem_->design().set_stage(0);
+    if (stages_ > 0)
+      problem_->design().set_stage(std::min(std::max(c_.first_stage, 0), stages_ - 1));
     Vec x0 = problem_->create_design_vector();
-    problem_->initial_design(x0);
+    first_design(x0);
     problem_->prepare_resume(x0);
     FX_PETSC(VecDestroy(&x0));
   }
@@ -651,6 +668,15 @@ OptimizationResult OptimizationRun::finish() {
   report_infeasible(e);
   write_densities(*writer_, *problem, result.iterations);
   result.volume_fraction = problem->design().volume_fraction();
+  result.stage = stage_;
+  {
+    const PetscScalar *xv = nullptr;
+    PetscInt n = 0;
+    FX_PETSC(VecGetLocalSize(x_, &n));
+    FX_PETSC(VecGetArrayRead(x_, &xv));
+    result.design.assign(xv, xv + n);
+    FX_PETSC(VecRestoreArrayRead(x_, &xv));
+  }
   if (bodies_ > 0) result.body_volume_fractions = body_fractions();
   result.output = writer_->close();
   run_on_root(comm_, 0, [&] {

@@ -27,6 +27,9 @@ struct BodyLoads {
   /// f_i = sum_j m_ij (A^T g - a_j) at the mesh's owned nodes (block size 3, the layout of
   /// fem::create_matrix). Owned by this object.
   Vec nodal = nullptr;
+  /// b_i = A^T g - a_i, the specific body force [m/s^2] whose consistent load is `nodal` (same
+  /// layout; equivalent static loads apply it with the static design's mass). Owned.
+  Vec body_force = nullptr;
   Vec3 inertia_force{0, 0, 0};  ///< sum_i f_i
   Vec3 inertia_moment{0, 0, 0}; ///< sum_i xbar_i x f_i (about the origin)
   /// The balance: inertia and gravity plus the point loads, force and moment about the origin

@@ -54,6 +54,16 @@ struct RigidMotion {
   io::Location where;
 };
 
+/// A body force given node by node [m/s^2] (equivalent static loads, docs/theory.md 14.3: the
+/// d'Alembert field of a flexible body): b at every local node of the mesh it was made on
+/// (owned, then ghosts; 3 per node), applied as the consistent load M_e b_e of each element,
+/// scaled with the element's mass factor as gravity is. It keeps that mesh's local coordinates:
+/// the static problem refuses it unless it loaded the same mesh on the same ranks.
+struct NodalBodyForce {
+  std::vector<double> values;
+  std::shared_ptr<const std::vector<double>> coordinates; ///< DistributedMesh::coordinates
+};
+
 /// What a static analysis applies to its body.
 struct StaticLoads {
   std::vector<Support> supports;
@@ -61,6 +71,7 @@ struct StaticLoads {
   std::vector<SurfaceLoad> line_loads;          ///< on physical curves (`surface` = curve name)
   std::optional<std::array<double, 3>> gravity; ///< [m/s^2]
   std::optional<RigidMotion> inertia;           ///< loads.inertia
+  std::optional<NodalBodyForce> body_force;     ///< added to gravity and inertia
 };
 
 /// The static problem of one body: its mesh, material and loads.

@@ -93,6 +93,8 @@ struct Case {
   std::optional<optimize::ResponseSettings> objective; ///< topology optimization: minimized
   std::vector<optimize::ResponseSettings> constraints; ///< topology optimization: each <= max
   optimize::OptimizerSettings optimizer;
+  /// `optimizer: {method: esl}`: design by equivalent static loads (a dynamic case).
+  std::optional<optimize::EslSettings> esl;
   adjoint::CheckpointSettings
       adjoint; ///< dynamic optimization: checkpointing of the backward sweep
   /// `scenarios:` (dynamic) or `load_cases:` (static); empty: the case is its one condition.

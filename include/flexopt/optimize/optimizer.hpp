@@ -1,5 +1,6 @@
 #pragma once
 /// \file The optimization loop: MMA on the topology problem, with history and density output.
+#include "flexopt/io/location.hpp"
 #include "flexopt/optimize/design_problem.hpp"
 
 #include <mpi.h>
@@ -18,6 +19,21 @@ struct OptimizerSettings {
   /// about kDesignFrames frames over max_iterations (design_output_stride)
   int output_every = 0;
   std::vector<double> bounds; ///< each constraint's upper bound, in the problem's order
+  /// The first design: this rank's design variables in the problem's order (empty: the design
+  /// field's `initial`), and the projection stage it starts at (equivalent static loads: each
+  /// static design continues from the last one's design and stage).
+  std::vector<double> start;
+  int first_stage = 0;
+};
+
+/// `optimizer: {method: esl, ...}`: the equivalent static loads' outer iteration (docs/theory.md
+/// section 14). The MMA settings of each static design are the case's `optimizer:` ones, with
+/// inner_iterations as its iteration count.
+struct EslSettings {
+  int instants = 12;        ///< N: load cases per outer iteration
+  int outer_iterations = 5; ///< K: at most this many simulate-and-design rounds
+  int inner_iterations = 0; ///< MMA iterations per static design (0: optimizer.max_iterations)
+  io::Location where;       ///< of `method: esl`
 };
 
 /// design.xdmf without output.every: about this many frames over optimizer.max_iterations.
@@ -55,6 +71,8 @@ struct OptimizationResult {
   int output_stride = 1;             ///< design.xdmf's frames: every this many iterations
   long long output_frames = 0;       ///< planned over max_iterations
   double output_estimated_bytes = 0; ///< design.h5 + design.xdmf, estimated before the run
+  std::vector<double> design;        ///< the final design: this rank's design variables
+  int stage = 0;                     ///< the projection stage at the end
 };
 
 /// Runs MMA on `problem` (static or dynamic: the same loop for both), with the projection
