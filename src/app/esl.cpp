@@ -370,7 +370,18 @@ int EslRun::read_state(std::vector<double> &x, int &stage) {
   int exists = 0;
   run_on_root(ctx_.comm(), 0, [&] { exists = fs::is_regular_file(path) ? 1 : 0; });
   MPI_Bcast(&exists, 1, MPI_INT, 0, ctx_.comm());
-  if (!exists) return 0;
+  if (!exists) {
+    // Killed in the first outer iteration: its static design's restart.h5 is all there is.
+    int inner = 0;
+    run_on_root(ctx_.comm(), 0,
+                [&] { inner = fs::is_regular_file(fs::path(outer_dir(0)) / "restart.h5"); });
+    MPI_Bcast(&inner, 1, MPI_INT, 0, ctx_.comm());
+    if (!inner)
+      throw Error(path + ": restart file not found (nor " + outer_dir(0) +
+                      "/restart.h5): run optimize without --restart first",
+                  true);
+    return 0;
+  }
   optimize::check_design_file(dyn_->design(), path);
   const io::RestartData r = io::read_restart(ctx_.comm(), path, dyn_->design_keys());
   const std::vector<double> &meta = r.arrays.at("meta");
