@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 """Equivalent static loads (`optimizer: {method: esl}`, issue 47, docs/theory.md section 14).
 
-compare (on a quasi-static scene, tests/optimize/esl_slow_crank: the rod's first mode about 400
+compare (on a quasi-static scene, tests/optimize/esl_slow_crank: the rod's first mode about 100
 times the crank's frequency):
   - ESL's fixed point matches the dynamic design: the final design's dynamic objective (the mean
     strain energy, measured by a dynamic run) within TOL of the full dynamic design's (`method:

@@ -130,6 +130,26 @@ void set_values(Vec x, const std::vector<double> &values) {
   FX_PETSC(VecRestoreArray(x, &v));
 }
 
+/// The static load cases share one operator (fem::StaticProblem::create_sharing): a direct
+/// solver factorizes it once per design for all N of them, against N preconditioned Krylov
+/// solves at SIMP's contrast (docs/benchmarks.md "Equivalent static loads": 10 times faster on
+/// the slow crank). The default up to kEslDirectDofs unknowns, unless the case's `solver:` or
+/// the command line chose a solver. Collective.
+constexpr long long kEslDirectDofs = 200000;
+void default_direct_solver(MPI_Comm comm, long long dofs) {
+  PetscBool ksp = PETSC_FALSE, pc = PETSC_FALSE;
+  FX_PETSC(PetscOptionsHasName(nullptr, nullptr, "-ksp_type", &ksp));
+  FX_PETSC(PetscOptionsHasName(nullptr, nullptr, "-pc_type", &pc));
+  if (ksp || pc || dofs > kEslDirectDofs) return;
+  insert_default_petsc_options("-ksp_type preonly -pc_type cholesky "
+                               "-pc_factor_mat_solver_type mumps",
+                               "esl: the static load cases' direct solver");
+  print0(comm,
+         "esl: the static load cases share one Cholesky factorization (MUMPS) per design (%lld "
+         "unknowns; solver: in the case chooses another)\n",
+         dofs);
+}
+
 /// One row of the outer history.
 struct OuterRow {
   double dynamic_objective = 0;
@@ -286,10 +306,12 @@ optimize::OptimizationResult EslRun::design_statically(int j, const std::vector<
   clamp.surface = in_.body.interfaces.front();
   clamp.fix = {true, true, true};
   clamp.where = in_.esl.where;
+  const optimize::TopologyProblem *first = nullptr; // the load cases share its K and solver
   auto problem = optimize::ScenarioProblem::create(
       ctx_.comm(), s,
       [&](MPI_Comm comm, std::size_t k, const std::vector<std::size_t> &taken) {
         optimize::TopologySettings t;
+        t.share_operator = first;
         t.problem.mesh = in_.body.mesh;
         t.problem.material = in_.body.material;
         t.problem.case_file = in_.case_file;
@@ -299,7 +321,9 @@ optimize::OptimizationResult EslRun::design_statically(int j, const std::vector<
         t.design = in_.dynamic.design.front();
         t.objective = responses[taken.front()];
         for (std::size_t i = 1; i < taken.size(); ++i) t.constraints.push_back(responses[taken[i]]);
-        return optimize::TopologyProblem::create(comm, t);
+        auto p = optimize::TopologyProblem::create(comm, t);
+        if (!first) first = p.get();
+        return std::unique_ptr<optimize::DesignProblem>(std::move(p));
       },
       [](MPI_Comm) -> std::shared_ptr<optimize::Design> { return nullptr; });
   int other = problem->design_keys() != dyn_->design_keys();
@@ -427,8 +451,9 @@ void EslRun::run(bool restart) {
     throw Error(in_.esl.where.str() + ": optimizer.method: esl: design body '" + in_.body.name +
                     "' runs as ACF, whose loads are not built; use model: ffrf or rigid",
                 true);
-  coordinates_ =
-      std::make_shared<const std::vector<double>>(dyn_->scene().meshes[in_.body_index].coordinates);
+  const mesh::DistributedMesh &m = dyn_->scene().meshes[in_.body_index];
+  coordinates_ = std::make_shared<const std::vector<double>>(m.coordinates);
+  default_direct_solver(ctx_.comm(), 3LL * m.global_nodes);
   Vec x = dyn_->create_design_vector();
   dyn_->initial_design(x);
   std::vector<double> xv = local_values(x);

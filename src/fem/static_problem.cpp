@@ -168,10 +168,61 @@ std::vector<double> element_body_loads(const mesh::DistributedMesh &m, double de
 
 } // namespace
 
+void StaticProblem::set_up_loads(const StaticSettings &c) {
+  const mesh::DistributedMesh &m = mesh_;
+  const StaticLoads &loads = c.loads;
+  f_ = create_ghosted_vector(m);
+  FX_PETSC(VecDuplicate(f_, &u_));
+  FX_PETSC(VecZeroEntries(u_));
+  FX_PETSC(VecDuplicate(f_, &rhs_));
+  FX_PETSC(VecDuplicate(f_, &f_surface_));
+  FX_PETSC(VecZeroEntries(f_surface_));
+  for (const auto &t : loads.line_loads)
+    add_surface_traction(m, t.surface, Eigen::Vector3d(t.value[0], t.value[1], t.value[2]),
+                         t.where.str() + ": line_loads", f_surface_);
+  for (const auto &t : loads.tractions) {
+    const Eigen::Vector3d value(t.value[0], t.value[1], t.value[2]);
+    const std::string where = t.where.str() + ": tractions";
+    if (t.total) // a total force (and moment), spread over the surface
+      add_surface_force(m, t.surface, value, Eigen::Vector3d(t.moment[0], t.moment[1], t.moment[2]),
+                        where, f_surface_);
+    else
+      add_surface_traction(m, t.surface, value, where, f_surface_);
+  }
+  body_load_ = element_body_loads(m, material_.density, loads, c.case_file);
+  set_body_load_factors({});
+}
+
+std::unique_ptr<StaticProblem> StaticProblem::create_sharing(const StaticProblem &first,
+                                                             const StaticSettings &c) {
+  const MPI_Comm comm = first.mesh_.comm;
+  int other = support_dofs(first.mesh_, c.loads.supports) != first.fixed_ || first.mf_ ||
+              c.material.E != first.material_.E || c.material.nu != first.material_.nu ||
+              c.material.density != first.material_.density;
+  MPI_Allreduce(MPI_IN_PLACE, &other, 1, MPI_INT, MPI_MAX, comm);
+  if (other) // another operator (or a matrix-free one, which keeps its own state): its own
+    return create(comm, c);
+  std::unique_ptr<StaticProblem> p(new StaticProblem());
+  const double t = wall_time();
+  p->material_ = first.material_;
+  p->mesh_ = first.mesh_;
+  p->fixed_ = first.fixed_;
+  p->K_ = first.K_;
+  p->ksp_ = first.ksp_;
+  FX_PETSC(PetscObjectReference(reinterpret_cast<PetscObject>(p->K_)));
+  FX_PETSC(PetscObjectReference(reinterpret_cast<PetscObject>(p->ksp_)));
+  p->operator_ = first.operator_;
+  p->support_diagonal_ = first.support_diagonal_;
+  p->factor_ = first.factor_;
+  p->solver_ = first.solver_;
+  p->set_up_loads(c);
+  p->timings_.assemble = wall_time() - t;
+  return p;
+}
+
 std::unique_ptr<StaticProblem> StaticProblem::create(MPI_Comm comm, const StaticSettings &c) {
   std::unique_ptr<StaticProblem> p(new StaticProblem());
   p->material_ = c.material;
-  const IsotropicMaterial &mat = c.material;
   double t = wall_time();
   p->mesh_ = mesh::load_body_mesh(comm, c.mesh);
   p->timings_.mesh = wall_time() - t;
@@ -188,26 +239,8 @@ std::unique_ptr<StaticProblem> StaticProblem::create(MPI_Comm comm, const Static
                 true);
 
   p->K_ = create_matrix(m);
-  p->f_ = create_ghosted_vector(m);
-  FX_PETSC(VecDuplicate(p->f_, &p->u_));
-  FX_PETSC(VecZeroEntries(p->u_));
-  FX_PETSC(VecDuplicate(p->f_, &p->rhs_));
-  FX_PETSC(VecDuplicate(p->f_, &p->f_surface_));
-  FX_PETSC(VecZeroEntries(p->f_surface_));
-  for (const auto &t : loads.line_loads)
-    add_surface_traction(m, t.surface, Eigen::Vector3d(t.value[0], t.value[1], t.value[2]),
-                         t.where.str() + ": line_loads", p->f_surface_);
-  for (const auto &t : loads.tractions) {
-    const Eigen::Vector3d value(t.value[0], t.value[1], t.value[2]);
-    const std::string where = t.where.str() + ": tractions";
-    if (t.total) // a total force (and moment), spread over the surface
-      add_surface_force(m, t.surface, value, Eigen::Vector3d(t.moment[0], t.moment[1], t.moment[2]),
-                        where, p->f_surface_);
-    else
-      add_surface_traction(m, t.surface, value, where, p->f_surface_);
-  }
-  p->body_load_ = element_body_loads(m, mat.density, loads, c.case_file);
-  p->set_body_load_factors({});
+  p->set_up_loads(c);
+  p->operator_ = std::make_shared<OperatorState>();
 
   FX_PETSC(KSPCreate(comm, &p->ksp_));
   FX_PETSC(KSPSetOptionsPrefix(p->ksp_, ""));
@@ -264,6 +297,13 @@ void StaticProblem::set_body_load_factors(const std::vector<double> &w) {
 
 void StaticProblem::assemble_operator(const std::vector<double> &modulus_factor) {
   factor_ = modulus_factor;
+  // A problem that shares the operator (create_sharing) finds it assembled for these factors
+  // (on every rank: a design change may touch one rank's elements only).
+  int same = operator_->assembled && operator_->factor == factor_;
+  MPI_Allreduce(MPI_IN_PLACE, &same, 1, MPI_INT, MPI_MIN, mesh_.comm);
+  if (same) return;
+  operator_->factor = factor_;
+  operator_->assembled = true;
   assemble_stiffness(mesh_, material_, factor_, K_);
   LogScope log("FxApplySupports");
   // Supports: rows and columns of fixed DOFs replaced by a scaled identity (keeps K symmetric

@@ -44,7 +44,9 @@ std::unique_ptr<TopologyProblem> TopologyProblem::create(MPI_Comm comm, const To
   std::unique_ptr<TopologyProblem> p(new TopologyProblem());
   p->responses_.push_back(c.objective);
   p->responses_.insert(p->responses_.end(), c.constraints.begin(), c.constraints.end());
-  p->static_ = fem::StaticProblem::create(comm, c.problem);
+  p->static_ = c.share_operator
+                   ? fem::StaticProblem::create_sharing(*c.share_operator->static_, c.problem)
+                   : fem::StaticProblem::create(comm, c.problem);
   // Each design's solve starts from the last design's displacement (and adjoint): the
   // reference code does the same; late in a run it halves the Krylov iterations
   // (docs/solvers.md). -fx_warm_start 0 starts every solve from zero.

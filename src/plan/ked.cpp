@@ -65,6 +65,15 @@ Eigen::MatrixXd ked_response(const ModalModel &model, const Eigen::MatrixXd &Q, 
   return modal_response(model.w2, F, h, Start::QuasiStatic) * model.E.transpose();
 }
 
+double quasi_static_error(const ModalModel &model, const Eigen::MatrixXd &M,
+                          const Eigen::MatrixXd &Z, const Eigen::MatrixXd &Q) {
+  const Eigen::MatrixXd X = Z * M * model.E; // rows x(t_n)^T = zeta^T M E
+  const Eigen::MatrixXd Xqs = (Q * model.E) * model.w2.cwiseInverse().asDiagonal();
+  const Eigen::VectorXd w = model.w2.cwiseSqrt();
+  const double top = (X * w.asDiagonal()).rowwise().norm().maxCoeff();
+  return top > 0 ? ((X - Xqs) * w.asDiagonal()).rowwise().norm().maxCoeff() / top : 0.0;
+}
+
 Eigen::MatrixXd ked_response_varying(const Eigen::MatrixXd &K,
                                      const std::vector<Eigen::MatrixXd> &G,
                                      const Eigen::MatrixXd &coefficients, const Eigen::MatrixXd &Q,

@@ -317,6 +317,8 @@ io::Json plan_json(const Plan &plan) {
       e["rigid_error_at"] = bp.est.rigid_error_at;
       e["mode_errors"] = io::Json(bp.est.mode_errors);
       e["reduction_s"] = bp.est.reduction_s;
+      e["quasi_static_error"] = bp.est.quasi_static_error;
+      e["esl_suitable"] = bp.est.quasi_static_error <= kEslQuasiStatic;
       io::Json sd = io::Json::object();
       for (const auto &[name, value] : bp.est.sensor_deflection) sd[name] = value;
       e["sensor_deflection_m"] = sd;

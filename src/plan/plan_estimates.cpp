@@ -352,6 +352,7 @@ BodyKed estimate_body(MPI_Comm comm, const PlanSettings &c, const dynamics::Scen
   {
     const Eigen::MatrixXd Y = (cd.Q * ked.full.E) * ked.full.w2.cwiseInverse().asDiagonal();
     est.f_excitation = energy_frequency(Y, h, eps * eps);
+    est.quasi_static_error = quasi_static_error(ked.full, red.M, ked.Z, cd.Q);
   }
 
   ked.measures.list = measure_points(c, scene, run, cd, ked.Z, est);

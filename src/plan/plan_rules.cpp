@@ -157,6 +157,17 @@ void choose_model(const PlanSettings &c, const BodyKed &ked, BodyPlan &bp) {
                            "stress stiffening %.3g (%.2g of the measures)",
                            est.f1, est.f_excitation, est.spin, est.deflection, est.rotation,
                            est.stress_stiffening, est.stress_error));
+  // Equivalent static loads (section 14.5): where the elastic response follows the loads.
+  const bool quasi = est.quasi_static_error <= kEslQuasiStatic;
+  bp.reasons.push_back(fmt(
+      "quasi-static: e_qs %.2g (the elastic response's distance from its quasi-static part; "
+      "docs/theory.md section 14.5): %s",
+      est.quasi_static_error,
+      !quasi ? "above 0.05, its elastic dynamics matter: equivalent static loads would miss them"
+      : is_design_body(c, bp)
+          ? "at most 0.05: equivalent static loads (optimizer: {method: esl}) would design it "
+            "at a fraction of the dynamic design's cost"
+          : "at most 0.05: equivalent static loads would serve to design it"));
 }
 
 std::optional<mesh::DistributedMesh> choose_acf_mesh(MPI_Comm comm, const PlanSettings &c,

@@ -165,3 +165,45 @@ TEST(Ked, VaryingStiffnessIsSecondOrder) {
   }
   EXPECT_NEAR(std::log2(errors[0] / errors[1]), 2.0, 0.1) << errors[0] << " " << errors[1];
 }
+
+TEST(Ked, QuasiStaticErrorOfAHarmonicLoad) {
+  // ESL's criterion e_qs (docs/theory.md 14.5) on two uncoupled modes w_k under sin(p t) b_k
+  // from the quasi-static start (x(0) = 0, x'(0) = (f(h) - f(0)) / (h w^2)): the closed form
+  // x_k = b_k (A_k sin(p t) + B_k sin(w_k t)), A_k = 1 / (w_k^2 - p^2), B_k from x'(0), against
+  // x_qs,k = b_k sin(p t) / w_k^2, in the energy norm sum_k w_k^2 x_k^2, max over the samples.
+  // The integrator is second order for a sine (its forcing is linear between samples): the
+  // difference from the closed form falls 4 times when h halves.
+  const double p = 2.0, T = 12.0;
+  Eigen::MatrixXd K = Eigen::MatrixXd::Zero(2, 2), M = Eigen::MatrixXd::Identity(2, 2);
+  K(0, 0) = 7.0 * 7.0, K(1, 1) = 19.0 * 19.0;
+  const ModalModel model = modal_model(K, M, Eigen::MatrixXd::Identity(2, 2), 2);
+  const double b[2] = {1.0, 0.5};
+  auto measure = [&](int steps) {
+    const double h = T / steps;
+    Eigen::MatrixXd Q(steps + 1, 2);
+    for (int i = 0; i <= steps; ++i)
+      for (int k = 0; k < 2; ++k) Q(i, k) = b[k] * std::sin(p * i * h);
+    double top = 0, distance = 0;
+    for (int i = 0; i <= steps; ++i) {
+      double e2 = 0, d2 = 0;
+      for (int k = 0; k < 2; ++k) {
+        const double w2 = K(k, k), w = std::sqrt(w2), A = 1 / (w2 - p * p);
+        const double v0 = std::sin(p * h) / (h * w2), B = (v0 - A * p) / w;
+        const double t = i * h, x = b[k] * (A * std::sin(p * t) + B * std::sin(w * t));
+        const double dx = x - b[k] * std::sin(p * t) / w2;
+        e2 += w2 * x * x, d2 += w2 * dx * dx;
+      }
+      top = std::max(top, std::sqrt(e2)), distance = std::max(distance, std::sqrt(d2));
+    }
+    const double e = quasi_static_error(model, M, ked_response(model, Q, h), Q);
+    return std::pair{e, distance / top};
+  };
+  const auto [e1, exact1] = measure(5000);
+  const auto [e2, exact2] = measure(10000);
+  const double d1 = std::abs(e1 - exact1), d2 = std::abs(e2 - exact2);
+  EXPECT_LT(d2, 1e-5 * exact2) << e2 << " against " << exact2;
+  EXPECT_NEAR(d1 / d2, 4.0, 0.5) << d1 << ", " << d2;
+  // The single-mode estimate of section 14.5: about (p / w_1)^2 = 0.082.
+  EXPECT_GT(e2, 0.5 * std::pow(p / 7.0, 2));
+  EXPECT_LT(e2, 2.0 * std::pow(p / 7.0, 2));
+}

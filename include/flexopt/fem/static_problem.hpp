@@ -86,9 +86,18 @@ class StaticProblem {
 public:
   /// Loads the body's mesh, assembles K and f and sets up the solver. Collective.
   static std::unique_ptr<StaticProblem> create(MPI_Comm comm, const StaticSettings &settings);
+  /// Another load case of `first`'s body (equivalent static loads' N instants): `settings`'
+  /// loads on `first`'s mesh, stiffness matrix and solver, shared (one assembly and one
+  /// factorization per design for every load case; each problem keeps its load, displacement and
+  /// warm start). The mesh source is not read again. Settings with other supports or material,
+  /// or a matrix-free `first`, get a problem of their own (create()). Collective.
+  static std::unique_ptr<StaticProblem> create_sharing(const StaticProblem &first,
+                                                       const StaticSettings &settings);
   ~StaticProblem();
 
-  /// Re-assembles K with one modulus factor per local element (empty: all 1). Collective.
+  /// Re-assembles K with one modulus factor per local element (empty: all 1); does nothing if the
+  /// operator (shared with create_sharing's problems) was last assembled with these factors.
+  /// Collective.
   void assemble_operator(const std::vector<double> &modulus_factor);
   /// Solves K u = f. Throws (collectively) if the linear solver does not converge. Collective.
   void solve();
@@ -159,6 +168,14 @@ private:
   /// The start of the next Krylov solve into x: x itself (warm start), random (set_random_start)
   /// or zero.
   void prepare_start(Vec x);
+  /// The load vectors, tractions and body loads of `settings` on mesh_ (material_ set).
+  void set_up_loads(const StaticSettings &settings);
+  /// The factors K was last assembled with, shared by the problems that share K.
+  struct OperatorState {
+    std::vector<double> factor;
+    bool assembled = false;
+  };
+  std::shared_ptr<OperatorState> operator_;
   mesh::DistributedMesh mesh_;
   IsotropicMaterial material_{};
   std::vector<double> factor_;

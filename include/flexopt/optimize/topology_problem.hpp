@@ -15,11 +15,16 @@
 namespace flexopt::optimize {
 
 /// A static topology optimization: the static problem, the design field and the responses.
+class TopologyProblem;
+
 struct TopologySettings {
   fem::StaticSettings problem;
   DesignSettings design;
   ResponseSettings objective;
   std::vector<ResponseSettings> constraints;
+  /// Another load case of this problem's body (equivalent static loads): its mesh, stiffness
+  /// and solver are shared (fem::StaticProblem::create_sharing).
+  const TopologyProblem *share_operator = nullptr;
 };
 
 class TopologyProblem : public DesignProblem {

@@ -36,6 +36,13 @@ ModalModel modal_model(const Eigen::MatrixXd &K, const Eigen::MatrixXd &M, const
 /// full-basis coordinates zeta(t_n) = E x(t_n), one row per sample.
 Eigen::MatrixXd ked_response(const ModalModel &model, const Eigen::MatrixXd &Q, double h);
 
+/// e_qs of docs/theory.md section 14.5 (when equivalent static loads suffice): the largest
+/// distance over the samples of the KED response Z (ked_response of `model` to Q; rows:
+/// samples, full-basis coordinates; M the full basis' mass matrix) from its quasi-static part,
+/// modal coordinates x_qs = (E^T Q) / w2, in the energy norm |x|^2 = sum_k w2_k x_k^2, relative to
+/// the response's largest energy norm (0 for a response that is zero).
+double quasi_static_error(const ModalModel &model, const Eigen::MatrixXd &M,
+                          const Eigen::MatrixXd &Z, const Eigen::MatrixXd &Q);
 /// The response zeta of zeta'' + K(t) zeta = Q(t) (unit mass) with the stiffness
 /// K(t) = K + sum_r c_r(t) G[r] (row n of `coefficients`: c(t_n)), from rest or quasi-statically
 /// in K(0) (K(0) zeta(0) = Q(0), K(0) zeta'(0) = (Q(h) - Q(0)) / h); each step is integrated

@@ -35,9 +35,16 @@ struct Estimates {
   std::string rigid_error_at;      ///< the sensor, interface or "nodes" that sets it
   std::vector<double> mode_errors; ///< relative sensor error of FFRF with j fixed-interface modes
   double reduction_s = 0;          ///< the plan's reduction of the body [s]
+  /// e_qs of section 14.5: the KED response's distance from its quasi-static part, max over
+  /// time in the modal energy norm, relative to its largest; <= kEslQuasiStatic: equivalent
+  /// static loads would design the body
+  double quasi_static_error = 0;
   /// The KED estimate of each of the body's sensors: max over time of |elastic displacement| [m].
   std::vector<std::pair<std::string, double>> sensor_deflection;
 };
+
+/// ESL's criterion (docs/theory.md 14.5): e_qs at most this.
+constexpr double kEslQuasiStatic = 0.05;
 
 struct BodyPlan {
   std::string body;
