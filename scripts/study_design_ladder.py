@@ -1,0 +1,111 @@
+#!/usr/bin/python3
+"""The design ladder of issue 47 on cases/slider_crank_topopt (the rod of a slider-crank at
+150 rad/s, the time average of its strain energy with half of its design region): each rung
+designs the same rod with the same design field (region, filter, projection, MMA) and is timed;
+every design is then evaluated in the same dynamic model (the case's FFRF rod, `flexopt simulate
+--design`), so the rungs compare by the objective they were all meant to reduce.
+
+Rungs (--rungs, comma-separated; default all but `static`):
+  static      the single-instant static design of scripts/study_dynamic_vs_static.py (its
+              OUT/static/out/restart.h5 and wall time are read from --static-study DIR)
+  esl12       equivalent static loads, 12 instants (`optimizer: {method: esl}`, theory 14)
+  esl48       the same with 48 instants
+  fixed       FFRF with the basis held fixed in the gradient (`adjoint: {basis: fixed}`)
+  exact       FFRF with the exact derivative of its reduction (the case as it is)
+
+ESL runs at most --outer outer iterations of the case's max_iterations static iterations.
+Writes OUT/ladder.json, and with --figure a PNG (objective against wall time per rung).
+
+usage: study_design_ladder.py --flexopt BUILD/flexopt --out DIR [--ranks 2] [--rungs ...]
+       [--outer 4] [--static-study DIR] [--figure docs/figures/study_design_ladder.png]
+"""
+import argparse
+import json
+import os
+import sys
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from case_variants import write_variant  # noqa: E402
+from study_run import run_flexopt  # noqa: E402
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+CASE = os.path.join(ROOT, "cases", "slider_crank_topopt")
+OPTIMIZER = "optimizer: {max_iterations: 100, move_limit: 0.2, tolerance: 1.0e-3}"
+
+p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+p.add_argument("--flexopt", required=True)
+p.add_argument("--out", required=True)
+p.add_argument("--ranks", type=int, default=2)
+p.add_argument("--rungs", default="esl12,esl48,fixed,exact")
+p.add_argument("--outer", type=int, default=4)
+p.add_argument("--static-study", default=None)
+p.add_argument("--figure", default=None)
+args = p.parse_args()
+flexopt, out = os.path.abspath(args.flexopt), os.path.abspath(args.out)
+os.makedirs(out, exist_ok=True)
+
+
+def variant(name):
+    """The case for rung `name` (its optimization sections kept) in OUT/NAME."""
+    if name.startswith("esl"):
+        esl = f"method: esl, instants: {int(name[3:])}, outer_iterations: {args.outer}, "
+        replace = [(OPTIMIZER, OPTIMIZER.replace("{", "{" + esl, 1))]
+    elif name == "fixed":
+        replace = [(OPTIMIZER, OPTIMIZER + "\nadjoint: {basis: fixed}")]
+    else:
+        replace = []
+    return write_variant(CASE, os.path.join(out, name), replace, optimization=True)
+
+
+def design_run(name):
+    """Optimizes rung `name`; returns (its restart.h5, wall time [s], its own summary)."""
+    if name == "static":
+        if not args.static_study:
+            sys.exit("the static rung needs --static-study DIR (scripts/study_dynamic_vs_static.py's OUT)")
+        s = json.load(open(os.path.join(args.static_study, "study.json")))
+        return (os.path.join(args.static_study, "static", "out", "restart.h5"),
+                s.get("static_optimize_s", float("nan")), s)
+    d = variant(name)
+    wall = run_flexopt(flexopt, args.ranks, ["optimize", d, "--out", os.path.join(d, "out")],
+                       os.path.join(out, name + ".log"))
+    return os.path.join(d, "out", "restart.h5"), wall, json.load(open(os.path.join(d, "out", "summary.json")))
+
+
+def evaluate(name, design):
+    d = os.path.join(out, "eval_" + name)
+    run_flexopt(flexopt, args.ranks, ["simulate", CASE, "--out", d, "--design", design],
+                os.path.join(out, f"eval_{name}.log"))
+    e = json.load(open(os.path.join(d, "summary.json")))
+    return e["responses"]["objective"], e["responses"]["constraint0"]
+
+
+ladder = {}
+for name in args.rungs.split(","):
+    design, wall, summary = design_run(name)
+    objective, volume = evaluate(name, design)
+    rung = {"wall_s": wall, "objective": objective, "volume_fraction": volume}
+    if name.startswith("esl"):
+        rung.update({k: summary[k] for k in ("outer_iterations", "inner_iterations", "dynamic_objective",
+                                             "static_objective", "max_change", "converged")})
+    elif "iterations" in summary:
+        rung["iterations"] = summary["iterations"]
+    ladder[name] = rung
+    print(f"{name:7s} objective {objective:.6g} J  volume fraction {volume:.5f}  wall {wall:.1f} s", flush=True)
+    json.dump(ladder, open(os.path.join(out, "ladder.json"), "w"), indent=1)
+
+if args.figure:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots(figsize=(6, 4))
+    for name, r in ladder.items():
+        ax.plot(r["wall_s"], r["objective"], "o")
+        ax.annotate(name, (r["wall_s"], r["objective"]), textcoords="offset points", xytext=(5, 5))
+    ax.set_xscale("log")
+    ax.set_xlabel("design wall time [s] (2 ranks)")
+    ax.set_ylabel("mean strain energy of the design [J] (FFRF rod)")
+    ax.set_title("slider-crank rod: the design ladder")
+    ax.grid(True, which="both", alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(args.figure, dpi=120)
+    print("wrote " + args.figure)
