@@ -469,6 +469,8 @@ void EslRun::run(bool restart) {
   for (int j = first; j < outer && !converged_; ++j) {
     print0(ctx_.comm(), "esl: outer iteration %d of at most %d: simulating the design\n", j, outer);
     set_values(x, xv);
+    // The design as the static designs see it: at their projection stage.
+    if (dyn_->design().stages() > 0) dyn_->design().set_stage(stage);
     std::vector<Instant> instants;
     OuterRow row = simulate(x, &instants);
     print0(ctx_.comm(),
