@@ -6,18 +6,21 @@ every design is then evaluated in the same dynamic model (the case's FFRF rod, `
 --design`), so the rungs compare by the objective they were all meant to reduce.
 
 Rungs (--rungs, comma-separated; default all but `static`):
-  static      the single-instant static design of scripts/study_dynamic_vs_static.py (its
-              OUT/static/out/restart.h5 and wall time are read from --static-study DIR)
+  static      the single-instant static design of scripts/study_dynamic_vs_static.py: its
+              study.json (--static-study FILE; docs/figures/study_dynamic_vs_static.json holds
+              a run's) gives the design's wall time and its objective in the same FFRF model
   esl12       equivalent static loads, 12 instants (`optimizer: {method: esl}`, theory 14)
   esl48       the same with 48 instants
   fixed       FFRF with the basis held fixed in the gradient (`adjoint: {basis: fixed}`)
   exact       FFRF with the exact derivative of its reduction (the case as it is)
 
 ESL runs at most --outer outer iterations of the case's max_iterations static iterations.
-Writes OUT/ladder.json, and with --figure a PNG (objective against wall time per rung).
+Writes OUT/ladder.json (rungs measured before in OUT kept), and with --figure a PNG (objective
+against wall time per rung).
 
 usage: study_design_ladder.py --flexopt BUILD/flexopt --out DIR [--ranks 2] [--rungs ...]
-       [--outer 4] [--static-study DIR] [--figure docs/figures/study_design_ladder.png]
+       [--outer 4] [--static-study study.json] [--figure docs/figures/study_design_ladder.png]
+       [--plot-only]
 """
 import argparse
 import json
@@ -40,6 +43,7 @@ p.add_argument("--rungs", default="esl12,esl48,fixed,exact")
 p.add_argument("--outer", type=int, default=4)
 p.add_argument("--static-study", default=None)
 p.add_argument("--figure", default=None)
+p.add_argument("--plot-only", action="store_true", help="the figure of OUT/ladder.json, nothing run")
 args = p.parse_args()
 flexopt, out = os.path.abspath(args.flexopt), os.path.abspath(args.out)
 os.makedirs(out, exist_ok=True)
@@ -59,16 +63,20 @@ def variant(name):
 
 def design_run(name):
     """Optimizes rung `name`; returns (its restart.h5, wall time [s], its own summary)."""
-    if name == "static":
-        if not args.static_study:
-            sys.exit("the static rung needs --static-study DIR (scripts/study_dynamic_vs_static.py's OUT)")
-        s = json.load(open(os.path.join(args.static_study, "study.json")))
-        return (os.path.join(args.static_study, "static", "out", "restart.h5"),
-                s.get("static_optimize_s", float("nan")), s)
     d = variant(name)
     wall = run_flexopt(flexopt, args.ranks, ["optimize", d, "--out", os.path.join(d, "out")],
                        os.path.join(out, name + ".log"))
     return os.path.join(d, "out", "restart.h5"), wall, json.load(open(os.path.join(d, "out", "summary.json")))
+
+
+def static_rung():
+    """The single-instant static rung from scripts/study_dynamic_vs_static.py's study.json."""
+    if not args.static_study:
+        sys.exit("the static rung needs --static-study FILE (scripts/study_dynamic_vs_static.py's study.json)")
+    s = json.load(open(args.static_study))
+    e = s["evaluation"]["static"]
+    return {"wall_s": s["static_optimize_s"], "objective": e["objective"], "volume_fraction": e["volume_fraction"],
+            "from": args.static_study}
 
 
 def evaluate(name, design):
@@ -79,8 +87,14 @@ def evaluate(name, design):
     return e["responses"]["objective"], e["responses"]["constraint0"]
 
 
-ladder = {}
-for name in args.rungs.split(","):
+# Rungs measured before in OUT are kept (a rung run again replaces its entry).
+saved = os.path.join(out, "ladder.json")
+ladder = json.load(open(saved)) if os.path.exists(saved) else {}
+for name in [] if args.plot_only else args.rungs.split(","):
+    if name == "static":
+        ladder[name] = static_rung()
+        json.dump(ladder, open(os.path.join(out, "ladder.json"), "w"), indent=1)
+        continue
     design, wall, summary = design_run(name)
     objective, volume = evaluate(name, design)
     rung = {"wall_s": wall, "objective": objective, "volume_fraction": volume}

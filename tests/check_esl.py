@@ -18,7 +18,10 @@ on 2 ranks: docs/solvers.md "Reproducibility"; ctest runs it on 1 rank):
     (once esl/outer_01/restart.h5 holds iteration 2), continued with --restart, gives the
     uninterrupted run's history.csv (every outer iteration's dynamic and static objectives,
     inner iterations and design change, the timings aside) and its final design bit for bit;
-  - --restart without any restart file fails with a clear message.
+  - --restart without any restart file fails with a clear message;
+  - (with a projection whose beta rises within the first static design) the second outer
+    iteration's dynamic objective is that of `simulate --design` of the first static design's
+    restart.h5: the simulated design is the one the static design ended with, at its stage.
 Usage: check_esl.py FLEXOPT CASE OUT compare TOL
        check_esl.py FLEXOPT CASE OUT restart [R (default 2)]
 """
@@ -54,10 +57,10 @@ def rel(a, b):
     return abs(a - b) / max(abs(a), abs(b), 1e-300)
 
 
-def esl_variant(name, esl_keys):
-    """CASE with `method: esl` and ESL_KEYS added to its optimizer: line."""
-    return write_variant(case, os.path.join(out, name), [("optimizer: {", "optimizer: {" + esl_keys + ", ")],
-                         optimization=True)
+def esl_variant(name, esl_keys, extra=()):
+    """CASE with `method: esl` and ESL_KEYS added to its optimizer: line (and EXTRA replacements)."""
+    return write_variant(case, os.path.join(out, name),
+                         [("optimizer: {", "optimizer: {" + esl_keys + ", ")] + list(extra), optimization=True)
 
 
 def history(d):
@@ -99,9 +102,22 @@ def compare_mode(tol):
 
 def restart_mode(ranks):
     keys = "method: esl, instants: 4, outer_iterations: 2, inner_iterations: 6"
+    # A projection whose beta rises within the first static design: the second outer iteration
+    # simulates the design at the stage that static design ended at.
+    projection = [("filter: {type: cone, radius: 0.02}",
+                   "filter: {type: cone, radius: 0.02}\n  projection: {beta: [1, 4], every: 3}")]
     opts = ["-fx_deterministic"]
-    straight, killed = esl_variant("straight", keys), esl_variant("killed", keys)
+    straight, killed = esl_variant("straight", keys, projection), esl_variant("killed", keys, projection)
     mpi_job.flexopt(flexopt, ["optimize", straight, "--out", os.path.join(straight, "out")] + opts, ranks)
+    # History row 1 is the dynamic run of outer iteration 0's design: what `simulate --design` of
+    # that static design's restart.h5 (its design and projection stage) computes.
+    check_design = os.path.join(out, "outer_00_design")
+    mpi_job.flexopt(flexopt, ["simulate", straight, "--out", check_design, "--design",
+                              os.path.join(straight, "out", "esl", "outer_00", "restart.h5")] + opts, ranks)
+    simulated = json.load(open(os.path.join(check_design, "summary.json")))["responses"]["objective"]
+    row1 = float(history(straight)[1]["dynamic_objective"])
+    check(rel(row1, simulated) <= 1e-9, f"outer iteration 1 simulates outer 0's design at its stage: "
+          f"{row1:.10e} against simulate --design {simulated:.10e}")
     env = dict(mpi_job.ENV, FLEXOPT_REPORT="0", FLEXOPT_PLAN_CHECK="0")
     p = mpi_job.start(["mpirun", "-n", str(ranks), flexopt, "optimize", killed, "--out", os.path.join(killed, "out")]
                       + opts, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
