@@ -459,6 +459,7 @@ void EslRun::run(bool restart) {
   std::vector<double> xv = local_values(x);
   int stage = 0, first = 0;
   if (restart) first = read_state(xv, stage);
+  if (!rows_.empty()) converged_ = rows_.back().max_change < in_.optimizer.tolerance;
   if (!restart) run_on_root(ctx_.comm(), 0, [&] { fs::remove_all(esl_dir_); });
   run_on_root(ctx_.comm(), 0, [&] { fs::create_directories(esl_dir_); });
   MPI_Barrier(ctx_.comm());

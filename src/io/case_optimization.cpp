@@ -411,6 +411,12 @@ void read_esl(const Reader &r, const YAML::Node &o, Case &c) {
   count("instants", e.instants, 1);
   count("outer_iterations", e.outer_iterations, 1);
   count("inner_iterations", e.inner_iterations, 1);
+  const double steps = c.time.given ? std::round(c.time.end / c.time.step) : 0;
+  if (c.time.given && e.instants > steps)
+    r.fail(o["instants"] ? o["instants"] : m, "optimizer.instants: " + std::to_string(e.instants) +
+                                                  " instants, more than the run's " +
+                                                  std::to_string(static_cast<long long>(steps)) +
+                                                  " steps (one instant per step at most)");
   c.esl = e;
 }
 
@@ -442,7 +448,6 @@ void read_optimizer(const Reader &r, const YAML::Node &o, Case &c) {
 /// stress, one motion (no scenarios), at most one instant per step.
 void check_esl(const Reader &r, const YAML::Node &root, const Case &c) {
   const optimize::EslSettings &e = *c.esl;
-  const std::string at = e.where.str() + ": optimizer.method: esl ";
   auto refuse = [&](const io::Location &where, const std::string &what) {
     throw Error(where.str() + ": " + what, true);
   };
@@ -473,11 +478,6 @@ void check_esl(const Reader &r, const YAML::Node &root, const Case &c) {
   if (root["scenarios"])
     refuse(r.where(root["scenarios"]), "scenarios: method: esl takes one motion (its instants are "
                                        "the load cases)");
-  const double steps = c.time.given ? std::round(c.time.end / c.time.step) : 0;
-  if (c.time.given && e.instants > steps)
-    throw Error(at + "takes " + std::to_string(e.instants) + " instants, more than the run's " +
-                    std::to_string(static_cast<long long>(steps)) + " steps",
-                true);
 }
 
 } // namespace
