@@ -14,13 +14,15 @@ Rungs (--rungs, comma-separated; default all but `static`):
   fixed       FFRF with the basis held fixed in the gradient (`adjoint: {basis: fixed}`)
   exact       FFRF with the exact derivative of its reduction (the case as it is)
 
+With --acf every rung's design (of OUT/ladder.json: this run's and the earlier ones') is also
+evaluated with the rod `model: acf`, the geometrically nonlinear model on the same mesh.
 ESL runs at most --outer outer iterations of the case's max_iterations static iterations.
 Writes OUT/ladder.json (rungs measured before in OUT kept), and with --figure a PNG (objective
 against wall time per rung).
 
 usage: study_design_ladder.py --flexopt BUILD/flexopt --out DIR [--ranks 2] [--rungs ...]
        [--outer 4] [--static-study study.json] [--figure docs/figures/study_design_ladder.png]
-       [--plot-only]
+       [--plot-only] [--acf]
 """
 import argparse
 import json
@@ -44,6 +46,7 @@ p.add_argument("--outer", type=int, default=4)
 p.add_argument("--static-study", default=None)
 p.add_argument("--figure", default=None)
 p.add_argument("--plot-only", action="store_true", help="the figure of OUT/ladder.json, nothing run")
+p.add_argument("--acf", action="store_true", help="also evaluate every rung's design with the rod model: acf")
 args = p.parse_args()
 flexopt, out = os.path.abspath(args.flexopt), os.path.abspath(args.out)
 os.makedirs(out, exist_ok=True)
@@ -79,10 +82,17 @@ def static_rung():
             "from": args.static_study}
 
 
-def evaluate(name, design):
-    d = os.path.join(out, "eval_" + name)
-    run_flexopt(flexopt, args.ranks, ["simulate", CASE, "--out", d, "--design", design],
-                os.path.join(out, f"eval_{name}.log"))
+def evaluate(name, design, acf=False):
+    """The design's objective and volume fraction in the case's FFRF model, or (acf) with the rod
+    `model: acf` (co-rotated elements on the same mesh: the geometrically nonlinear model)."""
+    tag = ("acf_" if acf else "") + name
+    d = os.path.join(out, "eval_" + tag)
+    case = CASE
+    if acf:
+        case = write_variant(CASE, os.path.join(out, "acf_model"), [("model: ffrf", "model: acf")],
+                             optimization=True)
+    run_flexopt(flexopt, args.ranks, ["simulate", case, "--out", d, "--design", design],
+                os.path.join(out, f"eval_{tag}.log"))
     e = json.load(open(os.path.join(d, "summary.json")))
     return e["responses"]["objective"], e["responses"]["constraint0"]
 
@@ -97,7 +107,7 @@ for name in [] if args.plot_only else args.rungs.split(","):
         continue
     design, wall, summary = design_run(name)
     objective, volume = evaluate(name, design)
-    rung = {"wall_s": wall, "objective": objective, "volume_fraction": volume}
+    rung = {"wall_s": wall, "objective": objective, "volume_fraction": volume, "design": design}
     if name.startswith("esl"):
         rung.update({k: summary[k] for k in ("outer_iterations", "inner_iterations", "dynamic_objective",
                                              "static_objective", "max_change", "converged")})
@@ -106,6 +116,15 @@ for name in [] if args.plot_only else args.rungs.split(","):
     ladder[name] = rung
     print(f"{name:7s} objective {objective:.6g} J  volume fraction {volume:.5f}  wall {wall:.1f} s", flush=True)
     json.dump(ladder, open(os.path.join(out, "ladder.json"), "w"), indent=1)
+
+# Every rung's design in the ACF model (--acf): the objective of the finest model.
+for name, r in ladder.items() if args.acf else []:
+    design = r.get("design") or (os.path.join(os.path.dirname(os.path.abspath(args.static_study)), "static",
+                                              "out", "restart.h5") if name == "static" else None)
+    if design and os.path.exists(design):
+        r["objective_acf"], _ = evaluate(name, design, acf=True)
+        print(f"{name:7s} objective in the ACF model {r['objective_acf']:.6g} J", flush=True)
+        json.dump(ladder, open(saved, "w"), indent=1)
 
 if args.figure:
     import matplotlib
