@@ -9,6 +9,7 @@
 #include "flexopt/core/context.hpp"
 #include "flexopt/core/error.hpp"
 #include "flexopt/core/log.hpp"
+#include "flexopt/core/vec_values.hpp"
 #include "flexopt/dynamics/body_loads.hpp"
 #include "flexopt/fem/assembly.hpp"
 #include "flexopt/io/restart.hpp"
@@ -110,24 +111,6 @@ std::vector<double> at_local_nodes(const mesh::DistributedMesh &m, Vec owned) {
   FX_PETSC(VecGhostRestoreLocalForm(g, &local));
   FX_PETSC(VecDestroy(&g));
   return out;
-}
-
-/// A vector's local values.
-std::vector<double> local_values(Vec x) {
-  PetscInt n = 0;
-  const PetscScalar *v = nullptr;
-  FX_PETSC(VecGetLocalSize(x, &n));
-  FX_PETSC(VecGetArrayRead(x, &v));
-  std::vector<double> out(v, v + n);
-  FX_PETSC(VecRestoreArrayRead(x, &v));
-  return out;
-}
-
-void set_values(Vec x, const std::vector<double> &values) {
-  PetscScalar *v = nullptr;
-  FX_PETSC(VecGetArray(x, &v));
-  std::copy(values.begin(), values.end(), v);
-  FX_PETSC(VecRestoreArray(x, &v));
 }
 
 /// The static load cases share one operator (fem::StaticProblem::create_sharing): a direct
@@ -469,7 +452,7 @@ void EslRun::run(bool restart) {
   const int outer = in_.esl.outer_iterations;
   for (int j = first; j < outer && !converged_; ++j) {
     print0(ctx_.comm(), "esl: outer iteration %d of at most %d: simulating the design\n", j, outer);
-    set_values(x, xv);
+    set_local_values(x, xv);
     // The design as the static designs see it: at their projection stage.
     if (dyn_->design().stages() > 0) dyn_->design().set_stage(stage);
     std::vector<Instant> instants;
@@ -501,7 +484,7 @@ void EslRun::run(bool restart) {
            r.iterations, row.design_s, change);
   }
   if (!rows_.empty()) converged_ = rows_.back().max_change < in_.optimizer.tolerance;
-  set_values(x, xv);
+  set_local_values(x, xv);
   if (dyn_->design().stages() > 0) dyn_->design().set_stage(stage);
   final_ = simulate(x, nullptr);
   FX_PETSC(VecDestroy(&x));

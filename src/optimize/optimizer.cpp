@@ -236,10 +236,7 @@ void OptimizationRun::first_design(Vec x) const {
   int bad = static_cast<std::size_t>(n) != c_.start.size();
   MPI_Allreduce(MPI_IN_PLACE, &bad, 1, MPI_INT, MPI_MAX, comm_);
   if (bad) throw Error("optimize: the starting design has another layout than the problem's", true);
-  PetscScalar *xv = nullptr;
-  FX_PETSC(VecGetArray(x, &xv));
-  std::copy(c_.start.begin(), c_.start.end(), xv);
-  FX_PETSC(VecRestoreArray(x, &xv));
+  set_local_values(x, c_.start);
 }
 
 /// design.xdmf's frames and estimated size, printed before the run; a warning above
@@ -669,14 +666,7 @@ OptimizationResult OptimizationRun::finish() {
   write_densities(*writer_, *problem, result.iterations);
   result.volume_fraction = problem->design().volume_fraction();
   result.stage = stage_;
-  {
-    const PetscScalar *xv = nullptr;
-    PetscInt n = 0;
-    FX_PETSC(VecGetLocalSize(x_, &n));
-    FX_PETSC(VecGetArrayRead(x_, &xv));
-    result.design.assign(xv, xv + n);
-    FX_PETSC(VecRestoreArrayRead(x_, &xv));
-  }
+  result.design = local_values(x_);
   if (bodies_ > 0) result.body_volume_fractions = body_fractions();
   result.output = writer_->close();
   run_on_root(comm_, 0, [&] {
