@@ -15,7 +15,8 @@ Rungs (--rungs, comma-separated; default all but `static`):
   fixed       FFRF with the basis held fixed in the gradient (`adjoint: {basis: fixed}`)
   exact       FFRF with the exact derivative of its reduction (the case as it is)
   exactM      the same with M MMA iterations (exact160: as many as ESL's 4 outer iterations of 40)
-  acf         the design body `model: acf` (co-rotated elements on the same mesh, the
+  acf         the design body `model: acf` (every `model: ffrf` of the case made ACF: in both
+              scenes that is the design body alone; co-rotated elements on the same mesh, the
               geometrically nonlinear model) in the design loop: the finest rung
   peak        a single-instant static design computed by flexopt itself: the instant of esl48's
               first loads (OUT/esl48/out/esl/loads_00.csv) with the largest moment about the
@@ -189,7 +190,8 @@ if args.figure:
         if "objective_acf" in r:
             ax.plot(r["wall_s"], r["objective_acf"], "s", mfc="none", color=colour)
             ax.plot([r["wall_s"]] * 2, [r["objective"], r["objective_acf"]], ":", color=colour, lw=0.8)
-        ax.annotate(name, (r["wall_s"], r["objective"]), textcoords="offset points", xytext=(5, 5))
+        ax.annotate(name, (r["wall_s"], r["objective"]), textcoords="offset points",
+                    xytext=(5, 5 if k % 2 == 0 else -12))
     ax.plot([], [], "ko", label="evaluated in the FFRF model")
     if any("objective_acf" in r for r in ladder.values()):
         ax.plot([], [], "ks", mfc="none", label="evaluated in the ACF model")
