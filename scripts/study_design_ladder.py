@@ -36,6 +36,7 @@ usage: study_design_ladder.py --flexopt BUILD/flexopt --out DIR [--case DIR] [--
 """
 import argparse
 import csv
+import functools
 import json
 import math
 import os
@@ -64,11 +65,13 @@ args = p.parse_args()
 flexopt, out = os.path.abspath(args.flexopt), os.path.abspath(args.out)
 CASE = os.path.abspath(args.case)
 os.makedirs(out, exist_ok=True)
-# The case's optimizer line (one line, `optimizer: {...}`): the rungs edit it.
-OPTIMIZER = next(line for line in open(os.path.join(CASE, "case.yaml")).read().split("\n")
-                 if line.startswith("optimizer: {"))
-TIME = next(line for line in open(os.path.join(CASE, "case.yaml")).read().split("\n")
-            if line.startswith("time: {"))
+# The case's optimizer and time lines (one line each, `optimizer: {...}`, `time: {...}`): the
+# rungs edit them.
+CASE_LINES = open(os.path.join(CASE, "case.yaml")).read().split("\n")
+OPTIMIZER = next(line for line in CASE_LINES if line.startswith("optimizer: {"))
+TIME = next(line for line in CASE_LINES if line.startswith("time: {"))
+# The ACF model of the case: every FFRF body (in both scenes the design body alone) made ACF.
+TO_ACF = [("model: ffrf", "model: acf")]
 
 
 def variant(name):
@@ -81,7 +84,7 @@ def variant(name):
     elif re.fullmatch(r"exact\d+", name):
         replace = [(OPTIMIZER, re.sub(r"max_iterations: \d+", f"max_iterations: {name[5:]}", OPTIMIZER))]
     elif name == "acf":
-        replace = [("model: ffrf", "model: acf")]
+        replace = TO_ACF
     elif name == "peak":
         end = peak_time()
         replace = [(OPTIMIZER, OPTIMIZER.replace("{", "{method: esl, instants: 1, outer_iterations: 1, ", 1)),
@@ -91,6 +94,7 @@ def variant(name):
     return write_variant(CASE, os.path.join(out, name), replace, optimization=True)
 
 
+@functools.lru_cache(maxsize=None)
 def peak_time():
     """The time of esl48's first-iteration instant with the largest moment about the clamped
     interface from the other interfaces' loads: |M + r x F| (r = --arm)."""
@@ -136,7 +140,7 @@ def evaluate(name, design, acf=False):
     d = os.path.join(out, "eval_" + tag)
     case = CASE
     if acf:
-        case = write_variant(CASE, os.path.join(out, "acf_model"), [("model: ffrf", "model: acf")],
+        case = write_variant(CASE, os.path.join(out, "acf_model"), TO_ACF,
                              optimization=True)
     run_flexopt(flexopt, args.ranks, ["simulate", case, "--out", d, "--design", design],
                 os.path.join(out, f"eval_{tag}.log"))
