@@ -178,7 +178,14 @@ std::vector<const dynamics::DistState *> DistPass::state_partials(std::size_t j,
       if (bs.acf_body >= 0) {
         const auto b =
             static_cast<std::size_t>(p_.scene_.bodies[static_cast<std::size_t>(bs.acf_body)].acf);
-        da_.add_point_weights(P.q, b, bs.location, dy);
+        Vec3 w = dy;
+        if (bs.quantity == dynamics::SensorQuantity::ElasticDisplacement) { // through the frame (8.4)
+          Vector d = Vector::Zero(small.q.size());
+          w = dynamics::add_acf_elastic_partial(
+              p_.scene_, bs, small, da_.point_position(s, b, bs.location), dy, d);
+          da_.add_small(P.q, d);
+        }
+        da_.add_point_weights(P.q, b, bs.location, w);
       } else {
         da_.add_small(P.q, sensor_jacobian(p_.scene_, bs, small.q).transpose() * dy);
       }

@@ -179,8 +179,6 @@ void DynamicProblem::bind_design_body(std::size_t k, const reduce::ElementFactor
       db.element_theta[static_cast<std::size_t>(e)] = bodies::element_mass_parameters(
           m.type, m.element_coordinates(e), spec.material.density, db.reference);
     db.rows = 10;
-  } else {
-    acf_design_ = true;
   }
 }
 
@@ -277,14 +275,6 @@ void DynamicProblem::bind_responses() {
         if (bm == BodyModel::Acf) acf_strain_bodies_.back().push_back(sb.acf);
       }
     bind_stress(*r);
-    if (sensor >= 0 && acf_design_) {
-      const dynamics::BoundSensor &s = scene_.sensors[static_cast<std::size_t>(sensor)];
-      if (s.acf_body >= 0 && s.quantity == dynamics::SensorQuantity::ElasticDisplacement)
-        throw Error(r->where.str() + ": sensor '" + s.name +
-                        "' measures the elastic displacement of an ACF body, which a response "
-                        "cannot use yet (position, displacement)",
-                    true);
-    }
   }
 }
 

@@ -138,8 +138,8 @@ std::vector<double> Integrator::positions(std::size_t b, std::vector<double> &el
       dist_->owned_positions(dist_state_.state, static_cast<std::size_t>(sb.acf));
   elastic.clear();
   if (sb.nodes.empty()) return x;
-  // The elastic displacement in the frame of the first interface node.
-  const InterfaceFrame frame = first_interface_frame(scene_, sb, small_);
+  // The elastic displacement in the body's frame (docs/theory.md section 8.4).
+  const InterfaceFrame frame = acf_frame(scene_, sb, small_);
   const mesh::DistributedMesh &m = scene_.meshes[b];
   elastic.resize(x.size());
   for (std::size_t i = 0; i < x.size() / 3; ++i) {

@@ -16,6 +16,7 @@
 #include <cstdio>
 #include <map>
 #include <memory>
+#include <sstream>
 
 namespace flexopt::dynamics {
 
@@ -182,6 +183,7 @@ void add_acf_body(MPI_Comm comm, const BodyDescription &spec, const fem::Isotrop
   const mesh::DistributedMesh &m = scene.meshes.back();
   sb.mechanism = -1;
   sb.acf = static_cast<int>(scene.acf.size());
+  sb.frame = spec.reduction.frame; // section 8.4: the frame FFRF's basis would hold
   scene.acf.push_back(std::make_unique<bodies::AcfBody>(
       spec.name, m, fem::IsotropicMaterial{mat.E, mat.nu, mat.density}, std::vector<double>{},
       spec.rayleigh[1]));
@@ -614,7 +616,7 @@ private:
       if (bs.body < 0 && (s.quantity == SensorQuantity::ElasticDisplacement ||
                           s.quantity == SensorQuantity::RotationAngle))
         throw Error(s.where.str() + ": sensor '" + s.name + "': " + quantity_name(s.quantity) +
-                        " of an ACF body is measured in the frame of its first interface, and "
+                        " of an ACF body is measured in the frame of its interfaces, and "
                         "body '" +
                         s.body + "' lists no interfaces",
                     true);
@@ -753,14 +755,46 @@ DistState acf_initial_state(const Scene &scene, const DistributedAlpha &da, Star
   return da.initial_state(x0, v0, 0.0, report, trace);
 }
 
-InterfaceFrame first_interface_frame(const Scene &scene, const SceneBody &body,
-                                     const State &small) {
-  const int o = scene.mechanism.offset(body.nodes.front());
-  InterfaceFrame f;
-  f.r = small.q.segment<3>(o);
-  f.A = bodies::rotation(small.q.segment<4>(o + 3));
-  f.c = body.centroids.front();
-  return f;
+FrameNodes acf_frame_nodes(const Scene &scene, const SceneBody &body, const State &small) {
+  const Mechanism &mech = scene.mechanism;
+  FrameNodes n;
+  n.condition = body.frame;
+  const int o = mech.offset(body.nodes.front());
+  n.r0 = small.q.segment<3>(o);
+  n.p0 = small.q.segment<4>(o + 3);
+  n.c0 = body.centroids.front();
+  if (n.condition == reduce::FrameCondition::Chord) {
+    n.r1 = small.q.segment<3>(mech.offset(body.nodes[1]));
+    n.c1 = body.centroids[1];
+  }
+  return n;
+}
+
+namespace {
+std::string frame_owner(const Scene &scene, const SceneBody &body, double t) {
+  std::ostringstream s;
+  s << "body '" << scene.acf[static_cast<std::size_t>(body.acf)]->name()
+    << "': elastic_displacement's chord frame at t = " << t << " s";
+  return s.str();
+}
+} // namespace
+
+InterfaceFrame acf_frame(const Scene &scene, const SceneBody &body, const State &small) {
+  return interface_frame(acf_frame_nodes(scene, body, small), frame_owner(scene, body, small.t));
+}
+
+Vec3 add_acf_elastic_partial(const Scene &scene, const BoundSensor &s, const State &small,
+                             const Vec3 &x, const Vec3 &w, Vector &small_q) {
+  const SceneBody &sb = scene.bodies[static_cast<std::size_t>(s.acf_body)];
+  const FrameCotangent ct = elastic_cotangent(acf_frame_nodes(scene, sb, small), x, w,
+                                              frame_owner(scene, sb, small.t));
+  const Mechanism &mech = scene.mechanism;
+  const int o = mech.offset(sb.nodes.front());
+  small_q.segment<3>(o) += ct.r0;
+  small_q.segment<4>(o + 3) += ct.p0;
+  if (sb.frame == reduce::FrameCondition::Chord)
+    small_q.segment<3>(mech.offset(sb.nodes[1])) += ct.r1;
+  return ct.x;
 }
 
 Vec3 acf_sensor_value(const Scene &scene, const DistributedAlpha &da, const BoundSensor &s,
@@ -771,7 +805,7 @@ Vec3 acf_sensor_value(const Scene &scene, const DistributedAlpha &da, const Boun
   const Vec3 x = da.point_position(state, static_cast<std::size_t>(sb.acf), s.location);
   if (s.quantity == SensorQuantity::Position) return x;
   if (s.quantity == SensorQuantity::Displacement) return x - (sb.position + sb.R * s.point);
-  return first_interface_frame(scene, sb, small).elastic(x, s.point);
+  return acf_frame(scene, sb, small).elastic(x, s.point);
 }
 
 Vec3 sensor_value(const Scene &scene, const BoundSensor &s, const State &state) {

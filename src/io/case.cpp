@@ -372,14 +372,8 @@ adjoint::DynamicSettings dynamic_settings(const Case &c) {
 }
 
 plan::PlanSettings plan_settings(const Case &c) {
-  plan::PlanSettings s{c.scene, c.time, c.accuracy, {}, {}};
+  plan::PlanSettings s{c.scene, c.time, c.accuracy, {}};
   for (const optimize::DesignSettings &d : c.design) s.design_bodies.push_back(d.body);
-  std::vector<const optimize::ResponseSettings *> responses;
-  if (c.objective) responses.push_back(&*c.objective);
-  for (const optimize::ResponseSettings &r : c.constraints) responses.push_back(&r);
-  for (const optimize::ResponseSettings *r : responses)
-    if (!r->sensor.empty())
-      s.sensor_responses.emplace_back(optimize::response_type_name(r->type), r->sensor);
   return s;
 }
 

@@ -75,19 +75,6 @@ std::string acf_reason(const Estimates &est, const BodyPlan &bp, double eps) {
              est.stress_stiffening, est.stress_error_at.c_str(), est.stress_error, eps);
 }
 
-/// What keeps a body from ACF (section 12.3, rule 3): a response of the case (objective,
-/// constraint) on an elastic_displacement sensor of the body; empty if none.
-std::string acf_blocker(const PlanSettings &c, const BodyPlan &bp) {
-  std::string acf_blocker;
-  for (const auto &[type, name] : c.sensor_responses)
-    for (const dynamics::SensorDescription &sensor : c.scene.sensors)
-      if (sensor.name == name && sensor.body == bp.body &&
-          sensor.quantity == dynamics::SensorQuantity::ElasticDisplacement && acf_blocker.empty())
-        acf_blocker = "the " + type + " response uses sensor '" + sensor.name +
-                      "', this body's elastic displacement";
-  return acf_blocker;
-}
-
 /// The reasons of an FFRF body (section 12.3, rule 4): why flexible, why not ACF, the modes and
 /// the geometric stiffening.
 void ffrf_reasons(const BodyKed &ked, bool flexible_design, bool stressed, double eps,
@@ -129,26 +116,19 @@ void choose_model(const PlanSettings &c, const BodyKed &ked, BodyPlan &bp) {
   const Estimates &est = bp.est;
   // The rules (section 12.3).
   const bool flexible_design = is_design_body(c, bp);
-  // Why ACF (the first reason that holds), and what keeps a body from it: a response of the
-  // case (objective, constraint) on an elastic_displacement sensor of the body.
-  // The loads' stress, which FFRF leaves out, changes what the measures see by e_sigma; half
-  // the budget (the other half: the modes' truncation).
+  // Why ACF (the first reason that holds). The loads' stress, which FFRF leaves out, changes
+  // what the measures see by e_sigma; half the budget (the other half: the modes' truncation).
   const bool stressed = est.stress_error > 0.5 * eps;
-  const std::string blocker = acf_blocker(c, bp);
   bp.modes = ked.chosen;
   if (!ked.elastic_sensor && !flexible_design && est.rigid_error <= eps) {
     bp.recommended = BodyModel::Rigid;
     bp.reasons.push_back(fmt("rigid: the elastic deflection changes %s by %.2g of its scale, "
                              "within the accuracy %g",
                              est.rigid_error_at.c_str(), est.rigid_error, eps));
-  } else if ((est.rotation * est.rotation > eps || stressed) && blocker.empty()) {
+  } else if (est.rotation * est.rotation > eps || stressed) {
     bp.recommended = BodyModel::Acf;
     bp.reasons.push_back(acf_reason(est, bp, eps));
   } else {
-    if (!blocker.empty() && (est.rotation * est.rotation > eps || stressed))
-      bp.warnings.push_back(acf_reason(est, bp, eps) + "; but " + blocker +
-                            ", which a response of an ACF body cannot use yet: FFRF, with "
-                            "that error");
     bp.recommended = BodyModel::Ffrf;
     ffrf_reasons(ked, flexible_design, stressed, eps, bp);
   }

@@ -347,7 +347,6 @@ private:
   std::vector<DesignBody> designs_; ///< in the order of `design:` (the Design's fields)
   std::vector<int> design_of_body_; ///< per case body: its index in designs_, or -1
   bool ffrf_design_ = false;        ///< some design body is an FFRF body
-  bool acf_design_ = false;         ///< some design body is an ACF body
   StepObserver observer_;
   reduce::BasisDerivative basis_ = reduce::BasisDerivative::Exact;
   // The responses: objective, then constraints.

@@ -5,6 +5,7 @@
 /// (docs/theory.md sections 6.3 and 7.4).
 #include "flexopt/bodies/acf_body.hpp"
 #include "flexopt/dynamics/distributed_alpha.hpp"
+#include "flexopt/dynamics/interface_frame.hpp"
 #include "flexopt/dynamics/mechanism.hpp"
 #include "flexopt/dynamics/scene_description.hpp"
 #include "flexopt/fem/probe.hpp"
@@ -51,6 +52,8 @@ struct SceneBody {
   int acf = -1;                ///< index in Scene::acf (-1: not ACF)
   std::vector<int> nodes;      ///< ACF: the interface nodes' bodies, in the case's order
   std::vector<Vec3> centroids; ///< ACF: the interface centroids c_I (mesh coordinates)
+  /// ACF: the frame of its elastic displacement (the body's reduction.frame, section 8.4).
+  reduce::FrameCondition frame = reduce::FrameCondition::Clamped;
   Vec3 position{0, 0, 0};      ///< initial placement: mesh point X at position + R X
   bodies::Mat3 R = bodies::Mat3::Identity();
   Vec3 velocity{0, 0, 0}, omega{0, 0, 0}; ///< initial velocity of the mesh origin, spin
@@ -179,19 +182,22 @@ std::vector<const bodies::AcfBody *> acf_body_list(const Scene &scene);
 DistState acf_initial_state(const Scene &scene, const DistributedAlpha &da,
                             StartReport *report = nullptr, DistStartTrace *trace = nullptr);
 
-/// The frame of an ACF body's first interface node at the mechanism state `small`: origin r_I,
-/// rotation A_I, the interface centroid c_I (mesh coordinates). The elastic displacement of a
-/// point X at x is A_I^T (x - r_I) - (X - c_I), as for an FFRF body clamped there.
-struct InterfaceFrame {
-  Vec3 r{0, 0, 0}, c{0, 0, 0};
-  bodies::Mat3 A = bodies::Mat3::Identity();
-  Vec3 elastic(const Vec3 &x, const Vec3 &X) const { return A.transpose() * (x - r) - (X - c); }
-};
-InterfaceFrame first_interface_frame(const Scene &scene, const SceneBody &body, const State &small);
+/// What the elastic-displacement frame of an ACF body is built from at the mechanism state
+/// `small`: its frame condition, its first interface node (and its second's position, chord
+/// only), the interface centroids (docs/theory.md section 8.4). The body lists an interface.
+FrameNodes acf_frame_nodes(const Scene &scene, const SceneBody &body, const State &small);
+/// The frame itself (interface_frame of acf_frame_nodes); throws a collective flexopt::Error
+/// naming the body and the time where a chord frame is undefined.
+InterfaceFrame acf_frame(const Scene &scene, const SceneBody &body, const State &small);
+/// The partials of w . e, e the elastic displacement of sensor `s` (an ACF body's) at world
+/// position x: on the point (returned; spread over its element's nodes by the caller) and, added
+/// into `small_q` (the mechanism's coordinates), on the interface nodes (section 8.4).
+Vec3 add_acf_elastic_partial(const Scene &scene, const BoundSensor &s, const State &small,
+                             const Vec3 &x, const Vec3 &w, Vector &small_q);
 
 /// Value of a sensor of an ACF body at a state of `da` (the meaning of sensor_value; the elastic
-/// displacement is A_I^T (x - r_I) - (X - c_I) in the frame of the body's first interface node
-/// I; rotation_angle is that node's). Collective.
+/// displacement is A_F^T (x - r_0) - (X - c_0) in the body's frame, acf_frame; rotation_angle is
+/// the first interface node's). Collective.
 Vec3 acf_sensor_value(const Scene &scene, const DistributedAlpha &da, const BoundSensor &s,
                       const DistState &state, const State &small);
 

@@ -83,9 +83,6 @@ struct PlanSettings {
   dynamics::TimeSettings time;
   double accuracy = 1e-2; ///< `accuracy`: the relative error of the sensors the user accepts
   std::vector<std::string> design_bodies; ///< the design bodies; a flexible one stays flexible
-  /// Every response that reads a sensor: (its type, e.g. "sensor", the sensor's name). An ACF
-  /// body cannot yet serve a response on its elastic displacement (section 12.3).
-  std::vector<std::pair<std::string, std::string>> sensor_responses;
 };
 
 struct PlanOptions {
