@@ -97,8 +97,9 @@ with tempfile.TemporaryDirectory() as tmp:
         open(os.path.join(d, "case.yaml"), "w").write(t)
         return d
 
-    expected = {"ffrf": [], "acf": ["reduction"],
-                "rigid": ["reduction", "initial.elastic_displacement", "initial.elastic_velocity"]}
+    expected = {"ffrf": [], "acf": ["reduction.modes"],
+                "rigid": ["reduction.modes", "reduction.frame", "initial.elastic_displacement",
+                          "initial.elastic_velocity"]}
     for model, unused in expected.items():
         d = variant(model, [("model: ffrf", "model: " + model)])
         rc, out, err = run(["info", d, "--out", os.path.join(d, "out")], ranks=2)
@@ -108,7 +109,7 @@ with tempfile.TemporaryDirectory() as tmp:
                f"info, rod model: {model}: unused settings {unused} in summary.json")
         notes = [line.strip() for line in out.splitlines() if "settings not used" in line]
         expect(notes == ([f"body rod (model: {model}): settings not used by this model: "
-                          + ", ".join(k + (" (ffrf)" if k == "reduction" else " (ffrf, acf)") for k in unused)]
+                          + ", ".join(k + (" (ffrf)" if k == "reduction.modes" else " (ffrf, acf)") for k in unused)]
                          if unused else []),
                f"info, rod model: {model}: the unused settings printed once, under the rod: {notes}")
     # An unused section is still checked: a typo in it is refused, the key named, on every rank.

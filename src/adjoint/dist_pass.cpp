@@ -179,10 +179,11 @@ std::vector<const dynamics::DistState *> DistPass::state_partials(std::size_t j,
         const auto b =
             static_cast<std::size_t>(p_.scene_.bodies[static_cast<std::size_t>(bs.acf_body)].acf);
         Vec3 w = dy;
-        if (bs.quantity == dynamics::SensorQuantity::ElasticDisplacement) { // through the frame (8.4)
+        if (bs.quantity ==
+            dynamics::SensorQuantity::ElasticDisplacement) { // through the frame (8.4)
           Vector d = Vector::Zero(small.q.size());
-          w = dynamics::add_acf_elastic_partial(
-              p_.scene_, bs, small, da_.point_position(s, b, bs.location), dy, d);
+          w = dynamics::add_acf_elastic_partial(p_.scene_, bs, small,
+                                                da_.point_position(s, b, bs.location), dy, d);
           da_.add_small(P.q, d);
         }
         da_.add_point_weights(P.q, b, bs.location, w);

@@ -1,5 +1,6 @@
 // The ACF body's elastic-displacement frame and its reverse derivative (docs/theory.md 8.4).
 #include "flexopt/dynamics/interface_frame.hpp"
+
 #include "flexopt/core/error.hpp"
 
 #include <cmath>

@@ -786,8 +786,8 @@ InterfaceFrame acf_frame(const Scene &scene, const SceneBody &body, const State 
 Vec3 add_acf_elastic_partial(const Scene &scene, const BoundSensor &s, const State &small,
                              const Vec3 &x, const Vec3 &w, Vector &small_q) {
   const SceneBody &sb = scene.bodies[static_cast<std::size_t>(s.acf_body)];
-  const FrameCotangent ct = elastic_cotangent(acf_frame_nodes(scene, sb, small), x, w,
-                                              frame_owner(scene, sb, small.t));
+  const FrameCotangent ct =
+      elastic_cotangent(acf_frame_nodes(scene, sb, small), x, w, frame_owner(scene, sb, small.t));
   const Mechanism &mech = scene.mechanism;
   const int o = mech.offset(sb.nodes.front());
   small_q.segment<3>(o) += ct.r0;

@@ -28,7 +28,10 @@ const MaterialSpec &Case::material(const std::string &n) const {
 const std::vector<ModelSetting> &model_settings() {
   using dynamics::BodyModel;
   static const std::vector<ModelSetting> settings = {
-      {"reduction", {BodyModel::Ffrf}},
+      {"reduction.modes", {BodyModel::Ffrf}},
+      {"reduction.geometric_stiffening", {BodyModel::Ffrf}},
+      // An ACF body measures its elastic displacement in that frame (docs/theory.md 8.4).
+      {"reduction.frame", {BodyModel::Ffrf, BodyModel::Acf}},
       {"damping", {BodyModel::Ffrf, BodyModel::Acf}},
       {"initial.elastic_displacement", {BodyModel::Ffrf, BodyModel::Acf}},
       {"initial.elastic_velocity", {BodyModel::Ffrf, BodyModel::Acf}},

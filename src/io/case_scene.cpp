@@ -71,12 +71,14 @@ void read_initial(const Reader &r, const YAML::Node &v, const std::string &path,
   }
 }
 
-/// `bodies[].reduction` (ffrf's model setting, recorded in b.settings) into b.reduction.
+/// `bodies[].reduction` (ffrf's model settings, and the frame that acf uses too; each key given
+/// recorded in b.settings as reduction.KEY) into b.reduction.
 void read_reduction(const Reader &r, const YAML::Node &m, const std::string &mp,
                     dynamics::BodyDescription &b) {
-  b.settings.push_back("reduction");
   r.require_map(m, mp);
   r.check_keys(m, mp, {"modes", "geometric_stiffening", "frame"});
+  for (const char *key : {"modes", "geometric_stiffening", "frame"})
+    if (m[key]) b.settings.push_back(std::string("reduction.") + key);
   if (m["modes"]) {
     b.reduction.modes = r.integer(m["modes"], mp + ".modes");
     if (b.reduction.modes < 0 || b.reduction.modes > 100)

@@ -571,11 +571,13 @@ TEST(ModelSettings, WhichModelUsesWhat) {
   using flexopt::io::settings_used_by;
   using V = std::vector<std::string>;
   EXPECT_EQ(settings_used_by(dynamics::BodyModel::Rigid), V{});
-  EXPECT_EQ(
-      settings_used_by(dynamics::BodyModel::Ffrf),
-      (V{"reduction", "damping", "initial.elastic_displacement", "initial.elastic_velocity"}));
+  EXPECT_EQ(settings_used_by(dynamics::BodyModel::Ffrf),
+            (V{"reduction.modes", "reduction.geometric_stiffening", "reduction.frame", "damping",
+               "initial.elastic_displacement", "initial.elastic_velocity"}));
+  // The frame of an ACF body's elastic displacement (docs/theory.md 8.4).
   EXPECT_EQ(settings_used_by(dynamics::BodyModel::Acf),
-            (V{"damping", "initial.elastic_displacement", "initial.elastic_velocity"}));
+            (V{"reduction.frame", "damping", "initial.elastic_displacement",
+               "initial.elastic_velocity"}));
   EXPECT_EQ(dynamics::simulated_model(dynamics::BodyModel::Auto),
             dynamics::BodyModel::Rigid); // this version
   EXPECT_EQ(settings_used_by(dynamics::BodyModel::Auto),
@@ -602,10 +604,10 @@ std::string rod_with_every_setting(const std::string &model, const std::string &
 TEST_F(CaseFiles, OneWordSwitchesTheModel) {
   using V = std::vector<std::string>;
   const std::map<std::string, V> unused = {
-      {"rigid", {"reduction", "damping", "initial.elastic_velocity"}},
-      {"auto", {"reduction", "damping", "initial.elastic_velocity"}},
+      {"rigid", {"reduction.modes", "reduction.frame", "damping", "initial.elastic_velocity"}},
+      {"auto", {"reduction.modes", "reduction.frame", "damping", "initial.elastic_velocity"}},
       {"ffrf", {}},
-      {"acf", {"reduction"}}};
+      {"acf", {"reduction.modes"}}}; // an ACF body uses the frame (docs/theory.md 8.4)
   for (const auto &[model, expected] : unused) {
     SCOPED_TRACE("model: " + model);
     write(rod_with_every_setting(model, "{modes: 8, frame: chord}", "{rayleigh: [0, 2.0e-4]}"));
@@ -617,7 +619,8 @@ TEST_F(CaseFiles, OneWordSwitchesTheModel) {
     EXPECT_STREQ(dynamics::frame_name(rod.reduction.frame), "chord");
     EXPECT_DOUBLE_EQ(rod.rayleigh[1], 2.0e-4);
     EXPECT_EQ(rod.initial.elastic_velocity[1], "0.4*sin(_pi*x/0.3)");
-    EXPECT_EQ(rod.settings, (V{"reduction", "damping", "initial.elastic_velocity"}));
+    EXPECT_EQ(rod.settings,
+              (V{"reduction.modes", "reduction.frame", "damping", "initial.elastic_velocity"}));
     EXPECT_EQ(flexopt::io::unused_settings(rod), expected);
     // The other bodies carry no model settings.
     EXPECT_TRUE(flexopt::io::unused_settings(c.scene.bodies[0]).empty());
@@ -625,15 +628,16 @@ TEST_F(CaseFiles, OneWordSwitchesTheModel) {
   }
   write(rod_with_every_setting("acf", "{modes: 8}", "{rayleigh: [0, 2.0e-4]}"));
   EXPECT_EQ(flexopt::io::unused_settings_note(load_case(dir_.string()).scene.bodies[1]),
-            "body rod (model: acf): settings not used by this model: reduction (ffrf)");
+            "body rod (model: acf): settings not used by this model: reduction.modes (ffrf)");
   write(rod_with_every_setting("rigid", "{modes: 8}", "{rayleigh: [0, 2.0e-4]}"));
-  EXPECT_EQ(flexopt::io::unused_settings_note(load_case(dir_.string()).scene.bodies[1]),
-            "body rod (model: rigid): settings not used by this model: reduction (ffrf), damping "
-            "(ffrf, acf), initial.elastic_velocity (ffrf, acf)");
+  EXPECT_EQ(
+      flexopt::io::unused_settings_note(load_case(dir_.string()).scene.bodies[1]),
+      "body rod (model: rigid): settings not used by this model: reduction.modes (ffrf), damping "
+      "(ffrf, acf), initial.elastic_velocity (ffrf, acf)");
   write(rod_with_every_setting("auto", "{modes: 8}", "{rayleigh: [0, 2.0e-4]}"));
   EXPECT_EQ(flexopt::io::unused_settings_note(load_case(dir_.string()).scene.bodies[1]),
             "body rod (model: auto, simulated as rigid): settings not used by this model: "
-            "reduction (ffrf), damping (ffrf, acf), initial.elastic_velocity (ffrf, acf)");
+            "reduction.modes (ffrf), damping (ffrf, acf), initial.elastic_velocity (ffrf, acf)");
 }
 
 TEST_F(CaseFiles, UnusedSettingsAreStillChecked) {

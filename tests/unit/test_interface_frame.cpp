@@ -75,9 +75,10 @@ TEST(InterfaceFrame, ChordHoldsTheSecondInterfaceOnItsAxisWithoutRoll) {
     const Vec4 p = random_rotation(rng, 3.0);
     const Mat3 R = flexopt::bodies::rotation(p);
     // A deformed state: the body moved rigidly, then its interfaces moved and turned elastically.
-    const Eigen::Quaterniond q = Eigen::Quaterniond(p(0), p(1), p(2), p(3)) *
-                                 Eigen::Quaterniond(Eigen::AngleAxisd(0.05 * (trial + 1) / 20.0,
-                                                                      random_vector(rng, 1).normalized()));
+    const Eigen::Quaterniond q =
+        Eigen::Quaterniond(p(0), p(1), p(2), p(3)) *
+        Eigen::Quaterniond(
+            Eigen::AngleAxisd(0.05 * (trial + 1) / 20.0, random_vector(rng, 1).normalized()));
     n.p0 = Vec4(q.w(), q.x(), q.y(), q.z());
     const Vec3 t = random_vector(rng, 2.0);
     n.r0 = t + R * n.c0 + random_vector(rng, 0.01);

@@ -40,7 +40,7 @@ struct FrameCotangent {
   bodies::Vec3 x{0, 0, 0}, r0{0, 0, 0}, r1{0, 0, 0};
   bodies::Vec4 p0{0, 0, 0, 0};
 };
-FrameCotangent elastic_cotangent(const FrameNodes &n, const bodies::Vec3 &x,
-                                 const bodies::Vec3 &w, const std::string &what);
+FrameCotangent elastic_cotangent(const FrameNodes &n, const bodies::Vec3 &x, const bodies::Vec3 &w,
+                                 const std::string &what);
 
 } // namespace flexopt::dynamics
