@@ -142,7 +142,7 @@ public:
   Vec3 sensor(const BoundSensor &s) const;
   /// World positions of the owned nodes of case body b and, for a flexible body, its elastic
   /// displacement field into `elastic` (FFRF: Psi zeta in the frame's axes; ACF: in the frame of
-  /// its first interface node; empty: none). Not collective.
+  /// its interface nodes, acf_frame; empty: none). Not collective.
   std::vector<double> positions(std::size_t b, std::vector<double> &elastic) const;
   /// The von Mises stress [Pa] at the centroid of every local element of case body b at the
   /// current state, of the solid material (no design's factors): an FFRF body's linear stress of
