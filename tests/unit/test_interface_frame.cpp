@@ -49,17 +49,33 @@ FrameNodes reference_link(FrameCondition condition) {
   return n;
 }
 
+/// The link moved rigidly by a random rotation R (Euler parameters p, up to 3 rad) and
+/// translation t (up to `shift`), its interface nodes then displaced by up to `jitter`; the
+/// first interface node turned by R.
+struct Moved {
+  FrameNodes n;
+  Vec4 p;
+  Mat3 R;
+  Vec3 t;
+};
+Moved moved_link(FrameCondition condition, std::mt19937 &rng, double shift, double jitter) {
+  Moved m{reference_link(condition), random_rotation(rng, 3.0), Mat3::Identity(), Vec3::Zero()};
+  m.R = flexopt::bodies::rotation(m.p);
+  m.t = random_vector(rng, shift);
+  m.n.r0 = m.t + m.R * m.n.c0 + random_vector(rng, jitter);
+  m.n.r1 = m.t + m.R * m.n.c1 + random_vector(rng, jitter);
+  m.n.p0 = m.p;
+  return m;
+}
+
 TEST(InterfaceFrame, RigidMotionHasNoElasticDisplacement) {
   std::mt19937 rng(7);
   for (const FrameCondition condition : kFrames)
     for (int trial = 0; trial < 20; ++trial) {
-      FrameNodes n = reference_link(condition);
-      const Vec4 p = random_rotation(rng, 3.0);
-      const Mat3 R = flexopt::bodies::rotation(p);
-      const Vec3 t = random_vector(rng, 2.0);
-      n.r0 = t + R * n.c0;
-      n.r1 = t + R * n.c1;
-      n.p0 = p;
+      const Moved m = moved_link(condition, rng, 2.0, 0.0);
+      const FrameNodes &n = m.n;
+      const Mat3 &R = m.R;
+      const Vec3 &t = m.t;
       const auto f = interface_frame(n, "test");
       for (int k = 0; k < 10; ++k) {
         const Vec3 X = n.c0 + random_vector(rng, 0.5);
@@ -71,18 +87,14 @@ TEST(InterfaceFrame, RigidMotionHasNoElasticDisplacement) {
 TEST(InterfaceFrame, ChordHoldsTheSecondInterfaceOnItsAxisWithoutRoll) {
   std::mt19937 rng(11);
   for (int trial = 0; trial < 20; ++trial) {
-    FrameNodes n = reference_link(FrameCondition::Chord);
-    const Vec4 p = random_rotation(rng, 3.0);
-    const Mat3 R = flexopt::bodies::rotation(p);
     // A deformed state: the body moved rigidly, then its interfaces moved and turned elastically.
+    Moved m = moved_link(FrameCondition::Chord, rng, 2.0, 0.01);
+    FrameNodes &n = m.n;
     const Eigen::Quaterniond q =
-        Eigen::Quaterniond(p(0), p(1), p(2), p(3)) *
+        Eigen::Quaterniond(m.p(0), m.p(1), m.p(2), m.p(3)) *
         Eigen::Quaterniond(
             Eigen::AngleAxisd(0.05 * (trial + 1) / 20.0, random_vector(rng, 1).normalized()));
     n.p0 = Vec4(q.w(), q.x(), q.y(), q.z());
-    const Vec3 t = random_vector(rng, 2.0);
-    n.r0 = t + R * n.c0 + random_vector(rng, 0.01);
-    n.r1 = t + R * n.c1 + random_vector(rng, 0.01);
     const auto f = interface_frame(n, "test");
     const Vec3 d = n.c1 - n.c0, d_hat = d.normalized();
     // e(c1) at r1 lies along the axis, by the chord's stretch.
@@ -121,14 +133,12 @@ TEST(InterfaceFrame, CotangentMatchesCentralDifferences) {
   std::mt19937 rng(5);
   for (const FrameCondition condition : kFrames)
     for (int trial = 0; trial < 5; ++trial) {
-      FrameNodes n = reference_link(condition);
-      const Vec4 p = random_rotation(rng, 3.0);
-      const Mat3 R = flexopt::bodies::rotation(p);
-      const Vec3 t = random_vector(rng, 1.0);
-      n.r0 = t + R * n.c0 + random_vector(rng, 0.02);
-      n.r1 = t + R * n.c1 + random_vector(rng, 0.02);
+      Moved m = moved_link(condition, rng, 1.0, 0.02);
+      FrameNodes &n = m.n;
+      const Mat3 &R = m.R;
+      const Vec3 &t = m.t;
       // Not unit: the frame differentiates the polynomial A(p), as the joints do.
-      n.p0 = (p + 0.03 * Vec4::Random()) * 1.01;
+      n.p0 = (m.p + 0.03 * Vec4::Random()) * 1.01;
       const Vec3 X = n.c0 + random_vector(rng, 0.4);
       const Vec3 x = t + R * X + random_vector(rng, 0.02);
       const Vec3 w = random_vector(rng, 1.0);
