@@ -6,9 +6,10 @@ with only the rod's `model: ffrf` changed to `rigid` and to `acf` (2 ranks each)
 Checks, per model:
 - the run succeeds and reports the rod as that model;
 - it names the settings the model does not use, on rank 0 ("note: body rod (model: acf):
-  settings not used by this model: reduction (ffrf)") and in summary.json
-  (bodies[].unused_settings): rigid leaves reduction and both elastic fields unused, acf the
-  reduction, ffrf nothing;
+  settings not used by this model: reduction.modes (ffrf)") and in summary.json
+  (bodies[].unused_settings): rigid leaves the reduction (its modes and frame) and both elastic
+  fields unused, acf the modes (it measures its elastic displacement in the reduction's frame,
+  docs/theory.md 8.4), ffrf nothing;
 - unused means unused: the rigid run with the FFRF settings deleted from case.yaml gives the
   same sensor values to round-off (1e-12 m; the two runs do the same arithmetic);
 - the models move the slider as their rods allow: at TIME_END the rigid rod's slider trails the
@@ -30,11 +31,13 @@ CASE = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "cases",
                     "slider_crank_flexible")
 TIME_END = 1.0e-4  # 10 steps of 1e-5 s: the ACF rod (10k DOFs) takes a few seconds
 STRETCH = 1.69327969e-5  # the case's elastic_displacement x-component at the wrist pin (x = 0.3)
-UNUSED = {"ffrf": [], "acf": ["reduction"],
-          "rigid": ["reduction", "initial.elastic_displacement", "initial.elastic_velocity"]}
-NOTE = {"acf": "note: body rod (model: acf): settings not used by this model: reduction (ffrf)",
-        "rigid": "note: body rod (model: rigid): settings not used by this model: reduction (ffrf), "
-                 "initial.elastic_displacement (ffrf, acf), initial.elastic_velocity (ffrf, acf)"}
+UNUSED = {"ffrf": [], "acf": ["reduction.modes"],
+          "rigid": ["reduction.modes", "reduction.frame", "initial.elastic_displacement",
+                    "initial.elastic_velocity"]}
+NOTE = {"acf": "note: body rod (model: acf): settings not used by this model: reduction.modes (ffrf)",
+        "rigid": "note: body rod (model: rigid): settings not used by this model: reduction.modes (ffrf), "
+                 "reduction.frame (ffrf, acf), initial.elastic_displacement (ffrf, acf), "
+                 "initial.elastic_velocity (ffrf, acf)"}
 
 
 def rod(summary):

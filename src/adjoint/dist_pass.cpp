@@ -179,8 +179,8 @@ std::vector<const dynamics::DistState *> DistPass::state_partials(std::size_t j,
         const auto b =
             static_cast<std::size_t>(p_.scene_.bodies[static_cast<std::size_t>(bs.acf_body)].acf);
         Vec3 w = dy;
-        if (bs.quantity ==
-            dynamics::SensorQuantity::ElasticDisplacement) { // through the frame (8.4)
+        // The elastic displacement through its frame's interface nodes (docs/theory.md 8.4).
+        if (bs.quantity == dynamics::SensorQuantity::ElasticDisplacement) {
           Vector d = Vector::Zero(small.q.size());
           w = dynamics::add_acf_elastic_partial(p_.scene_, bs, small,
                                                 da_.point_position(s, b, bs.location), dy, d);
