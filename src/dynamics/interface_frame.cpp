@@ -20,20 +20,29 @@ struct Chord {
   Mat3 Q = Mat3::Identity();
 };
 
-Chord chord(const FrameNodes &n, const Mat3 &A0, const std::string &what) {
+/// The message's start: the body and the time (built only when the frame is refused).
+std::string where(const std::string &body, double t) {
+  std::ostringstream s;
+  s << "body '" << body << "': elastic_displacement's chord frame at t = " << t << " s";
+  return s.str();
+}
+
+Chord chord(const FrameNodes &n, const Mat3 &A0, const std::string &body, double t) {
   Chord ch;
   ch.d_hat = (n.c1 - n.c0).normalized();
   ch.l = n.r1 - n.r0;
   ch.length = ch.l.norm();
   ch.a = A0 * ch.d_hat;
   if (!(ch.length > 0) || !std::isfinite(ch.length))
-    throw Error(what + ": the chord frame's two interfaces meet (the axis is undefined)", true);
+    throw Error(where(body, t) + ": the chord frame's two interfaces meet (the axis is undefined)",
+                true);
   ch.b = ch.l / ch.length;
   ch.v = ch.a.cross(ch.b);
   ch.c = ch.a.dot(ch.b);
   if (!(ch.c > 0)) {
     std::ostringstream msg;
-    msg << what << ": the chord has turned by " << std::acos(std::max(-1.0, std::min(1.0, ch.c)))
+    msg << where(body, t) << ": the chord has turned by "
+        << std::acos(std::max(-1.0, std::min(1.0, ch.c)))
         << " rad from the first interface's axis; the chord frame (docs/theory.md section 8.4) is "
            "defined below pi/2 only";
     throw Error(msg.str(), true);
@@ -45,17 +54,17 @@ Chord chord(const FrameNodes &n, const Mat3 &A0, const std::string &what) {
 
 } // namespace
 
-InterfaceFrame interface_frame(const FrameNodes &n, const std::string &what) {
+InterfaceFrame interface_frame(const FrameNodes &n, const std::string &body, double t) {
   InterfaceFrame f;
   f.r = n.r0;
   f.c = n.c0;
   const Mat3 A0 = bodies::rotation(n.p0);
-  f.A = n.condition == reduce::FrameCondition::Chord ? Mat3(chord(n, A0, what).Q * A0) : A0;
+  f.A = n.condition == reduce::FrameCondition::Chord ? Mat3(chord(n, A0, body, t).Q * A0) : A0;
   return f;
 }
 
 FrameCotangent elastic_cotangent(const FrameNodes &n, const Vec3 &x, const Vec3 &w,
-                                 const std::string &what) {
+                                 const std::string &body, double t) {
   FrameCotangent ct;
   const Mat3 A0 = bodies::rotation(n.p0);
   const Vec3 z = x - n.r0;
@@ -65,7 +74,7 @@ FrameCotangent elastic_cotangent(const FrameNodes &n, const Vec3 &x, const Vec3 
     ct.p0 = bodies::rotate_jacobian(n.p0, w).transpose() * z;
     return ct;
   }
-  const Chord ch = chord(n, A0, what);
+  const Chord ch = chord(n, A0, body, t);
   ct.x = ch.Q * (A0 * w);
   // w . e = z^T Q A(p0) w: through A(p0) directly, and through Q (Qbar = z (A(p0) w)^T).
   ct.p0 = bodies::rotate_jacobian(n.p0, w).transpose() * (ch.Q.transpose() * z);

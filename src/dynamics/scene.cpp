@@ -16,7 +16,6 @@
 #include <cstdio>
 #include <map>
 #include <memory>
-#include <sstream>
 
 namespace flexopt::dynamics {
 
@@ -770,24 +769,17 @@ FrameNodes acf_frame_nodes(const Scene &scene, const SceneBody &body, const Stat
   return n;
 }
 
-namespace {
-std::string frame_owner(const Scene &scene, const SceneBody &body, double t) {
-  std::ostringstream s;
-  s << "body '" << scene.acf[static_cast<std::size_t>(body.acf)]->name()
-    << "': elastic_displacement's chord frame at t = " << t << " s";
-  return s.str();
-}
-} // namespace
-
 InterfaceFrame acf_frame(const Scene &scene, const SceneBody &body, const State &small) {
-  return interface_frame(acf_frame_nodes(scene, body, small), frame_owner(scene, body, small.t));
+  return interface_frame(acf_frame_nodes(scene, body, small),
+                         scene.acf[static_cast<std::size_t>(body.acf)]->name(), small.t);
 }
 
 Vec3 add_acf_elastic_partial(const Scene &scene, const BoundSensor &s, const State &small,
                              const Vec3 &x, const Vec3 &w, Vector &small_q) {
   const SceneBody &sb = scene.bodies[static_cast<std::size_t>(s.acf_body)];
   const FrameCotangent ct =
-      elastic_cotangent(acf_frame_nodes(scene, sb, small), x, w, frame_owner(scene, sb, small.t));
+      elastic_cotangent(acf_frame_nodes(scene, sb, small), x, w,
+                        scene.acf[static_cast<std::size_t>(sb.acf)]->name(), small.t);
   const Mechanism &mech = scene.mechanism;
   const int o = mech.offset(sb.nodes.front());
   small_q.segment<3>(o) += ct.r0;

@@ -7,6 +7,8 @@
 #include "flexopt/bodies/quaternion.hpp"
 #include "flexopt/reduce/flexible_reduction.hpp"
 
+#include <string>
+
 namespace flexopt::dynamics {
 
 /// What the frame is built from: the first interface node (r0, p0), the second's position r1
@@ -28,10 +30,10 @@ struct InterfaceFrame {
   }
 };
 
-/// The frame of section 8.4. Throws flexopt::Error (`what` names the body and the time) if the
+/// The frame of section 8.4 of body `body` at time t. Throws flexopt::Error naming them if the
 /// chord has turned by 90 degrees or more from the first interface's axis, or its two interfaces
 /// meet (the frame is undefined there).
-InterfaceFrame interface_frame(const FrameNodes &n, const std::string &what);
+InterfaceFrame interface_frame(const FrameNodes &n, const std::string &body, double t);
 
 /// The partials of w . e, e the elastic displacement of a point at world position x in the frame
 /// of `n` (section 8.4, "Adjoint"): on x (to be spread over the point's element nodes by their
@@ -41,6 +43,6 @@ struct FrameCotangent {
   bodies::Vec4 p0{0, 0, 0, 0};
 };
 FrameCotangent elastic_cotangent(const FrameNodes &n, const bodies::Vec3 &x, const bodies::Vec3 &w,
-                                 const std::string &what);
+                                 const std::string &body, double t);
 
 } // namespace flexopt::dynamics

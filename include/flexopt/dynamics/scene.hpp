@@ -54,7 +54,7 @@ struct SceneBody {
   std::vector<Vec3> centroids; ///< ACF: the interface centroids c_I (mesh coordinates)
   /// ACF: the frame of its elastic displacement (the body's reduction.frame, section 8.4).
   reduce::FrameCondition frame = reduce::FrameCondition::Clamped;
-  Vec3 position{0, 0, 0};      ///< initial placement: mesh point X at position + R X
+  Vec3 position{0, 0, 0}; ///< initial placement: mesh point X at position + R X
   bodies::Mat3 R = bodies::Mat3::Identity();
   Vec3 velocity{0, 0, 0}, omega{0, 0, 0}; ///< initial velocity of the mesh origin, spin
   /// ACF: initial elastic displacement u(X) and velocity (mesh axes), added to the placement:
